@@ -1,0 +1,2 @@
+//! host-sim: the lift's digital twin.
+#![warn(missing_docs)]

@@ -1,0 +1,3 @@
+//! Placeholder: the embassy firmware binary.
+#![no_std]
+#![no_main]

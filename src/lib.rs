@@ -16,3 +16,4 @@
 
 pub mod control;
 pub mod units;
+pub mod math;

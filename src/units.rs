@@ -1,6 +1,29 @@
 //! Typed fixed-point quantities.
 //!
-//! Placeholder until the fixed-point model lands: only time is needed by the control skeleton.
+//! Every physical quantity that crosses a module boundary has its own type, with its unit in
+//! the name and a Q format chosen for its range on a lift and the error budget of the model
+//! (`docs/model.md`). The storage is the [`fixed`] crate's types: a well-kept, `no_std`,
+//! zero-cost crate whose bit layout is plain two's complement, so kernels can drop to raw
+//! integer arithmetic ([`qmul`], [`qdiv`]) where a mixed-format product must stay one
+//! `SMULL` on a Cortex-M4. All arithmetic saturates: a value that leaves its range sticks at the
+//! bound instead of wrapping, and the estimator flags it.
+//!
+//! | type | Q format | range | resolution |
+//! |---|---|---|---|
+//! | [`Ratio`] (μ, ξ, cos, sin, tan, efficiency) | I4F28 | ±8 | 3.7·10⁻⁹ |
+//! | [`Metres`] (x, h, r_m, L) | I8F24 | ±128 m | 60 nm |
+//! | [`MetresPerSecond`] | I8F24 | ±128 m/s | 60 nm/s |
+//! | [`Newtons`] (R, F₀, N, W) | I24F8 | ±8.4 MN | 3.9 mN |
+//! | [`NewtonMetres`] | I16F16 | ±32 768 N·m | 15 µN·m |
+//! | [`RadiansPerSecond`] | I16F16 | ±32 768 rad/s | 15 µrad/s |
+//! | [`RadiansPerSecond2`] | I24F8 | ±8.4·10⁶ rad/s² | 3.9 mrad/s² |
+//! | [`Kilograms`] | I20F12 | ±524 t | 0.24 g |
+//! | [`KilogramsPerSecond`] (c_x) | I24F8 | ±8.4·10⁶ kg/s | 3.9 g/s |
+//! | [`Amperes`], [`Volts`] | I16F16 | ±32 768 | 15 µ |
+//! | [`Angle`] | binary turn, i32 | −π … π | 1.46 nrad |
+
+use fixed::traits::Fixed;
+use fixed::types::{I16F16, I20F12, I24F8, I4F28, I8F24};
 
 /// A point in time, in microseconds since boot, wrapping every 2^32 µs (71.6 min).
 ///
@@ -15,5 +38,320 @@ impl Instant {
     #[inline]
     pub fn micros_since(self, earlier: Instant) -> u32 {
         self.0.wrapping_sub(earlier.0)
+    }
+}
+
+macro_rules! quantity {
+    ($(#[$doc:meta])* $name:ident, $repr:ty, $unit:literal) => {
+        $(#[$doc])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Default, Hash)]
+        pub struct $name(pub $repr);
+
+        impl $name {
+            /// Zero.
+            pub const ZERO: Self = Self(<$repr>::ZERO);
+            /// Largest value.
+            pub const MAX: Self = Self(<$repr>::MAX);
+            /// Smallest value.
+            pub const MIN: Self = Self(<$repr>::MIN);
+            /// The unit, for messages.
+            pub const UNIT: &'static str = $unit;
+
+            /// From a decimal literal, at compile time (panics at compile time if malformed).
+            pub const fn lit(s: &str) -> Self {
+                Self(<$repr>::lit(s))
+            }
+            /// From raw bits of the Q format.
+            #[inline]
+            pub const fn from_bits(bits: i32) -> Self {
+                Self(<$repr>::from_bits(bits))
+            }
+            /// Raw bits of the Q format.
+            #[inline]
+            pub const fn to_bits(self) -> i32 {
+                self.0.to_bits()
+            }
+            /// From an integer number of units, saturating.
+            #[inline]
+            pub fn from_int(v: i32) -> Self {
+                Self(<$repr>::saturating_from_num(v))
+            }
+            /// Saturating sum.
+            #[inline]
+            pub fn sat_add(self, o: Self) -> Self {
+                Self(self.0.saturating_add(o.0))
+            }
+            /// Saturating difference.
+            #[inline]
+            pub fn sat_sub(self, o: Self) -> Self {
+                Self(self.0.saturating_sub(o.0))
+            }
+            /// Saturating negation.
+            #[inline]
+            pub fn sat_neg(self) -> Self {
+                Self(self.0.saturating_neg())
+            }
+            /// Saturating absolute value.
+            #[inline]
+            pub fn sat_abs(self) -> Self {
+                Self(self.0.saturating_abs())
+            }
+            /// Multiply by a dimensionless ratio, saturating.
+            #[inline]
+            pub fn scale(self, r: Ratio) -> Self {
+                qmul(self, r)
+            }
+            /// Whether the value sits on a saturation bound.
+            #[inline]
+            pub fn is_saturated(self) -> bool {
+                self == Self::MAX || self == Self::MIN
+            }
+            /// To `f64`, for tests, host-sim and display (never on the hot path).
+            #[inline]
+            pub fn to_f64(self) -> f64 {
+                self.0.to_num::<f64>()
+            }
+            /// From `f64`, saturating (NaN gives zero). For tests, host-sim and configuration
+            /// parsing on the host; the board builds its configuration from literals and text.
+            #[inline]
+            pub fn from_f64(v: f64) -> Self {
+                if v.is_nan() {
+                    Self::ZERO
+                } else {
+                    Self(<$repr>::saturating_from_num(v))
+                }
+            }
+        }
+
+        impl Q for $name {
+            const FRAC: u32 = <$repr as Fixed>::FRAC_NBITS;
+            #[inline]
+            fn bits(self) -> i32 {
+                self.0.to_bits()
+            }
+            #[inline]
+            fn from_raw(bits: i32) -> Self {
+                Self(<$repr>::from_bits(bits))
+            }
+        }
+
+        #[cfg(feature = "defmt")]
+        impl defmt::Format for $name {
+            fn format(&self, f: defmt::Formatter) {
+                defmt::write!(f, "{=i32}/2^{=u32} {=str}", self.0.to_bits(), <$repr as Fixed>::FRAC_NBITS, $unit)
+            }
+        }
+    };
+}
+
+quantity!(
+    /// Dimensionless ratio: friction coefficient, ξ, trigonometric values, efficiency (I4F28).
+    Ratio, I4F28, "");
+quantity!(
+    /// Length in metres (I8F24).
+    Metres, I8F24, "m");
+quantity!(
+    /// Linear speed in metres per second (I8F24).
+    MetresPerSecond, I8F24, "m/s");
+quantity!(
+    /// Force in newtons (I24F8).
+    Newtons, I24F8, "N");
+quantity!(
+    /// Torque in newton-metres (I16F16).
+    NewtonMetres, I16F16, "N·m");
+quantity!(
+    /// Angular speed in radians per second (I16F16).
+    RadiansPerSecond, I16F16, "rad/s");
+quantity!(
+    /// Angular acceleration in radians per second squared (I24F8).
+    RadiansPerSecond2, I24F8, "rad/s²");
+quantity!(
+    /// Mass in kilograms (I20F12).
+    Kilograms, I20F12, "kg");
+quantity!(
+    /// Linear damping in kilograms per second (I24F8).
+    KilogramsPerSecond, I24F8, "kg/s");
+quantity!(
+    /// Electric current in amperes (I16F16).
+    Amperes, I16F16, "A");
+quantity!(
+    /// Voltage in volts (I16F16).
+    Volts, I16F16, "V");
+
+impl Ratio {
+    /// One.
+    pub const ONE: Ratio = Ratio(I4F28::ONE);
+}
+
+/// An angle as a binary fraction of a turn: `i32::MIN` is −π, `i32::MAX` one step below +π
+/// (the convention of `idsp::cossin`/`idsp::atan2`), so it wraps exactly like an angle does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Default, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Angle(pub i32);
+
+impl Angle {
+    /// A quarter turn, π/2.
+    pub const QUARTER: Angle = Angle(1 << 30);
+
+    /// From degrees given in I16F16 (exact to the binary-turn resolution).
+    pub fn from_degrees(deg: I16F16) -> Angle {
+        // 2^32 / 360 per degree; deg·2^16 · 2^32/360 / 2^16.
+        let bits = (i64::from(deg.to_bits()) << 32) / (360 << 16);
+        Angle(bits as i32)
+    }
+
+    /// To degrees (I16F16, rounded toward zero).
+    pub fn to_degrees(self) -> I16F16 {
+        I16F16::from_bits(((i64::from(self.0) * 360) >> 16) as i32)
+    }
+
+    /// (cos, sin) of the angle, exact to the last bit of [`Ratio`] (Taylor series in `i128`).
+    ///
+    /// Meant for configuration time (lead angle, α₀): a few hundred instructions, never per tick.
+    pub fn cos_sin(self) -> (Ratio, Ratio) {
+        // |angle| in [0, π], as radians in Q60: turns·2π.
+        const PI_Q60: i128 = 3_622_009_729_038_561_421; // π·2^60
+        let neg = self.0 < 0;
+        let mag = i128::from(self.0).abs(); // ≤ 2^31, 2^31 = π
+        let x = mag * PI_Q60 >> 31;
+        // Fold to [0, π/2]: cos(π − x) = −cos x, sin(π − x) = sin x.
+        let (x, cos_sign) = if x > PI_Q60 / 2 { (PI_Q60 - x, -1) } else { (x, 1) };
+        let one: i128 = 1 << 60;
+        let (mut c, mut s) = (one, x);
+        let (mut tc, mut ts) = (one, x);
+        let x2 = x * x >> 60;
+        let mut n: i128 = 1;
+        while n < 14 {
+            tc = -(tc * x2 >> 60) / ((2 * n - 1) * (2 * n));
+            ts = -(ts * x2 >> 60) / ((2 * n) * (2 * n + 1));
+            c += tc;
+            s += ts;
+            n += 1;
+        }
+        let q28 = |v: i128| Ratio::from_bits(((v + (1 << 31)) >> 32) as i32);
+        (q28(c * cos_sign), q28(if neg { -s } else { s }))
+    }
+
+    /// atan2(y, x) of two ratios (any common scale), error ≤ 2.5·10⁻⁶ rad (idsp's `atan2`; tests).
+    pub fn atan2(y: Ratio, x: Ratio) -> Angle {
+        Angle(idsp::atan2(y.to_bits(), x.to_bits()))
+    }
+
+    /// To radians as `f64`, for tests and display.
+    pub fn to_radians_f64(self) -> f64 {
+        f64::from(self.0) * core::f64::consts::PI / 2_147_483_648.0
+    }
+
+    /// From radians as `f64` (tests and host tooling).
+    pub fn from_radians_f64(rad: f64) -> Angle {
+        let turns = rad / (2.0 * core::f64::consts::PI);
+        let wrapped = turns - (turns + 0.5).floor();
+        Angle((wrapped * 4_294_967_296.0) as i64 as i32)
+    }
+}
+
+/// A fixed-point quantity: raw `i32` bits with `FRAC` fractional bits.
+pub trait Q: Copy {
+    /// Number of fractional bits.
+    const FRAC: u32;
+    /// Raw bits.
+    fn bits(self) -> i32;
+    /// From raw bits.
+    fn from_raw(bits: i32) -> Self;
+}
+
+/// Saturate an `i64` to `i32`.
+#[inline]
+pub fn sat32(v: i64) -> i32 {
+    if v > i64::from(i32::MAX) {
+        i32::MAX
+    } else if v < i64::from(i32::MIN) {
+        i32::MIN
+    } else {
+        v as i32
+    }
+}
+
+/// Shift right by `s` bits if positive, left (saturating) if negative.
+#[inline]
+fn shift_to(v: i64, s: i32) -> i64 {
+    if s >= 0 {
+        v >> s
+    } else {
+        v.checked_shl((-s) as u32)
+            .filter(|r| r >> (-s) == v)
+            .unwrap_or(if v < 0 { i64::MIN } else { i64::MAX })
+    }
+}
+
+/// Mixed-format product `a·b` in the output's Q format, saturating; rounds toward −∞.
+///
+/// One 32×32→64 multiply and a shift: `SMULL` + shifts on a Cortex-M4.
+#[inline]
+pub fn qmul<A: Q, B: Q, O: Q>(a: A, b: B) -> O {
+    let p = i64::from(a.bits()) * i64::from(b.bits());
+    O::from_raw(sat32(shift_to(p, (A::FRAC + B::FRAC) as i32 - O::FRAC as i32)))
+}
+
+/// Mixed-format quotient `a/b` in the output's Q format, saturating; `b = 0` gives the bound
+/// of `a`'s sign. A 64-bit division: keep it off the per-tick path (see [`crate::math::recip`]).
+#[inline]
+pub fn qdiv<A: Q, B: Q, O: Q>(a: A, b: B) -> O {
+    let num = shift_to(i64::from(a.bits()), -((O::FRAC + B::FRAC) as i32 - A::FRAC as i32));
+    if b.bits() == 0 {
+        return O::from_raw(if a.bits() < 0 { i32::MIN } else { i32::MAX });
+    }
+    O::from_raw(sat32(num / i64::from(b.bits())))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mixed_products_and_quotients_match_float() {
+        let r = Metres::lit("0.004265");
+        let n = Newtons::lit("36600");
+        let t: NewtonMetres = qmul(r, n);
+        assert!((t.to_f64() - 0.004265 * 36600.0).abs() < 1e-3);
+        let back: Newtons = qdiv(t, r);
+        assert!((back.to_f64() - 36600.0).abs() / 36600.0 < 1e-4);
+    }
+
+    #[test]
+    fn products_saturate_instead_of_wrapping() {
+        let t: NewtonMetres = qmul(Newtons::MAX, Metres::lit("100"));
+        assert_eq!(t, NewtonMetres::MAX);
+        let t: NewtonMetres = qmul(Newtons::MIN, Metres::lit("100"));
+        assert_eq!(t, NewtonMetres::MIN);
+        let q: Ratio = qdiv(Newtons::lit("1"), Newtons::ZERO);
+        assert_eq!(q, Ratio::MAX);
+    }
+
+    #[test]
+    fn atan2_is_within_2_5e6_rad_all_around() {
+        let mut worst: f64 = 0.0;
+        for i in 0..36_000 {
+            let a = Angle::from_radians_f64((f64::from(i) / 100.0 - 180.0).to_radians());
+            let (c, s) = a.cos_sin();
+            let e = (Angle::atan2(s, c).0.wrapping_sub(a.0)) as f64 * core::f64::consts::PI / 2_147_483_648.0;
+            worst = worst.max(e.abs());
+        }
+        assert!(worst < 2.5e-6, "{worst:e}");
+    }
+
+    #[test]
+    fn angle_round_trips_degrees_and_trig_is_accurate() {
+        for d in [0.0, 3.47, 15.0, 45.0, 65.0, 89.0, 90.0, 135.0, -30.0, 179.9] {
+            let a = Angle::from_degrees(I16F16::from_num(d));
+            assert!((a.to_degrees().to_num::<f64>() - d).abs() < 1e-4);
+            let (c, s) = a.cos_sin();
+            // The angle itself is exact to 1.5e-9 rad; cos/sin to the Q28 LSB.
+            let r = a.to_radians_f64();
+            assert!((c.to_f64() - r.cos()).abs() < 4e-9);
+            assert!((s.to_f64() - r.sin()).abs() < 4e-9);
+            let back = Angle::atan2(s, c);
+            assert!((back.to_radians_f64() - r).abs() < 2e-6, "{d}: {} {r}", back.to_radians_f64());
+        }
     }
 }

@@ -1,0 +1,155 @@
+//! The default board: STM32G431CB + BTS7960 H-bridge + quadrature encoder (docs/board.md).
+//!
+//! This module owns every pin and peripheral choice; `main.rs` only sequences tasks.
+//! Nothing here decides anything: the control core gets raw counts and codes
+//! ([`liftfw::control::Inputs`]) and its [`liftfw::control::Outputs`] are applied verbatim.
+//!
+//! | Pin  | Peripheral        | Function                                        |
+//! |------|-------------------|-------------------------------------------------|
+//! | PA8  | TIM1_CH1 (AF6)    | BTS7960 RPWM: lifting half-bridge input, 20 kHz |
+//! | PA9  | TIM1_CH2 (AF6)    | BTS7960 LPWM: lowering half-bridge input        |
+//! | PB12 | GPIO out          | BTS7960 R_EN (high = right half-bridge enabled) |
+//! | PB13 | GPIO out          | BTS7960 L_EN (high = left half-bridge enabled)  |
+//! | PA0  | ADC1_IN1 (inj.)   | BTS7960 R_IS current sense                      |
+//! | PA1  | ADC1_IN2 (inj.)   | BTS7960 L_IS current sense                      |
+//! | PA4  | ADC2_IN17         | 12 V supply through the 47k/10k divider         |
+//! | PB6  | TIM4_CH1 (AF2)    | encoder A                                       |
+//! | PB7  | TIM4_CH2 (AF2)    | encoder B                                       |
+//! | PA2  | USART2_TX (AF7)   | console TX, 115 200 8N1                         |
+//! | PA3  | USART2_RX (AF7)   | console RX                                      |
+//! | PB10 | GPIO in, pull-up  | upper limit switch, NC to GND (high = active)   |
+//! | PB11 | GPIO in, pull-up  | lower limit switch, NC to GND (high = active)   |
+//! | PB14 | GPIO in, pull-up  | UP button, NO to GND (low = pressed)            |
+//! | PB15 | GPIO in, pull-up  | DOWN button, NO to GND (low = pressed)          |
+//! | PB5  | GPIO in, pull-up  | STOP button, NC to GND (high = pressed)         |
+//!
+//! Timers: TIM1 = bridge PWM (its CH4, no pin, triggers the current ADC), TIM2 = embassy-time
+//! driver (cargo feature `time-driver-tim2`), TIM4 = encoder. SWD stays on PA13/PA14.
+
+pub mod bridge;
+pub mod sensors;
+
+use embassy_stm32::peripherals::{PA2, PA3, USART2};
+use embassy_stm32::time::Hertz;
+use embassy_stm32::wdg::IndependentWatchdog;
+use embassy_stm32::{Peri, Peripherals};
+
+pub use bridge::HBridge;
+pub use sensors::Sensors;
+
+/// H-bridge PWM frequency: above hearing, and within the BTS7960's switching budget
+/// (its datasheet characterises up to 25 kHz).
+pub const PWM_FREQUENCY: Hertz = Hertz::khz(20);
+
+/// Independent-watchdog timeout in µs: 50 control ticks at 1 kHz. Long enough to
+/// ride out a defmt burst, short enough that a hung loop stops the motor within
+/// a fraction of a millimetre of nut travel.
+pub const WATCHDOG_TIMEOUT_US: u32 = 50_000;
+
+/// Console baud rate (8N1).
+pub const CONSOLE_BAUD: u32 = 115_200;
+
+/// Clock tree: 170 MHz SYSCLK from HSI16 through the PLL (16 / 4 × 85 / 2), range-1 boost.
+///
+/// HSI keeps the default board crystal-free; its ±1 % is plenty for 115 200 Bd and a
+/// 20 kHz PWM. The ADCs run from SYSCLK (the HAL divides it by 4 to 42.5 MHz, under 60 MHz).
+pub fn clock_config() -> embassy_stm32::Config {
+    use embassy_stm32::rcc::{mux, Pll, PllMul, PllPreDiv, PllRDiv, PllSource, Sysclk};
+
+    let mut config = embassy_stm32::Config::default();
+    config.rcc.pll = Some(Pll {
+        source: PllSource::HSI,
+        prediv: PllPreDiv::DIV4,
+        mul: PllMul::MUL85,
+        divp: None,
+        divq: None,
+        divr: Some(PllRDiv::DIV2),
+    });
+    config.rcc.sys = Sysclk::PLL1_R;
+    // Above 150 MHz the core regulator must be in range-1 boost mode (RM0440 §6.1.5).
+    config.rcc.boost = true;
+    config.rcc.mux.adc12sel = mux::Adcsel::SYS;
+    config
+}
+
+/// The console UART's peripheral and pins, handed to the console task as they are.
+pub struct ConsolePins {
+    /// USART2.
+    pub usart: Peri<'static, USART2>,
+    /// USART2_TX.
+    pub tx: Peri<'static, PA2>,
+    /// USART2_RX.
+    pub rx: Peri<'static, PA3>,
+}
+
+/// Everything the control task touches each tick.
+pub struct Board {
+    /// Motor H-bridge.
+    pub bridge: HBridge,
+    /// Encoder, ADC channels and switch inputs.
+    pub sensors: Sensors,
+    /// The independent watchdog, already running.
+    pub watchdog: Watchdog,
+}
+
+impl Board {
+    /// Claims the board's peripherals. The bridge comes up coasting (both enables low)
+    /// before anything else runs, and the watchdog is started last.
+    pub fn new(p: Peripherals) -> (Self, ConsolePins) {
+        let bridge = HBridge::new(p.TIM1, p.PA8, p.PA9, p.PB12, p.PB13);
+        let sensors = Sensors::new(sensors::SensorPeripherals {
+            encoder_timer: p.TIM4,
+            encoder_a: p.PB6,
+            encoder_b: p.PB7,
+            current_adc: p.ADC1,
+            current_right: p.PA0,
+            current_left: p.PA1,
+            supply_adc: p.ADC2,
+            supply: p.PA4,
+            limit_upper: p.PB10,
+            limit_lower: p.PB11,
+            button_up: p.PB14,
+            button_down: p.PB15,
+            button_stop: p.PB5,
+        });
+        let watchdog = Watchdog::start(p.IWDG);
+        let console = ConsolePins {
+            usart: p.USART2,
+            tx: p.PA2,
+            rx: p.PA3,
+        };
+        (
+            Self {
+                bridge,
+                sensors,
+                watchdog,
+            },
+            console,
+        )
+    }
+}
+
+/// The IWDG, fed only on the core's say-so ([`liftfw::control::Outputs::feed_watchdog`]).
+pub struct Watchdog {
+    iwdg: IndependentWatchdog<'static, embassy_stm32::peripherals::IWDG>,
+}
+
+impl Watchdog {
+    fn start(iwdg: Peri<'static, embassy_stm32::peripherals::IWDG>) -> Self {
+        // Freeze the IWDG while a debugger halts the core, so a breakpoint does not reset
+        // the chip. No effect without a debugger attached.
+        embassy_stm32::pac::DBGMCU
+            .apb1lfzr()
+            .modify(|w| w.set_iwdg(true));
+        let mut iwdg = IndependentWatchdog::new(iwdg, WATCHDOG_TIMEOUT_US);
+        iwdg.unleash();
+        Self { iwdg }
+    }
+
+    /// Reloads the counter. Once started the IWDG cannot be stopped: not feeding it for
+    /// [`WATCHDOG_TIMEOUT_US`] resets the MCU; its pins then float, and the 10 kΩ
+    /// pull-downs on R_EN/L_EN (docs/board.md) make the bridge coast.
+    pub fn feed(&mut self) {
+        self.iwdg.pet();
+    }
+}

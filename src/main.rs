@@ -46,8 +46,9 @@ async fn main(spawner: Spawner) {
     spawner.spawn(defmt::unwrap!(console_echo(console)));
 }
 
-/// The fixed-rate control loop: sample → `step` → apply. Missed ticks are not replayed
-/// (embassy's `Ticker` catches up by skipping); the core sees the real `now`.
+/// The fixed-rate control loop: sample → `step` → apply. If a tick is late, embassy's
+/// `Ticker` keeps its schedule and runs the missed ticks back to back; each one passes the
+/// real `now`, so the core sees the short intervals as they are.
 #[embassy_executor::task]
 async fn control(mut board: Board) {
     let mut controller = Controller::new();

@@ -66,10 +66,12 @@ impl HBridge {
         // CH4 drives no pin. PWM mode 2 makes OC4REF rise at CNT = CCR4, and the CC4 event
         // happens there too, so the ADC trigger lands at CCR4 whichever of the two the
         // ADC's "TIM1_CC4" input is wired to.
-        let mut ch4 = pwm.ch4();
-        ch4.set_output_compare_mode(OutputCompareMode::PwmMode2);
-        ch4.set_duty_cycle(full_scale / 2);
-        ch4.enable();
+        {
+            let mut ch4 = pwm.ch4();
+            ch4.set_output_compare_mode(OutputCompareMode::PwmMode2);
+            ch4.set_duty_cycle(full_scale / 2);
+            ch4.enable();
+        }
         Self {
             pwm,
             enable_right,

@@ -9,11 +9,37 @@
 //!
 //! Module map (data flows one way per tick: sensors → estimate → decide → actuators):
 //! - [`units`]: typed fixed-point quantities with their Q formats.
+//! - [`math`]: integer kernels (e^(−y), √, 1/x) with proven error bounds.
+//! - [`model`]: the fixed-point screw-nut model of seed 000 (geometry, friction laws, contact).
+//! - [`estimator`]: the real-time friction-torque estimator built on the model.
 //! - [`control`]: the per-tick entry point shared by the board and host-sim.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
+#![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used))]
 
 pub mod control;
-pub mod units;
 pub mod math;
+pub mod model;
+pub mod units;
+
+/// A configuration value was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ConfigError {
+    /// `field` lies outside `range`.
+    OutOfRange {
+        /// The setting's key, as the console names it.
+        field: &'static str,
+        /// Its accepted range with unit.
+        range: &'static str,
+    },
+}
+
+impl core::fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ConfigError::OutOfRange { field, range } => write!(f, "{field} out of range (allowed {range})"),
+        }
+    }
+}

@@ -1,0 +1,368 @@
+//! Scissor geometry (Eq 1), pin friction (Eq 6) and structure damping (Eq 4, Table 1).
+//!
+//! The lift is a rhombus of four arms with the lead screw on its horizontal diagonal; `L` is
+//! Eq 1's length (the diagonal, twice the arm length): `x = L·(cos α₀ − cos α)`,
+//! `h = h₀ + L·sin α` (docs/model.md). The motor encoder sees θ_i; at the resolution of a
+//! control tick the coupling's twist is ignored for position (θ ≈ θ_i: 160 N·m/rad gives
+//! ≤ 0.05 mm of nut travel at 50 N·m).
+
+use crate::math::{recip_q30, sqrt_q30};
+use crate::model::Scale;
+use crate::units::{qmul, sat32, Angle, Kilograms, KilogramsPerSecond, Metres, Newtons, Q, Ratio};
+use crate::ConfigError;
+use fixed::types::I16F16;
+
+/// Standard gravity in Q16 m/s².
+const G_Q16: i64 = 642_689; // 9.80665·2^16
+
+/// Table 1 of seed 000: (α in degrees, c_x in kg/s), Eq 4 with ζ = 0.3, m_eq = 1000 kg.
+pub const DAMPING_TABLE: [(i32, i32); 3] = [(15, 58_544), (45, 28_878), (65, 23_175)];
+
+/// Lift geometry as the user configures it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct GeometryConfig {
+    /// Eq 1's length L (rhombus diagonal = twice the arm length), 0.05…2 m.
+    pub length: Metres,
+    /// Arm angle fully down α₀, 12…60°.
+    pub alpha0_deg: I16F16,
+    /// Largest arm angle of the mechanism, α₀ + 5° … 89°.
+    pub alpha_max_deg: I16F16,
+    /// Height of the head with the rhombus collapsed (base + head), 0…1 m.
+    pub h0: Metres,
+    /// Pin friction coefficient μ_b (Eq 6), 0…1.
+    pub mu_pin: Ratio,
+}
+
+/// Drive train as the user configures it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DriveConfig {
+    /// Encoder counts per motor revolution (quadrature edges), 4…65 536.
+    pub counts_per_rev: u32,
+    /// Gear ratio, motor turns per screw turn, 1…1000.
+    pub gear_ratio: I16F16,
+    /// Pitch radius r_m, 1…50 mm.
+    pub pitch_radius: Metres,
+    /// Lead angle λ, 0.5…20°.
+    pub lead_angle_deg: I16F16,
+}
+
+impl GeometryConfig {
+    /// The default lift: L = 0.4 m (0.2 m arms), α₀ = 15°, α_max = 75°, h₀ = 30 mm, μ_b = 0.3.
+    pub const DEFAULT: GeometryConfig = GeometryConfig {
+        length: Metres::lit("0.4"),
+        alpha0_deg: I16F16::lit("15"),
+        alpha_max_deg: I16F16::lit("75"),
+        h0: Metres::lit("0.03"),
+        mu_pin: Ratio::lit("0.3"),
+    };
+}
+
+impl DriveConfig {
+    /// The default drive: 44 counts per motor turn (11-pole Hall encoder ×4), 20:1 gearbox,
+    /// seed 000's S12x2 screw (r_m = 4.265 mm, λ = 3.47°).
+    pub const DEFAULT: DriveConfig = DriveConfig {
+        counts_per_rev: 44,
+        gear_ratio: I16F16::lit("20"),
+        pitch_radius: Metres::lit("0.004265"),
+        lead_angle_deg: I16F16::lit("3.47"),
+    };
+}
+
+fn check<T: PartialOrd>(v: T, lo: T, hi: T, field: &'static str, range: &'static str) -> Result<(), ConfigError> {
+    if v >= lo && v <= hi {
+        Ok(())
+    } else {
+        Err(ConfigError::OutOfRange { field, range })
+    }
+}
+
+/// Validated geometry with its per-tick constants.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Geometry {
+    cfg: GeometryConfig,
+    cos_a0: Ratio,
+    /// Valid band of cos α: [cos 89.5°, cos(α₀ − 5°)].
+    cos_lo: Ratio,
+    cos_hi: Ratio,
+    /// 1/L in Q24 per metre.
+    inv_len_q24: i32,
+    /// Nut travel per motor encoder count: x_Q24 = counts·metres_per_count.
+    metres_per_count: Scale,
+    /// Motor counts per metre of nut travel (inverse of the above).
+    counts_per_metre: Scale,
+    /// Screw radians per motor count, as a scale from counts to Q16 radians.
+    screw_rad_per_count: Scale,
+    /// Damping table as (α, c_x, slope per Angle LSB in Q8·2^-24 kg/s).
+    damping: [(Angle, KilogramsPerSecond, i64); 3],
+    alpha_max: Angle,
+    alpha0: Angle,
+}
+
+/// Where the lift is, derived from one position.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Pose {
+    /// Nut travel from fully down, m.
+    pub x: Metres,
+    /// cos α.
+    pub cos_alpha: Ratio,
+    /// sin α.
+    pub sin_alpha: Ratio,
+    /// 1/sin α.
+    pub inv_sin_alpha: Ratio,
+    /// Arm angle α.
+    pub alpha: Angle,
+    /// Head height, m.
+    pub height: Metres,
+    /// The position lay outside the mechanism (below α₀ − 5° or above 89.5°) and was clamped.
+    pub clamped: bool,
+}
+
+impl Geometry {
+    /// Validate a configuration once; every later call is total.
+    pub fn new(cfg: GeometryConfig, drive: DriveConfig) -> Result<Geometry, ConfigError> {
+        check(cfg.length, Metres::lit("0.05"), Metres::lit("2"), "geometry.length", "0.05..2 m")?;
+        check(cfg.alpha0_deg, I16F16::lit("12"), I16F16::lit("60"), "geometry.alpha0", "12..60 deg")?;
+        check(
+            cfg.alpha_max_deg,
+            cfg.alpha0_deg.saturating_add(I16F16::lit("5")),
+            I16F16::lit("89"),
+            "geometry.alpha_max",
+            "alpha0+5..89 deg",
+        )?;
+        check(cfg.h0, Metres::ZERO, Metres::lit("1"), "geometry.h0", "0..1 m")?;
+        check(cfg.mu_pin, Ratio::ZERO, Ratio::ONE, "geometry.mu_pin", "0..1")?;
+        check(drive.counts_per_rev, 4, 65_536, "drive.counts_per_rev", "4..65536")?;
+        check(drive.gear_ratio, I16F16::ONE, I16F16::lit("1000"), "drive.gear_ratio", "1..1000")?;
+        check(drive.pitch_radius, Metres::lit("0.001"), Metres::lit("0.05"), "drive.pitch_radius", "1..50 mm")?;
+        check(drive.lead_angle_deg, I16F16::lit("0.5"), I16F16::lit("20"), "drive.lead_angle", "0.5..20 deg")?;
+
+        let alpha0 = Angle::from_degrees(cfg.alpha0_deg);
+        let (cos_a0, _) = alpha0.cos_sin();
+        let (cos_hi, _) = Angle::from_degrees(cfg.alpha0_deg - I16F16::lit("5")).cos_sin();
+        let (cos_lo, _) = Angle::from_degrees(I16F16::lit("89.5")).cos_sin();
+        let inv_len_q24 = ((1i64 << 48) / i64::from(cfg.length.bits())) as i32;
+
+        // Nut travel per count = r_m·tanλ·2π / (counts_per_rev·gear_ratio).
+        let (cl, sl) = Angle::from_degrees(drive.lead_angle_deg).cos_sin();
+        let tan_q28 = (i128::from(sl.bits()) << 28) / i128::from(cl.bits());
+        const TWO_PI_Q28: i128 = 1_686_629_713; // 2π·2^28
+        // r_m(Q24)·tan(Q28)·2π(Q28) over counts·ratio(Q16); the extra 2^16 below cancels the ratio's Q16.
+        let den = i128::from(drive.counts_per_rev) * i128::from(drive.gear_ratio.to_bits());
+        let num = i128::from(drive.pitch_radius.bits()) * tan_q28 * TWO_PI_Q28;
+        // metres_per_count applied to counts (Q0) gives Q24 metres: value·2^24 = num/den / 2^56.
+        let metres_per_count = Scale::from_ratio(num << 16, den << 56);
+        let counts_per_metre = Scale::from_ratio(den << 56, num << 16);
+        // Screw radians per count in Q16: 2π·2^16/(counts·ratio) → num 2π(Q28)·2^16·2^16 / (den·2^28).
+        let screw_rad_per_count = Scale::from_ratio(TWO_PI_Q28 << 32, den << 28);
+
+        let mut damping = [(Angle(0), KilogramsPerSecond::ZERO, 0i64); 3];
+        for (i, &(deg, cx)) in DAMPING_TABLE.iter().enumerate() {
+            damping[i] = (Angle::from_degrees(I16F16::from_num(deg)), KilogramsPerSecond::from_int(cx), 0);
+        }
+        for i in 0..2 {
+            let da = i64::from(damping[i + 1].0 .0 - damping[i].0 .0);
+            let dc = i64::from(damping[i + 1].1.bits() - damping[i].1.bits());
+            damping[i].2 = (dc << 24) / da;
+        }
+        Ok(Geometry {
+            cfg,
+            cos_a0,
+            cos_lo,
+            cos_hi,
+            inv_len_q24,
+            metres_per_count,
+            counts_per_metre,
+            screw_rad_per_count,
+            damping,
+            alpha_max: Angle::from_degrees(cfg.alpha_max_deg),
+            alpha0,
+        })
+    }
+
+    /// The configuration this geometry was built from.
+    pub fn config(&self) -> &GeometryConfig {
+        &self.cfg
+    }
+
+    /// Arm angle fully down, α₀.
+    pub fn alpha0(&self) -> Angle {
+        self.alpha0
+    }
+
+    /// Largest arm angle of the mechanism.
+    pub fn alpha_max(&self) -> Angle {
+        self.alpha_max
+    }
+
+    /// Nut travel for a motor encoder position (counts from fully down).
+    #[inline]
+    pub fn travel(&self, counts: i32) -> Metres {
+        Metres::from_raw(self.metres_per_count.apply32(counts))
+    }
+
+    /// Screw angle θ in Q16 radians for a motor encoder position.
+    #[inline]
+    pub fn screw_angle_q16(&self, counts: i32) -> i32 {
+        self.metres_per_count_to_rad(counts)
+    }
+
+    fn metres_per_count_to_rad(&self, counts: i32) -> i32 {
+        self.screw_rad_per_count.apply32(counts)
+    }
+
+    /// Scale from motor counts to screw radians in Q16 (for speed filters).
+    pub fn screw_rad_per_count(&self) -> Scale {
+        self.screw_rad_per_count
+    }
+
+    /// The pose for a motor encoder position (counts from fully down). Total: positions outside
+    /// the mechanism are clamped and flagged.
+    #[inline]
+    pub fn pose(&self, counts: i32) -> Pose {
+        self.pose_at_travel(self.travel(counts))
+    }
+
+    /// The pose for a nut travel `x` (Eq 1: cos α = cos α₀ − x/L).
+    pub fn pose_at_travel(&self, x: Metres) -> Pose {
+        // x/L in Q28: x(Q24)·invL(Q24) → Q48 → >> 20.
+        let x_over_l = sat32((i64::from(x.bits()) * i64::from(self.inv_len_q24)) >> 20);
+        let mut c = self.cos_a0.bits().saturating_sub(x_over_l);
+        let mut clamped = false;
+        if c > self.cos_hi.bits() {
+            c = self.cos_hi.bits();
+            clamped = true;
+        } else if c < self.cos_lo.bits() {
+            c = self.cos_lo.bits();
+            clamped = true;
+        }
+        // sin α = √(1 − c²): c in Q28 → c² in Q56 → 1 − c² in Q30 for the kernel.
+        let c2_q30 = ((i64::from(c) * i64::from(c)) >> 26) as u32;
+        let s_q30 = sqrt_q30((1u32 << 30) - c2_q30);
+        let s = Ratio::from_raw((s_q30 >> 2) as i32);
+        let inv_s = Ratio::from_raw(recip_q30(s_q30) as i32);
+        let cos_alpha = Ratio::from_raw(c);
+        let alpha = Angle::atan2(s, cos_alpha);
+        let height = self.cfg.h0.sat_add(qmul::<Metres, Ratio, Metres>(self.cfg.length, s));
+        Pose {
+            x,
+            cos_alpha,
+            sin_alpha: s,
+            inv_sin_alpha: inv_s,
+            alpha,
+            height,
+            clamped,
+        }
+    }
+
+    /// Motor encoder position (counts from fully down) at which the head is at `height`;
+    /// `None` if the height is outside α₀ … α_max.
+    pub fn counts_for_height(&self, height: Metres) -> Option<i32> {
+        // sin α = (h − h₀)/L.
+        let dh = i64::from(height.bits()) - i64::from(self.cfg.h0.bits());
+        if dh <= 0 {
+            return None;
+        }
+        let s_q28 = (dh << 28) / i64::from(self.cfg.length.bits());
+        let (_, s_min) = self.alpha0.cos_sin();
+        let (_, s_max) = self.alpha_max.cos_sin();
+        if s_q28 < i64::from(s_min.bits()) - 1 || s_q28 > i64::from(s_max.bits()) + 1 {
+            return None;
+        }
+        let c2 = (1i64 << 56) - s_q28 * s_q28; // Q56
+        let c_q30 = sqrt_q30((c2 >> 26) as u32);
+        let c = i64::from(c_q30 >> 2);
+        // x = L·(cos α₀ − c).
+        let x_q24 = (i64::from(self.cfg.length.bits()) * (i64::from(self.cos_a0.bits()) - c)) >> 28;
+        Some(sat32(self.counts_per_metre.apply(sat32(x_q24))))
+    }
+
+    /// The load's weight M·g.
+    #[inline]
+    pub fn weight(mass: Kilograms) -> Newtons {
+        Newtons::from_raw(sat32((i64::from(mass.bits()) * G_Q16) >> 20))
+    }
+
+    /// Axial load on the nut (Eq 1): R = M·g/tan α = M·g·cos α/sin α.
+    #[inline]
+    pub fn axial_load(&self, pose: &Pose, weight: Newtons) -> Newtons {
+        weight.scale(pose.cos_alpha).scale(pose.inv_sin_alpha)
+    }
+
+    /// Pin friction on the translating part (Eq 6): F₀ = 2·μ_b·M·g/sin α.
+    #[inline]
+    pub fn pin_friction(&self, pose: &Pose, weight: Newtons) -> Newtons {
+        let f = weight.scale(self.cfg.mu_pin).scale(pose.inv_sin_alpha);
+        f.sat_add(f)
+    }
+
+    /// Structure damping c_x(α) (Eq 4, Table 1): linear in α between the table's angles, held
+    /// constant outside them.
+    #[inline]
+    pub fn structure_damping(&self, alpha: Angle) -> KilogramsPerSecond {
+        let t = &self.damping;
+        if alpha <= t[0].0 {
+            return t[0].1;
+        }
+        let i = if alpha <= t[1].0 {
+            0
+        } else if alpha <= t[2].0 {
+            1
+        } else {
+            return t[2].1;
+        };
+        let da = i64::from(alpha.0 - t[i].0 .0);
+        KilogramsPerSecond::from_raw(t[i].1.bits().saturating_add(((da * t[i].2) >> 24) as i32))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn geo() -> Geometry {
+        match Geometry::new(GeometryConfig::DEFAULT, DriveConfig::DEFAULT) {
+            Ok(g) => g,
+            Err(e) => panic!("{e}"),
+        }
+    }
+
+    #[test]
+    fn default_geometry_is_valid_and_fully_down_is_alpha0() {
+        let p = geo().pose(0);
+        assert!((p.alpha.to_radians_f64().to_degrees() - 15.0).abs() < 1e-4);
+        assert!(!p.clamped);
+    }
+
+    #[test]
+    fn out_of_range_settings_are_refused_with_their_field() {
+        let mut c = GeometryConfig::DEFAULT;
+        c.alpha0_deg = I16F16::lit("5");
+        let e = Geometry::new(c, DriveConfig::DEFAULT).unwrap_err();
+        assert_eq!(e, ConfigError::OutOfRange { field: "geometry.alpha0", range: "12..60 deg" });
+    }
+
+    #[test]
+    fn height_to_counts_round_trips() {
+        let g = geo();
+        for h_mm in [140, 200, 300, 400] {
+            let h = Metres::from_f64(f64::from(h_mm) / 1000.0);
+            let counts = g.counts_for_height(h).unwrap();
+            let back = g.pose(counts).height;
+            // One motor count moves the head by up to cot α₀·1.85 µm ≈ 7 µm.
+            assert!((back.to_f64() - h.to_f64()).abs() < 8e-6, "{h_mm}: {}", back.to_f64());
+        }
+        assert_eq!(g.counts_for_height(Metres::lit("0.9")), None);
+    }
+
+    #[test]
+    fn damping_follows_table_one() {
+        let g = geo();
+        for (deg, cx) in DAMPING_TABLE {
+            let a = Angle::from_degrees(I16F16::from_num(deg));
+            assert!((g.structure_damping(a).to_f64() - f64::from(cx)).abs() < 1.0);
+        }
+    }
+}

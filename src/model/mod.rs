@@ -1,0 +1,68 @@
+//! The fixed-point screw-nut model of seed 000 (Eqs 1–14), configured once, evaluated per tick.
+//!
+//! - [`geometry`]: encoder counts → θ → x → α → height and back; R (Eq 1), F₀ (Eq 6), c_x (Eq 4).
+//! - [`friction`]: the friction laws (Eqs 11, 13, 14; seed 002 Eq 3) as one compiled shape.
+//! - [`screw`]: ξ, N, T_r and the torque balance (Eqs 7–10) for both directions and flanks.
+//!
+//! Every function here has a float64 twin in `host-sim::physics` and a property test in
+//! `tests/model_vs_float_twin.rs` bounding its error over the operating envelope.
+
+pub mod friction;
+pub mod geometry;
+pub mod screw;
+
+/// A positive constant stored as `mant·2^−shift` so that it keeps 31 significant bits whatever
+/// its magnitude (rates from 10⁻⁵ to 10⁴ per unit): the "quantise once" form of a coefficient.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Scale {
+    mant: i32,
+    shift: u32,
+}
+
+impl Scale {
+    /// The constant `num/den · 2^out_frac` as a scale applied to raw bits (computed in `i128`).
+    /// `den ≤ 0` or a zero value gives the zero scale.
+    pub fn from_ratio(num: i128, den: i128) -> Scale {
+        if den <= 0 || num == 0 {
+            return Scale::default();
+        }
+        // Find the largest shift ≤ 62 with |num·2^shift/den| < 2^31.
+        let mut shift = 0u32;
+        let mag = num.unsigned_abs();
+        let den_u = den as u128;
+        while shift < 62 && (mag << (shift + 1)) / den_u < (1u128 << 31) {
+            shift += 1;
+        }
+        let m = (mag << shift) / den_u;
+        if m >= 1u128 << 31 {
+            // The constant is ≥ 2^31 in the units asked for: saturate.
+            return Scale {
+                mant: if num < 0 { -i32::MAX } else { i32::MAX },
+                shift: 0,
+            };
+        }
+        let m = m as i32;
+        Scale {
+            mant: if num < 0 { -m } else { m },
+            shift,
+        }
+    }
+
+    /// `v·constant` for a 32-bit input, in `i64` (one `SMULL` and a shift; cannot overflow).
+    #[inline]
+    pub fn apply(self, v: i32) -> i64 {
+        (i64::from(v) * i64::from(self.mant)) >> self.shift
+    }
+
+    /// `v·constant` for a 32-bit input, saturated to `i32`.
+    #[inline]
+    pub fn apply32(self, v: i32) -> i32 {
+        let p = i64::from(v) * i64::from(self.mant);
+        crate::units::sat32(if self.shift >= 64 { 0 } else { p >> self.shift })
+    }
+
+    /// The constant as `f64` (tests, display).
+    pub fn to_f64(self) -> f64 {
+        f64::from(self.mant) / 2f64.powi(self.shift as i32)
+    }
+}

@@ -1,0 +1,240 @@
+//! The screw-nut contact (seed 000, Eqs 7–10) in fixed point, one equation for both directions.
+//!
+//! With `W = m·ẍ + R + F₀·sgn θ̇ + c_x·ẋ` the axial force the thread must deliver to the nut and
+//! μ_s = μ·sgn θ̇: on the loaded flank (W ≥ 0) `N = W/(cos λ − μ_s sin λ)`,
+//! `ξ = (tan λ + μ_s)/(1 − μ_s tan λ)`; when the net axial force reverses (W < 0) the other flank
+//! carries it: `N = W/(cos λ + μ_s sin λ)`, `ξ = (tan λ − μ_s)/(1 + μ_s tan λ)`. Thread torque
+//! `r_m·W·ξ`; friction torque about the screw axis `T_r = μ_s·|N|·r_m·cos λ`
+//! (= μ_s·|W|·r_m/(1 ∓ μ_s tan λ): cos λ cancels). docs/model.md derives it.
+
+use crate::math::recip_q30;
+use crate::model::geometry::DriveConfig;
+use crate::model::Scale;
+use crate::units::{
+    qmul, sat32, Angle, Kilograms, KilogramsPerSecond, Metres, MetresPerSecond, NewtonMetres, Newtons, Q,
+    RadiansPerSecond, RadiansPerSecond2, Ratio,
+};
+use crate::ConfigError;
+
+/// Mechanical constants of the screw assembly (seed 000).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MechanicsConfig {
+    /// Screw inertia I in µkg·m² (seed 000: 3), 0…10⁵.
+    pub inertia_ukgm2: i32,
+    /// Screw support damping c in µN·m·s/rad (seed 000: 400), 0…10⁶.
+    pub damping_unms: i32,
+    /// Support friction torque T₀ (seed 000: 0.01 N·m), 0…10 N·m.
+    pub support_torque: NewtonMetres,
+    /// Translating (nut) mass m (seed 000: ≈ 1 kg), 0…5 kg.
+    pub nut_mass: Kilograms,
+}
+
+impl MechanicsConfig {
+    /// Seed 000's values.
+    pub const DEFAULT: MechanicsConfig = MechanicsConfig {
+        inertia_ukgm2: 3,
+        damping_unms: 400,
+        support_torque: NewtonMetres::lit("0.01"),
+        nut_mass: Kilograms::lit("1"),
+    };
+}
+
+/// Validated screw constants.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ScrewModel {
+    r_m: Metres,
+    tan_l: Ratio,
+    sec_l: Ratio,
+    cos_l: Ratio,
+    /// Nut travel per screw radian, r_m·tan λ: θ̇(Q16) → ẋ(Q24).
+    lead: Scale,
+    /// m·r_m·tan λ: θ̈(Q8) → N(Q8).
+    mass_lead: Scale,
+    /// I: θ̈(Q8) → N·m(Q16).
+    inertia: Scale,
+    /// c: θ̇(Q16) → N·m(Q16).
+    damping: Scale,
+    support_torque: NewtonMetres,
+}
+
+/// The contact state at one tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Contact {
+    /// Signed friction coefficient μ_s = μ·sgn θ̇ (Eq 7).
+    pub mu_s: Ratio,
+    /// ξ of the flank in contact.
+    pub xi: Ratio,
+    /// Axial demand W on the thread.
+    pub axial: Newtons,
+    /// Thread normal force N (negative: the other flank carries the load).
+    pub normal: Newtons,
+    /// Friction torque about the screw axis T_r (Eq 10 with the strict arm r_m·cos λ).
+    pub friction_torque: NewtonMetres,
+    /// Torque the thread contact takes from the screw, r_m·W·ξ.
+    pub thread_torque: NewtonMetres,
+}
+
+impl ScrewModel {
+    /// Validate and quantise once.
+    pub fn new(drive: &DriveConfig, mech: &MechanicsConfig) -> Result<ScrewModel, ConfigError> {
+        let oor = |field, range| Err(ConfigError::OutOfRange { field, range });
+        if !(0..=100_000).contains(&mech.inertia_ukgm2) {
+            return oor("mech.inertia", "0..100000 ukgm2");
+        }
+        if !(0..=1_000_000).contains(&mech.damping_unms) {
+            return oor("mech.damping", "0..1e6 uNms/rad");
+        }
+        if !(mech.support_torque >= NewtonMetres::ZERO && mech.support_torque <= NewtonMetres::lit("10")) {
+            return oor("mech.support_torque", "0..10 Nm");
+        }
+        if !(mech.nut_mass >= Kilograms::ZERO && mech.nut_mass <= Kilograms::lit("5")) {
+            return oor("mech.nut_mass", "0..5 kg");
+        }
+        if !(drive.pitch_radius >= Metres::lit("0.001") && drive.pitch_radius <= Metres::lit("0.05")) {
+            return oor("drive.pitch_radius", "1..50 mm");
+        }
+        let lambda = Angle::from_degrees(drive.lead_angle_deg);
+        if !(lambda >= Angle::from_degrees(fixed::types::I16F16::lit("0.5"))
+            && lambda <= Angle::from_degrees(fixed::types::I16F16::lit("20")))
+        {
+            return oor("drive.lead_angle", "0.5..20 deg");
+        }
+        let (cos_l, sin_l) = lambda.cos_sin();
+        let tan_q28 = (i64::from(sin_l.bits()) << 28) / i64::from(cos_l.bits());
+        let sec_q28 = (1i64 << 56) / i64::from(cos_l.bits());
+        let r = i128::from(drive.pitch_radius.bits()); // Q24
+        let t = i128::from(tan_q28); // Q28
+        // ẋ(Q24) = r·t·θ̇(Q16): value r_m tanλ = r·t/2^52 → scale = r·t·2^24/(2^52·2^16).
+        let lead = Scale::from_ratio(r * t, 1i128 << 44);
+        // F(Q8) = m·r_m·tanλ·θ̈(Q8): m in Q12 → m·r·t/2^64, scale = that·2^8/2^8.
+        let m = i128::from(mech.nut_mass.bits());
+        let mass_lead = Scale::from_ratio(m * r * t, 1i128 << 64);
+        // T(Q16) = I·θ̈(Q8): I in µkg·m² → scale = I·10⁻⁶·2^16/2^8.
+        let inertia = Scale::from_ratio(i128::from(mech.inertia_ukgm2) << 8, 1_000_000);
+        // T(Q16) = c·θ̇(Q16): scale = c·10⁻⁶.
+        let damping = Scale::from_ratio(i128::from(mech.damping_unms), 1_000_000);
+        Ok(ScrewModel {
+            r_m: drive.pitch_radius,
+            tan_l: Ratio::from_raw(tan_q28 as i32),
+            sec_l: Ratio::from_raw(sec_q28 as i32),
+            cos_l,
+            lead,
+            mass_lead,
+            inertia,
+            damping,
+            support_torque: mech.support_torque,
+        })
+    }
+
+    /// tan λ.
+    pub fn tan_lambda(&self) -> Ratio {
+        self.tan_l
+    }
+
+    /// cos λ.
+    pub fn cos_lambda(&self) -> Ratio {
+        self.cos_l
+    }
+
+    /// Pitch radius r_m.
+    pub fn pitch_radius(&self) -> Metres {
+        self.r_m
+    }
+
+    /// Nut speed ẋ = r_m·tan λ·θ̇.
+    #[inline]
+    pub fn nut_speed(&self, theta_dot: RadiansPerSecond) -> MetresPerSecond {
+        MetresPerSecond::from_raw(sat32(self.lead.apply(theta_dot.bits())))
+    }
+
+    /// Axial demand W = m·ẍ + R + F₀·dir + c_x·ẋ, with dir = sgn θ̇ ∈ {−1, 0, 1}.
+    #[inline]
+    pub fn axial_demand(
+        &self,
+        theta_dot: RadiansPerSecond,
+        theta_ddot: RadiansPerSecond2,
+        dir: i8,
+        axial_load: Newtons,
+        pin_friction: Newtons,
+        c_x: KilogramsPerSecond,
+    ) -> Newtons {
+        let inertial = Newtons::from_raw(sat32(self.mass_lead.apply(theta_ddot.bits())));
+        let damping: Newtons = qmul(c_x, self.nut_speed(theta_dot));
+        let pins = match dir {
+            d if d > 0 => pin_friction,
+            d if d < 0 => pin_friction.sat_neg(),
+            _ => Newtons::ZERO,
+        };
+        inertial.sat_add(axial_load).sat_add(pins).sat_add(damping)
+    }
+
+    /// The contact for friction magnitude `mu`, direction `dir` = sgn θ̇ and axial demand `w`.
+    #[inline]
+    pub fn contact(&self, mu: Ratio, dir: i8, w: Newtons) -> Contact {
+        let mu_s = match dir {
+            d if d > 0 => mu,
+            d if d < 0 => mu.sat_neg(),
+            _ => Ratio::ZERO,
+        };
+        let mt: Ratio = qmul(mu_s, self.tan_l);
+        let loaded = w >= Newtons::ZERO;
+        // den = 1 ∓ μ_s tan λ (> 0 for any μ < cot λ ≈ 16; clamped away from 0 for nonsense μ).
+        let den = if loaded { Ratio::ONE.sat_sub(mt) } else { Ratio::ONE.sat_add(mt) };
+        let den_q30 = (den.bits().max(1 << 20) as u32) << 2;
+        let inv = Ratio::from_raw(recip_q30(den_q30) as i32);
+        let num = if loaded { self.tan_l.sat_add(mu_s) } else { self.tan_l.sat_sub(mu_s) };
+        let xi: Ratio = qmul(num, inv);
+        let w_inv: Newtons = qmul(w, inv);
+        let normal: Newtons = qmul(w_inv, self.sec_l);
+        let f: Newtons = qmul(w_inv.sat_abs(), mu_s);
+        let friction_torque: NewtonMetres = qmul(f, self.r_m);
+        let thread_torque: NewtonMetres = qmul(qmul::<Newtons, Ratio, Newtons>(w, xi), self.r_m);
+        Contact {
+            mu_s,
+            xi,
+            axial: w,
+            normal,
+            friction_torque,
+            thread_torque,
+        }
+    }
+
+    /// Torque the coupling must deliver to the screw: I·θ̈ + c·θ̇ + T₀·dir + thread torque.
+    #[inline]
+    pub fn required_torque(
+        &self,
+        theta_dot: RadiansPerSecond,
+        theta_ddot: RadiansPerSecond2,
+        dir: i8,
+        contact: &Contact,
+    ) -> NewtonMetres {
+        let inertia = NewtonMetres::from_raw(sat32(self.inertia.apply(theta_ddot.bits())));
+        let damping = NewtonMetres::from_raw(sat32(self.damping.apply(theta_dot.bits())));
+        let support = match dir {
+            d if d > 0 => self.support_torque,
+            d if d < 0 => self.support_torque.sat_neg(),
+            _ => NewtonMetres::ZERO,
+        };
+        inertia.sat_add(damping).sat_add(support).sat_add(contact.thread_torque)
+    }
+
+    /// Self-locking margin μ − tan λ: the screw holds its load at rest while it is positive.
+    pub fn self_locking_margin(&self, mu: Ratio) -> Ratio {
+        mu.sat_sub(self.tan_l)
+    }
+
+    /// Drive efficiency lifting, tan λ·(1 − μ tan λ)/(tan λ + μ) (power-screw formula).
+    pub fn efficiency_lifting(&self, mu: Ratio) -> Ratio {
+        let one_minus: Ratio = Ratio::ONE.sat_sub(qmul(mu, self.tan_l));
+        crate::units::qdiv(qmul::<Ratio, Ratio, Ratio>(self.tan_l, one_minus), self.tan_l.sat_add(mu))
+    }
+
+    /// Back-drive efficiency tan(λ − φ)/tan λ: negative while the screw is self-locking.
+    pub fn efficiency_backdrive(&self, mu: Ratio) -> Ratio {
+        let num = self.tan_l.sat_sub(mu);
+        let den: Ratio = qmul(Ratio::ONE.sat_add(qmul(mu, self.tan_l)), self.tan_l);
+        crate::units::qdiv(num, den)
+    }
+}

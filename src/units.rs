@@ -11,6 +11,7 @@
 //! | type | Q format | range | resolution |
 //! |---|---|---|---|
 //! | [`Ratio`] (μ, ξ, cos, sin, tan, efficiency) | I4F28 | ±8 | 3.7·10⁻⁹ |
+//! | [`Factor`] (gear ratio) | I16F16 | ±32 768 | 1.5·10⁻⁵ |
 //! | [`Metres`] (x, h, r_m, L) | I8F24 | ±128 m | 60 nm |
 //! | [`MetresPerSecond`] | I8F24 | ±128 m/s | 60 nm/s |
 //! | [`Newtons`] (R, F₀, N, W) | I24F8 | ±8.4 MN | 3.9 mN |
@@ -148,6 +149,9 @@ quantity!(
     /// Dimensionless ratio: friction coefficient, ξ, trigonometric values, efficiency (I4F28).
     Ratio, I4F28, "");
 quantity!(
+    /// Large dimensionless factor: gear ratio, filter scale (I16F16).
+    Factor, I16F16, "");
+quantity!(
     /// Length in metres (I8F24).
     Metres, I8F24, "m");
 quantity!(
@@ -244,9 +248,9 @@ impl Angle {
 
     /// From radians as `f64` (tests and host tooling).
     pub fn from_radians_f64(rad: f64) -> Angle {
+        // Whole turns fall off in the wrapping i64 → i32 cast.
         let turns = rad / (2.0 * core::f64::consts::PI);
-        let wrapped = turns - (turns + 0.5).floor();
-        Angle((wrapped * 4_294_967_296.0) as i64 as i32)
+        Angle((turns * 4_294_967_296.0) as i64 as i32)
     }
 }
 

@@ -61,8 +61,13 @@ impl Scale {
         crate::units::sat32(if self.shift >= 64 { 0 } else { p >> self.shift })
     }
 
+    /// Mantissa and shift: the constant is `mant·2^−shift`.
+    pub fn parts(self) -> (i32, u32) {
+        (self.mant, self.shift)
+    }
+
     /// The constant as `f64` (tests, display).
     pub fn to_f64(self) -> f64 {
-        f64::from(self.mant) / 2f64.powi(self.shift as i32)
+        f64::from(self.mant) / (1u64 << self.shift) as f64
     }
 }

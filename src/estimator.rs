@@ -41,7 +41,6 @@ impl MotorConfig {
 
 /// Everything the estimator needs, as configured.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct EstimatorConfig {
     /// Scissor geometry.
     pub geometry: GeometryConfig,

@@ -170,6 +170,7 @@ fn speed_filter_follows_a_ramp_without_lag() {
     let counts_per_rad = 1.0 / (t.metres_per_count / t.screw.lead_per_rad());
     let acc = 50.0; // rad/s² at the screw
     let mut last = None;
+    let mut acc_sum = 0.0;
     for k in 0..1000u32 {
         let time = f64::from(k) * 1e-3;
         let theta = 0.5 * acc * time * time;
@@ -179,9 +180,16 @@ fn speed_filter_follows_a_ramp_without_lag() {
             load: Kilograms::lit("1000"),
             commanded_dir: 1,
         };
-        last = Some((est.step(Instant(k * 1000), &m), acc * time));
+        let e = est.step(Instant(k * 1000), &m);
+        if k >= 500 {
+            acc_sum += e.screw_accel.to_f64();
+        }
+        last = Some((e, acc * time));
     }
     let (e, true_speed) = last.unwrap();
     assert!((e.screw_speed.to_f64() - true_speed).abs() < 0.5, "{} vs {true_speed}", e.screw_speed.to_f64());
-    assert!((e.screw_accel.to_f64() - acc).abs() < 10.0, "{}", e.screw_accel.to_f64());
+    // The acceleration estimate is a second difference of counts: noisy tick to tick, unbiased
+    // on average.
+    let mean_acc = acc_sum / 500.0;
+    assert!((mean_acc - acc).abs() < 2.0, "{mean_acc}");
 }

@@ -27,7 +27,6 @@ pub enum LawVariable {
 
 /// A friction law as the user gives it: `μ(s) = base + amp·e^(−rate·s) + slope·min(s, s_max)`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FrictionLaw {
     /// Constant term, 0…1.
     pub base: Ratio,

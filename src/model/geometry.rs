@@ -20,7 +20,6 @@ pub const DAMPING_TABLE: [(i32, i32); 3] = [(15, 58_544), (45, 28_878), (65, 23_
 
 /// Lift geometry as the user configures it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct GeometryConfig {
     /// Eq 1's length L (rhombus diagonal = twice the arm length), 0.05…2 m.
     pub length: Metres,
@@ -36,7 +35,6 @@ pub struct GeometryConfig {
 
 /// Drive train as the user configures it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DriveConfig {
     /// Encoder counts per motor revolution (quadrature edges), 4…65 536.
     pub counts_per_rev: u32,

@@ -16,8 +16,8 @@ use crate::model::geometry::{DriveConfig, Geometry, GeometryConfig, Pose};
 use crate::model::screw::{Contact, MechanicsConfig, ScrewModel};
 use crate::model::Scale;
 use crate::units::{
-    qmul, sat32, Amperes, Factor, Instant, Kilograms, KilogramsPerSecond, NewtonMetres, Newtons, Q,
-    RadiansPerSecond, RadiansPerSecond2, Ratio,
+    qmul, sat32, Amperes, Factor, Instant, Kilograms, KilogramsPerSecond, NewtonMetres, Newtons,
+    RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
 };
 use crate::ConfigError;
 
@@ -174,23 +174,42 @@ impl Estimator {
     pub fn new(cfg: &EstimatorConfig) -> Result<Estimator, ConfigError> {
         let geometry = Geometry::new(cfg.geometry, cfg.drive)?;
         let screw = ScrewModel::new(&cfg.drive, &cfg.mechanics)?;
-        let law = cfg.law.compile(cfg.drive.pitch_radius, screw.cos_lambda())?;
+        let law = cfg
+            .law
+            .compile(cfg.drive.pitch_radius, screw.cos_lambda())?;
         let m = &cfg.motor;
         if !(m.torque_constant >= Ratio::lit("0.001") && m.torque_constant <= Ratio::ONE) {
-            return Err(ConfigError::OutOfRange { field: "motor.kt", range: "0.001..1 Nm/A" });
+            return Err(ConfigError::OutOfRange {
+                field: "motor.kt",
+                range: "0.001..1 Nm/A",
+            });
         }
         if !(m.gear_efficiency >= Ratio::lit("0.1") && m.gear_efficiency <= Ratio::ONE) {
-            return Err(ConfigError::OutOfRange { field: "motor.gear_efficiency", range: "0.1..1" });
+            return Err(ConfigError::OutOfRange {
+                field: "motor.gear_efficiency",
+                range: "0.1..1",
+            });
         }
         if !(100..=10_000).contains(&cfg.tick_us) {
-            return Err(ConfigError::OutOfRange { field: "control.tick_us", range: "100..10000 us" });
+            return Err(ConfigError::OutOfRange {
+                field: "control.tick_us",
+                range: "100..10000 us",
+            });
         }
         let tick_hz = 1_000_000 / cfg.tick_us;
         if cfg.speed_bandwidth_hz < 1 || cfg.speed_bandwidth_hz > tick_hz / 10 {
-            return Err(ConfigError::OutOfRange { field: "control.speed_bandwidth", range: "1..tick rate/10 Hz" });
+            return Err(ConfigError::OutOfRange {
+                field: "control.speed_bandwidth",
+                range: "1..tick rate/10 Hz",
+            });
         }
-        if !(cfg.rest_speed >= RadiansPerSecond::ZERO && cfg.rest_speed <= RadiansPerSecond::lit("50")) {
-            return Err(ConfigError::OutOfRange { field: "control.rest_speed", range: "0..50 rad/s" });
+        if !(cfg.rest_speed >= RadiansPerSecond::ZERO
+            && cfg.rest_speed <= RadiansPerSecond::lit("50"))
+        {
+            return Err(ConfigError::OutOfRange {
+                field: "control.rest_speed",
+                range: "0..50 rad/s",
+            });
         }
         let n = i128::from(cfg.drive.gear_ratio.to_bits()); // Q16
         let eta = i128::from(m.gear_efficiency.bits()); // Q28
@@ -201,7 +220,8 @@ impl Estimator {
 
         // Fading-memory α-β-γ gains, θ = e^(−2π f_b T), in Q28.
         const TWO_PI_Q16: u64 = 411_775;
-        let wt_q16 = (TWO_PI_Q16 * u64::from(cfg.speed_bandwidth_hz) * u64::from(cfg.tick_us) / 1_000_000) as u32;
+        let wt_q16 = (TWO_PI_Q16 * u64::from(cfg.speed_bandwidth_hz) * u64::from(cfg.tick_us)
+            / 1_000_000) as u32;
         let theta = i128::from(exp_neg_q16(wt_q16)) >> 4; // Q28
         let one = 1i128 << 28;
         let om = one - theta; // 1 − θ
@@ -272,10 +292,17 @@ impl Estimator {
         // α-β-γ: predict one tick, correct with the measured count.
         self.p = self.p.saturating_add(self.v).saturating_add(self.a / 2);
         self.v = self.v.saturating_add(self.a);
-        let r = ((i64::from(m.position_counts) << 16).saturating_sub(self.p)).clamp(-(1 << 34), 1 << 34);
+        let r = ((i64::from(m.position_counts) << 16).saturating_sub(self.p))
+            .clamp(-(1 << 34), 1 << 34);
         self.p = self.p.saturating_add((r * self.gains[0]) >> 28);
-        self.v = self.v.saturating_add((r * self.gains[1]) >> 28).clamp(-(1 << 40), 1 << 40);
-        self.a = self.a.saturating_add((r * self.gains[2]) >> 28).clamp(-(1 << 40), 1 << 40);
+        self.v = self
+            .v
+            .saturating_add((r * self.gains[1]) >> 28)
+            .clamp(-(1 << 40), 1 << 40);
+        self.a = self
+            .a
+            .saturating_add((r * self.gains[2]) >> 28)
+            .clamp(-(1 << 40), 1 << 40);
         let speed = RadiansPerSecond::from_raw(sat32(self.speed_scale.apply(sat32(self.v))));
         let accel = RadiansPerSecond2::from_raw(sat32(self.accel_scale.apply(sat32(self.a))));
         self.estimate(m, speed, accel, flags)
@@ -307,7 +334,9 @@ impl Estimator {
         let pin_friction = self.geometry.pin_friction(&pose, weight);
         let c_x = self.geometry.structure_damping(pose.alpha);
         let mu = self.law.mu(speed);
-        let w = self.screw.axial_demand(speed, accel, dir, axial_load, pin_friction, c_x);
+        let w = self
+            .screw
+            .axial_demand(speed, accel, dir, axial_load, pin_friction, c_x);
         let contact = self.screw.contact(mu, dir, w);
         if w < Newtons::ZERO {
             flags |= EstimateFlags::FLANK_REVERSED;
@@ -328,8 +357,16 @@ impl Estimator {
             qmul(motor_torque, self.n_over_eta)
         };
         let residual = measured_screw_torque.sat_sub(model_screw_torque);
-        if [axial_load, pin_friction, w, contact.normal].iter().any(|f| f.is_saturated())
-            || [model_screw_torque, contact.friction_torque, measured_screw_torque].iter().any(|t| t.is_saturated())
+        if [axial_load, pin_friction, w, contact.normal]
+            .iter()
+            .any(|f| f.is_saturated())
+            || [
+                model_screw_torque,
+                contact.friction_torque,
+                measured_screw_torque,
+            ]
+            .iter()
+            .any(|t| t.is_saturated())
             || speed.is_saturated()
             || accel.is_saturated()
         {

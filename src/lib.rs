@@ -40,7 +40,9 @@ pub enum ConfigError {
 impl core::fmt::Display for ConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            ConfigError::OutOfRange { field, range } => write!(f, "{field} out of range (allowed {range})"),
+            ConfigError::OutOfRange { field, range } => {
+                write!(f, "{field} out of range (allowed {range})")
+            }
         }
     }
 }

@@ -25,7 +25,11 @@ const EXP2_TABLE: [u32; 32] = {
             n += 1;
         }
         let q32 = (sum + (1 << 27)) >> 28;
-        t[k] = if q32 > u32::MAX as i128 { u32::MAX } else { q32 as u32 };
+        t[k] = if q32 > u32::MAX as i128 {
+            u32::MAX
+        } else {
+            q32 as u32
+        };
         k += 1;
     }
     t
@@ -51,13 +55,17 @@ pub fn exp_neg_q16(y_q16: u32) -> u32 {
     // r·ln2 in Q0.32, r = remaining fraction of f below 1/32.
     const LN2_Q32: u64 = 2_977_044_472;
     let t = ((u64::from(f & ((1 << 27) - 1)) * LN2_Q32) >> 32) as u32; // < 2^27·ln2
-    // e^(−t) ≈ 1 − t + t²/2 − t³/6 in Q0.32, t < 0.0217: error < t⁴/24 < 10⁻⁸.
+                                                                       // e^(−t) ≈ 1 − t + t²/2 − t³/6 in Q0.32, t < 0.0217: error < t⁴/24 < 10⁻⁸.
     let t2 = ((u64::from(t) * u64::from(t)) >> 32) as u32;
     let t3 = ((u64::from(t2) * u64::from(t)) >> 32) as u32;
     let poly = (1u64 << 32) - u64::from(t) + u64::from(t2 >> 1) - u64::from(t3 / 6);
     let base = u64::from(EXP2_TABLE[k]);
     let v = (base * poly) >> 32;
-    let v = if v > u64::from(u32::MAX) { u32::MAX } else { v as u32 };
+    let v = if v > u64::from(u32::MAX) {
+        u32::MAX
+    } else {
+        v as u32
+    };
     v >> n
 }
 
@@ -107,14 +115,18 @@ pub fn recip_q30(d: u32) -> u32 {
     let dn = d << sh;
     // 16-bit-accurate seed: 2^47/dn ≈ (2^63/dn)>>16 from a 32/16 division.
     let seed = (u32::MAX / (dn >> 16)) as u64; // ≈ 2^48/dn, Q? see below
-    // seed ≈ 2^32 · 2^16/ (dn>>16) / 2^16 = 2^48/dn (less than 2^17). Refine r ≈ 2^63/dn:
+                                               // seed ≈ 2^32 · 2^16/ (dn>>16) / 2^16 = 2^48/dn (less than 2^17). Refine r ≈ 2^63/dn:
     let r0 = seed << 15; // ≈ 2^63/dn, 32 bits
-    // Newton: r1 = r0·(2 − dn·r0/2^63).
+                         // Newton: r1 = r0·(2 − dn·r0/2^63).
     let e = (u128::from(dn) * u128::from(r0)) >> 31; // dn·r0/2^31 ≈ 2^32
     let two = 1u128 << 33;
     let r1 = ((u128::from(r0) * (two - e)) >> 32) as u64; // ≈ 2^63/dn
-    // 1/d in Q28 = 2^28·2^30/d = 2^58/d = 2^58·2^sh/dn = r1 >> (5 − sh)... 2^63/dn >> (5 - sh).
-    let out = if sh <= 5 { r1 >> (5 - sh) } else { r1 << (sh - 5) };
+                                                          // 1/d in Q28 = 2^28·2^30/d = 2^58/d = 2^58·2^sh/dn = r1 >> (5 − sh)... 2^63/dn >> (5 - sh).
+    let out = if sh <= 5 {
+        r1 >> (5 - sh)
+    } else {
+        r1 << (sh - 5)
+    };
     if out > u64::from(u32::MAX >> 1) {
         u32::MAX >> 1
     } else {
@@ -146,7 +158,10 @@ mod tests {
         loop {
             let got = f64::from(sqrt_q30(v)) / (1u64 << 30) as f64;
             let want = (f64::from(v) / (1u64 << 30) as f64).sqrt();
-            assert!((got - want).abs() <= 2.0 / (1u64 << 30) as f64, "{v}: {got} {want}");
+            assert!(
+                (got - want).abs() <= 2.0 / (1u64 << 30) as f64,
+                "{v}: {got} {want}"
+            );
             match v.checked_add(9_973) {
                 Some(n) => v = n,
                 None => break,

@@ -219,7 +219,11 @@ impl Angle {
         let mag = i128::from(self.0).abs(); // ≤ 2^31, 2^31 = π
         let x = mag * PI_Q60 >> 31;
         // Fold to [0, π/2]: cos(π − x) = −cos x, sin(π − x) = sin x.
-        let (x, cos_sign) = if x > PI_Q60 / 2 { (PI_Q60 - x, -1) } else { (x, 1) };
+        let (x, cos_sign) = if x > PI_Q60 / 2 {
+            (PI_Q60 - x, -1)
+        } else {
+            (x, 1)
+        };
         let one: i128 = 1 << 60;
         let (mut c, mut s) = (one, x);
         let (mut tc, mut ts) = (one, x);
@@ -294,14 +298,20 @@ fn shift_to(v: i64, s: i32) -> i64 {
 #[inline]
 pub fn qmul<A: Q, B: Q, O: Q>(a: A, b: B) -> O {
     let p = i64::from(a.bits()) * i64::from(b.bits());
-    O::from_raw(sat32(shift_to(p, (A::FRAC + B::FRAC) as i32 - O::FRAC as i32)))
+    O::from_raw(sat32(shift_to(
+        p,
+        (A::FRAC + B::FRAC) as i32 - O::FRAC as i32,
+    )))
 }
 
 /// Mixed-format quotient `a/b` in the output's Q format, saturating; `b = 0` gives the bound
 /// of `a`'s sign. A 64-bit division: keep it off the per-tick path (see [`crate::math::recip`]).
 #[inline]
 pub fn qdiv<A: Q, B: Q, O: Q>(a: A, b: B) -> O {
-    let num = shift_to(i64::from(a.bits()), -((O::FRAC + B::FRAC) as i32 - A::FRAC as i32));
+    let num = shift_to(
+        i64::from(a.bits()),
+        -((O::FRAC + B::FRAC) as i32 - A::FRAC as i32),
+    );
     if b.bits() == 0 {
         return O::from_raw(if a.bits() < 0 { i32::MIN } else { i32::MAX });
     }
@@ -338,7 +348,8 @@ mod tests {
         for i in 0..36_000 {
             let a = Angle::from_radians_f64((f64::from(i) / 100.0 - 180.0).to_radians());
             let (c, s) = a.cos_sin();
-            let e = (Angle::atan2(s, c).0.wrapping_sub(a.0)) as f64 * core::f64::consts::PI / 2_147_483_648.0;
+            let e = (Angle::atan2(s, c).0.wrapping_sub(a.0)) as f64 * core::f64::consts::PI
+                / 2_147_483_648.0;
             worst = worst.max(e.abs());
         }
         assert!(worst < 2.5e-6, "{worst:e}");
@@ -355,7 +366,11 @@ mod tests {
             assert!((c.to_f64() - r.cos()).abs() < 4e-9);
             assert!((s.to_f64() - r.sin()).abs() < 4e-9);
             let back = Angle::atan2(s, c);
-            assert!((back.to_radians_f64() - r).abs() < 2e-6, "{d}: {} {r}", back.to_radians_f64());
+            assert!(
+                (back.to_radians_f64() - r).abs() < 2e-6,
+                "{d}: {} {r}",
+                back.to_radians_f64()
+            );
         }
     }
 }

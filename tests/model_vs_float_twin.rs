@@ -44,7 +44,15 @@ struct TwinPoint {
     normal: f64,
 }
 
-fn twin_point(t: &Twin, law: &FLaw, counts: i32, mass: f64, speed: f64, accel: f64, dir: f64) -> TwinPoint {
+fn twin_point(
+    t: &Twin,
+    law: &FLaw,
+    counts: i32,
+    mass: f64,
+    speed: f64,
+    accel: f64,
+    dir: f64,
+) -> TwinPoint {
     let x = f64::from(counts) * t.metres_per_count;
     let alpha = t.geo.alpha(x);
     let r = t.geo.axial_load(mass, alpha);
@@ -67,7 +75,11 @@ fn counts_for_alpha(t: &Twin, alpha_deg: f64) -> i32 {
 }
 
 fn estimator(law: FrictionLaw) -> Estimator {
-    Estimator::new(&EstimatorConfig { law, ..EstimatorConfig::DEFAULT }).unwrap()
+    Estimator::new(&EstimatorConfig {
+        law,
+        ..EstimatorConfig::DEFAULT
+    })
+    .unwrap()
 }
 
 fn torque_ok(got: f64, want: f64) -> bool {
@@ -187,7 +199,11 @@ fn speed_filter_follows_a_ramp_without_lag() {
         last = Some((e, acc * time));
     }
     let (e, true_speed) = last.unwrap();
-    assert!((e.screw_speed.to_f64() - true_speed).abs() < 0.5, "{} vs {true_speed}", e.screw_speed.to_f64());
+    assert!(
+        (e.screw_speed.to_f64() - true_speed).abs() < 0.5,
+        "{} vs {true_speed}",
+        e.screw_speed.to_f64()
+    );
     // The acceleration estimate is a second difference of counts: noisy tick to tick, unbiased
     // on average.
     let mean_acc = acc_sum / 500.0;

@@ -9,7 +9,7 @@
 
 use crate::math::exp_neg_q16;
 use crate::model::Scale;
-use crate::units::{Metres, Q, RadiansPerSecond, Ratio};
+use crate::units::{Metres, RadiansPerSecond, Ratio, Q};
 use crate::ConfigError;
 use fixed::types::I32F32;
 
@@ -86,26 +86,45 @@ impl FrictionLaw {
     pub fn compile(&self, r_m: Metres, cos_lambda: Ratio) -> Result<CompiledLaw, ConfigError> {
         let in_range = |v: I32F32, lo: &str, hi: &str| v >= I32F32::lit(lo) && v <= I32F32::lit(hi);
         if !(self.base >= Ratio::ZERO && self.base <= Ratio::ONE) {
-            return Err(ConfigError::OutOfRange { field: "friction.base", range: "0..1" });
+            return Err(ConfigError::OutOfRange {
+                field: "friction.base",
+                range: "0..1",
+            });
         }
         if !(self.amp >= Ratio::ONE.sat_neg() && self.amp <= Ratio::ONE) {
-            return Err(ConfigError::OutOfRange { field: "friction.amp", range: "-1..1" });
+            return Err(ConfigError::OutOfRange {
+                field: "friction.amp",
+                range: "-1..1",
+            });
         }
         if !in_range(self.rate, "0", "1000000") {
-            return Err(ConfigError::OutOfRange { field: "friction.rate", range: "0..1e6" });
+            return Err(ConfigError::OutOfRange {
+                field: "friction.rate",
+                range: "0..1e6",
+            });
         }
         if !in_range(self.slope, "-1000", "1000") {
-            return Err(ConfigError::OutOfRange { field: "friction.slope", range: "-1000..1000" });
+            return Err(ConfigError::OutOfRange {
+                field: "friction.slope",
+                range: "-1000..1000",
+            });
         }
         if self.s_max <= I32F32::ZERO {
-            return Err(ConfigError::OutOfRange { field: "friction.s_max", range: ">0" });
+            return Err(ConfigError::OutOfRange {
+                field: "friction.s_max",
+                range: ">0",
+            });
         }
         // The law's input bits: |θ̇| in Q16 for speed laws, τ in Q28 for the lubrication law.
         // k = s per unit of input (as num/den), in_frac = fractional bits of the input.
         let (k_num, k_den, in_frac): (i128, i128, u32) = match self.variable {
             LawVariable::ScrewRate => (1, 1, 16),
             // s = r_m/cos λ · |θ̇|: r_m in Q24, cos λ in Q28.
-            LawVariable::SlidingSpeed => (i128::from(r_m.bits()) << 4, i128::from(cos_lambda.bits()), 16),
+            LawVariable::SlidingSpeed => (
+                i128::from(r_m.bits()) << 4,
+                i128::from(cos_lambda.bits()),
+                16,
+            ),
             LawVariable::Lubrication => (1, 1, 28),
         };
         // y (Q16) = rate·s = rate(Q32)·k·in_bits/2^in_frac → scale = rate·k·2^16/2^(32+in_frac).
@@ -159,7 +178,11 @@ impl CompiledLaw {
     pub fn mu_raw(&self, input: u32) -> Ratio {
         let input = input.min(i32::MAX as u32) as i32;
         let y = self.exp_scale.apply(input);
-        let y = if y > i64::from(u32::MAX) { u32::MAX } else { y as u32 };
+        let y = if y > i64::from(u32::MAX) {
+            u32::MAX
+        } else {
+            y as u32
+        };
         let e = exp_neg_q16(y); // Q32
         let exp_term = (i64::from(self.amp.bits()) * i64::from(e)) >> 32; // Q28
         let lin_in = input.min(self.in_max.min(i32::MAX as u32) as i32);

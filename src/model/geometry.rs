@@ -8,7 +8,7 @@
 
 use crate::math::{recip_q30, sqrt_q30};
 use crate::model::Scale;
-use crate::units::{qmul, sat32, Angle, Kilograms, KilogramsPerSecond, Metres, Newtons, Q, Ratio};
+use crate::units::{qmul, sat32, Angle, Kilograms, KilogramsPerSecond, Metres, Newtons, Ratio, Q};
 use crate::ConfigError;
 use fixed::types::I16F16;
 
@@ -68,7 +68,13 @@ impl DriveConfig {
     };
 }
 
-fn check<T: PartialOrd>(v: T, lo: T, hi: T, field: &'static str, range: &'static str) -> Result<(), ConfigError> {
+fn check<T: PartialOrd>(
+    v: T,
+    lo: T,
+    hi: T,
+    field: &'static str,
+    range: &'static str,
+) -> Result<(), ConfigError> {
     if v >= lo && v <= hi {
         Ok(())
     } else {
@@ -121,8 +127,20 @@ pub struct Pose {
 impl Geometry {
     /// Validate a configuration once; every later call is total.
     pub fn new(cfg: GeometryConfig, drive: DriveConfig) -> Result<Geometry, ConfigError> {
-        check(cfg.length, Metres::lit("0.05"), Metres::lit("2"), "geometry.length", "0.05..2 m")?;
-        check(cfg.alpha0_deg, I16F16::lit("12"), I16F16::lit("60"), "geometry.alpha0", "12..60 deg")?;
+        check(
+            cfg.length,
+            Metres::lit("0.05"),
+            Metres::lit("2"),
+            "geometry.length",
+            "0.05..2 m",
+        )?;
+        check(
+            cfg.alpha0_deg,
+            I16F16::lit("12"),
+            I16F16::lit("60"),
+            "geometry.alpha0",
+            "12..60 deg",
+        )?;
         check(
             cfg.alpha_max_deg,
             cfg.alpha0_deg.saturating_add(I16F16::lit("5")),
@@ -130,12 +148,48 @@ impl Geometry {
             "geometry.alpha_max",
             "alpha0+5..89 deg",
         )?;
-        check(cfg.h0, Metres::ZERO, Metres::lit("1"), "geometry.h0", "0..1 m")?;
-        check(cfg.mu_pin, Ratio::ZERO, Ratio::ONE, "geometry.mu_pin", "0..1")?;
-        check(drive.counts_per_rev, 4, 65_536, "drive.counts_per_rev", "4..65536")?;
-        check(drive.gear_ratio, I16F16::ONE, I16F16::lit("1000"), "drive.gear_ratio", "1..1000")?;
-        check(drive.pitch_radius, Metres::lit("0.001"), Metres::lit("0.05"), "drive.pitch_radius", "1..50 mm")?;
-        check(drive.lead_angle_deg, I16F16::lit("0.5"), I16F16::lit("20"), "drive.lead_angle", "0.5..20 deg")?;
+        check(
+            cfg.h0,
+            Metres::ZERO,
+            Metres::lit("1"),
+            "geometry.h0",
+            "0..1 m",
+        )?;
+        check(
+            cfg.mu_pin,
+            Ratio::ZERO,
+            Ratio::ONE,
+            "geometry.mu_pin",
+            "0..1",
+        )?;
+        check(
+            drive.counts_per_rev,
+            4,
+            65_536,
+            "drive.counts_per_rev",
+            "4..65536",
+        )?;
+        check(
+            drive.gear_ratio,
+            I16F16::ONE,
+            I16F16::lit("1000"),
+            "drive.gear_ratio",
+            "1..1000",
+        )?;
+        check(
+            drive.pitch_radius,
+            Metres::lit("0.001"),
+            Metres::lit("0.05"),
+            "drive.pitch_radius",
+            "1..50 mm",
+        )?;
+        check(
+            drive.lead_angle_deg,
+            I16F16::lit("0.5"),
+            I16F16::lit("20"),
+            "drive.lead_angle",
+            "0.5..20 deg",
+        )?;
 
         let alpha0 = Angle::from_degrees(cfg.alpha0_deg);
         let (cos_a0, _) = alpha0.cos_sin();
@@ -147,7 +201,7 @@ impl Geometry {
         let (cl, sl) = Angle::from_degrees(drive.lead_angle_deg).cos_sin();
         let tan_q28 = (i128::from(sl.bits()) << 28) / i128::from(cl.bits());
         const TWO_PI_Q28: i128 = 1_686_629_713; // 2π·2^28
-        // r_m(Q24)·tan(Q28)·2π(Q28) over counts·ratio(Q16); the extra 2^16 below cancels the ratio's Q16.
+                                                // r_m(Q24)·tan(Q28)·2π(Q28) over counts·ratio(Q16); the extra 2^16 below cancels the ratio's Q16.
         let den = i128::from(drive.counts_per_rev) * i128::from(drive.gear_ratio.to_bits());
         let num = i128::from(drive.pitch_radius.bits()) * tan_q28 * TWO_PI_Q28;
         // metres_per_count applied to counts (Q0) gives Q24 metres: value·2^24 = num/den / 2^56.
@@ -158,7 +212,11 @@ impl Geometry {
 
         let mut damping = [(Angle(0), KilogramsPerSecond::ZERO, 0i64); 3];
         for (i, &(deg, cx)) in DAMPING_TABLE.iter().enumerate() {
-            damping[i] = (Angle::from_degrees(I16F16::from_num(deg)), KilogramsPerSecond::from_int(cx), 0);
+            damping[i] = (
+                Angle::from_degrees(I16F16::from_num(deg)),
+                KilogramsPerSecond::from_int(cx),
+                0,
+            );
         }
         for i in 0..2 {
             let da = i64::from(damping[i + 1].0 .0 - damping[i].0 .0);
@@ -243,7 +301,10 @@ impl Geometry {
         let inv_s = Ratio::from_raw(recip_q30(s_q30) as i32);
         let cos_alpha = Ratio::from_raw(c);
         let alpha = Angle::atan2(s, cos_alpha);
-        let height = self.cfg.h0.sat_add(qmul::<Metres, Ratio, Metres>(self.cfg.length, s));
+        let height = self
+            .cfg
+            .h0
+            .sat_add(qmul::<Metres, Ratio, Metres>(self.cfg.length, s));
         Pose {
             x,
             cos_alpha,
@@ -339,7 +400,13 @@ mod tests {
         let mut c = GeometryConfig::DEFAULT;
         c.alpha0_deg = I16F16::lit("5");
         let e = Geometry::new(c, DriveConfig::DEFAULT).unwrap_err();
-        assert_eq!(e, ConfigError::OutOfRange { field: "geometry.alpha0", range: "12..60 deg" });
+        assert_eq!(
+            e,
+            ConfigError::OutOfRange {
+                field: "geometry.alpha0",
+                range: "12..60 deg"
+            }
+        );
     }
 
     #[test]
@@ -350,7 +417,11 @@ mod tests {
             let counts = g.counts_for_height(h).unwrap();
             let back = g.pose(counts).height;
             // One motor count moves the head by up to cot α₀·1.85 µm ≈ 7 µm.
-            assert!((back.to_f64() - h.to_f64()).abs() < 8e-6, "{h_mm}: {}", back.to_f64());
+            assert!(
+                (back.to_f64() - h.to_f64()).abs() < 8e-6,
+                "{h_mm}: {}",
+                back.to_f64()
+            );
         }
         assert_eq!(g.counts_for_height(Metres::lit("0.9")), None);
     }

@@ -11,8 +11,8 @@ use crate::math::recip_q30;
 use crate::model::geometry::DriveConfig;
 use crate::model::Scale;
 use crate::units::{
-    qmul, sat32, Angle, Kilograms, KilogramsPerSecond, Metres, MetresPerSecond, NewtonMetres, Newtons, Q,
-    RadiansPerSecond, RadiansPerSecond2, Ratio,
+    qmul, sat32, Angle, Kilograms, KilogramsPerSecond, Metres, MetresPerSecond, NewtonMetres,
+    Newtons, RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
 };
 use crate::ConfigError;
 
@@ -86,13 +86,17 @@ impl ScrewModel {
         if !(0..=1_000_000).contains(&mech.damping_unms) {
             return oor("mech.damping", "0..1e6 uNms/rad");
         }
-        if !(mech.support_torque >= NewtonMetres::ZERO && mech.support_torque <= NewtonMetres::lit("10")) {
+        if !(mech.support_torque >= NewtonMetres::ZERO
+            && mech.support_torque <= NewtonMetres::lit("10"))
+        {
             return oor("mech.support_torque", "0..10 Nm");
         }
         if !(mech.nut_mass >= Kilograms::ZERO && mech.nut_mass <= Kilograms::lit("5")) {
             return oor("mech.nut_mass", "0..5 kg");
         }
-        if !(drive.pitch_radius >= Metres::lit("0.001") && drive.pitch_radius <= Metres::lit("0.05")) {
+        if !(drive.pitch_radius >= Metres::lit("0.001")
+            && drive.pitch_radius <= Metres::lit("0.05"))
+        {
             return oor("drive.pitch_radius", "1..50 mm");
         }
         let lambda = Angle::from_degrees(drive.lead_angle_deg);
@@ -106,7 +110,7 @@ impl ScrewModel {
         let sec_q28 = (1i64 << 56) / i64::from(cos_l.bits());
         let r = i128::from(drive.pitch_radius.bits()); // Q24
         let t = i128::from(tan_q28); // Q28
-        // ẋ(Q24) = r·t·θ̇(Q16): value r_m tanλ = r·t/2^52 → scale = r·t·2^24/(2^52·2^16).
+                                     // ẋ(Q24) = r·t·θ̇(Q16): value r_m tanλ = r·t/2^52 → scale = r·t·2^24/(2^52·2^16).
         let lead = Scale::from_ratio(r * t, 1i128 << 44);
         // F(Q8) = m·r_m·tanλ·θ̈(Q8): m in Q12 → m·r·t/2^64, scale = that·2^8/2^8.
         let m = i128::from(mech.nut_mass.bits());
@@ -181,10 +185,18 @@ impl ScrewModel {
         let mt: Ratio = qmul(mu_s, self.tan_l);
         let loaded = w >= Newtons::ZERO;
         // den = 1 ∓ μ_s tan λ (> 0 for any μ < cot λ ≈ 16; clamped away from 0 for nonsense μ).
-        let den = if loaded { Ratio::ONE.sat_sub(mt) } else { Ratio::ONE.sat_add(mt) };
+        let den = if loaded {
+            Ratio::ONE.sat_sub(mt)
+        } else {
+            Ratio::ONE.sat_add(mt)
+        };
         let den_q30 = (den.bits().max(1 << 20) as u32) << 2;
         let inv = Ratio::from_raw(recip_q30(den_q30) as i32);
-        let num = if loaded { self.tan_l.sat_add(mu_s) } else { self.tan_l.sat_sub(mu_s) };
+        let num = if loaded {
+            self.tan_l.sat_add(mu_s)
+        } else {
+            self.tan_l.sat_sub(mu_s)
+        };
         let xi: Ratio = qmul(num, inv);
         let w_inv: Newtons = qmul(w, inv);
         let normal: Newtons = qmul(w_inv, self.sec_l);
@@ -217,7 +229,10 @@ impl ScrewModel {
             d if d < 0 => self.support_torque.sat_neg(),
             _ => NewtonMetres::ZERO,
         };
-        inertia.sat_add(damping).sat_add(support).sat_add(contact.thread_torque)
+        inertia
+            .sat_add(damping)
+            .sat_add(support)
+            .sat_add(contact.thread_torque)
     }
 
     /// Self-locking margin μ − tan λ: the screw holds its load at rest while it is positive.
@@ -228,7 +243,10 @@ impl ScrewModel {
     /// Drive efficiency lifting, tan λ·(1 − μ tan λ)/(tan λ + μ) (power-screw formula).
     pub fn efficiency_lifting(&self, mu: Ratio) -> Ratio {
         let one_minus: Ratio = Ratio::ONE.sat_sub(qmul(mu, self.tan_l));
-        crate::units::qdiv(qmul::<Ratio, Ratio, Ratio>(self.tan_l, one_minus), self.tan_l.sat_add(mu))
+        crate::units::qdiv(
+            qmul::<Ratio, Ratio, Ratio>(self.tan_l, one_minus),
+            self.tan_l.sat_add(mu),
+        )
     }
 
     /// Back-drive efficiency tan(λ − φ)/tan λ: negative while the screw is self-locking.

@@ -1,6 +1,16 @@
 //! host-sim: the lift's digital twin.
 //!
 //! - [`physics`]: the float64 screw-nut model (the fixed-point core's reference twin).
+//! - [`solver`]: fixed-step Bogacki–Shampine RK23 and the event locator.
+//! - [`plant`]: the plant built on the physics: screw-nut dynamics with stick/slip, the Fig. 2
+//!   drive profile, the motor/bridge/battery and the board's sensors.
+//! - [`sim`]: a run — plant + driver (paper profile, the liftfw core, or open-loop duty) —
+//!   with its ground-truth [`trace`] and summary.
 #![warn(missing_docs)]
 
 pub mod physics;
+pub mod plant;
+pub mod sim;
+pub mod solver;
+pub mod study;
+pub mod trace;

@@ -1,0 +1,17 @@
+//! The float64 plant: the lift downstream of the board's H-bridge.
+//!
+//! - [`screw_nut`]: screw-nut-scissor dynamics (one equation for lifting and lowering) with the
+//!   stick/slip treatment and the flank switch;
+//! - [`profile`]: seed 000's prescribed input speed (Fig. 2), for *paper mode*;
+//! - [`drive`]: battery, H-bridge, DC motor and gearbox, for *closed-loop mode*;
+//! - [`sensors`]: encoder, ADCs and limit switches, the board's view of the plant.
+
+pub mod drive;
+pub mod profile;
+pub mod screw_nut;
+pub mod sensors;
+
+pub use drive::{BridgeState, DriveParams};
+pub use profile::SpeedProfile;
+pub use screw_nut::{Dir, Flank, Phase, ScrewNut, StructureDamping};
+pub use sensors::{SensorParams, Sensors};

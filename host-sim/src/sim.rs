@@ -1,0 +1,773 @@
+//! A run of the twin: the plant, one driver, a fixed-step RK23 loop with stick/slip events,
+//! the ground-truth trace and a summary.
+//!
+//! Drivers:
+//! - [`Driver::Paper`]: θ_i(t) prescribed by seed 000's Fig. 2 profile (no motor);
+//! - [`Driver::Core`]: the liftfw core's `Controller::step` at its own control rate, seeing only
+//!   [`Inputs`] (encoder counter, ADC codes, switches) and driving the simulated bridge;
+//! - [`Driver::OpenLoop`]: a fixed duty with a soft-start ramp, to exercise the motor path;
+//! - [`Driver::Custom`]: any closure from time and inputs to a bridge command.
+//!
+//! Hybrid integration: the base step `dt` is fixed; inside a step the phase (stick, slip up,
+//! slip down) and the bridge state are fixed, so the right-hand side is smooth. When the step
+//! ends across a phase event (θ̇ reaching 0 while slipping; the breakaway margin turning
+//! positive while stuck) the event time is bracketed by regula falsi on the step length, the
+//! step is cut there, the phase switched and the rest of the step taken in the new phase.
+
+use crate::physics::FrictionLaw;
+use crate::plant::{
+    drive::coast_clamp, BridgeState, DriveParams, Phase, ScrewNut, SensorParams, Sensors,
+    SpeedProfile,
+};
+use crate::solver::{bracket_root, rk23_step, OdeState};
+use crate::trace::{Energy, Record, Trace};
+use liftfw::control::{Bridge, Controller, Inputs};
+use liftfw::units::Instant;
+use std::fmt;
+
+macro_rules! state {
+    ($($(#[$m:meta])* $f:ident),* $(,)?) => {
+        /// The continuous state: mechanics, drive and the running energy/torque integrals
+        /// (integrated with the same RK23 as the dynamics, so the balance is as exact as the
+        /// solution).
+        #[derive(Clone, Copy, Debug, Default, PartialEq)]
+        pub struct State { $($(#[$m])* pub $f: f64,)* }
+        impl OdeState for State {
+            fn add_scaled(&mut self, a: f64, o: &Self) { $(self.$f += a * o.$f;)* }
+        }
+    };
+}
+
+state! {
+    /// Screw angle θ, rad (0 at α = α₀).
+    theta,
+    /// Screw rate θ̇, rad/s.
+    theta_dot,
+    /// Motor shaft angle, rad (closed loop).
+    motor_angle,
+    /// Motor speed, rad/s (closed loop).
+    motor_speed,
+    /// Armature current, A (closed loop).
+    current,
+    /// ∫ T_c·θ̇_i dt.
+    e_input,
+    /// ∫ T_c·θ̇ dt.
+    e_screw_input,
+    /// ∫ μ|N||v_s| dt.
+    e_thread,
+    /// ∫ (T₀|θ̇| + cθ̇²) dt.
+    e_support,
+    /// ∫ F₀|ẋ| dt.
+    e_pins,
+    /// ∫ c_x ẋ² dt.
+    e_structure,
+    /// ∫ T_r dt.
+    q_friction_torque,
+    /// ∫ V_oc·i_b dt.
+    e_source,
+    /// ∫ ohmic + diode losses dt.
+    e_electrical,
+    /// ∫ motor friction + gear losses dt.
+    e_drive,
+}
+
+/// Open-loop duty driver: ramps the duty linearly from 0 to `duty` over `ramp` seconds and
+/// holds it; coasts once a limit switch in the direction of travel closes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OpenLoopDuty {
+    /// Signed duty in [−1, 1] (positive lifts).
+    pub duty: f64,
+    /// Soft-start ramp, s.
+    pub ramp: f64,
+}
+
+impl OpenLoopDuty {
+    /// The bridge command at time `t` given the board's inputs.
+    pub fn command(&self, t: f64, inputs: &Inputs) -> Bridge {
+        use liftfw::control::Switches;
+        let blocked = if self.duty > 0.0 {
+            inputs.switches.is_active(Switches::LIMIT_UPPER)
+        } else {
+            inputs.switches.is_active(Switches::LIMIT_LOWER)
+        };
+        if blocked || self.duty == 0.0 {
+            return Bridge::Coast;
+        }
+        let d = self.duty.clamp(-1.0, 1.0) * (t / self.ramp.max(1e-9)).min(1.0);
+        Bridge::Drive((d * f64::from(i16::MAX)).round() as i16)
+    }
+}
+
+/// A custom bridge commander: `(t, inputs) -> bridge`.
+pub type Commander = Box<dyn FnMut(f64, &Inputs) -> Bridge + Send>;
+
+/// What moves the coupling's input side.
+pub enum Driver {
+    /// Fig. 2 profile: θ_i prescribed, no motor.
+    Paper(SpeedProfile),
+    /// The liftfw core.
+    Core(Box<Controller>),
+    /// Fixed duty with soft start.
+    OpenLoop(OpenLoopDuty),
+    /// Any closure `(t, inputs) -> bridge`.
+    Custom(Commander),
+}
+
+impl Driver {
+    fn is_paper(&self) -> bool {
+        matches!(self, Driver::Paper(_))
+    }
+}
+
+impl fmt::Debug for Driver {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Driver::Paper(p) => write!(f, "Paper({p:?})"),
+            Driver::Core(_) => write!(f, "Core"),
+            Driver::OpenLoop(o) => write!(f, "OpenLoop({o:?})"),
+            Driver::Custom(_) => write!(f, "Custom"),
+        }
+    }
+}
+
+/// Everything a run needs besides its driver.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SimConfig {
+    /// The lift.
+    pub plant: ScrewNut,
+    /// Arm angle at the start, rad.
+    pub start_alpha: f64,
+    /// Base integration step, s.
+    pub dt: f64,
+    /// Simulated time, s.
+    pub duration: f64,
+    /// Trace sampling rate, Hz (0: no trace).
+    pub record_rate: f64,
+    /// Control-tick rate of the core (closed loop), Hz.
+    pub control_rate: f64,
+    /// Motor, gearbox, bridge, battery.
+    pub drive: DriveParams,
+    /// Encoder, ADCs, limit switches.
+    pub sensors: SensorParams,
+    /// Seed of the sensor noise.
+    pub seed: u64,
+    /// Window over which the summary averages T_r and measures the twist oscillation, s.
+    pub window: (f64, f64),
+}
+
+/// Default base step, s (docs/plant.md, convergence study).
+pub const DEFAULT_DT: f64 = 2e-6;
+
+impl SimConfig {
+    /// Seed 000's setting: 1000 kg, the given lubricant, μ_b, start angle (degrees); 5 s at the
+    /// default step, 10 kHz trace, 1 kHz control, window 0.999–1 s.
+    pub fn paper(law: FrictionLaw, mu_pin: f64, start_deg: f64) -> Self {
+        let mut plant = ScrewNut::paper(law, 1000.0);
+        plant.geometry.mu_pin = mu_pin;
+        let g = plant.geometry;
+        Self {
+            plant,
+            start_alpha: start_deg.to_radians(),
+            dt: DEFAULT_DT,
+            duration: 5.0,
+            record_rate: 10_000.0,
+            control_rate: 1000.0,
+            drive: DriveParams::default(),
+            sensors: SensorParams::with_limits(
+                g.height(16f64.to_radians()),
+                g.height(74f64.to_radians()),
+            ),
+            seed: 0,
+            window: (0.999, 1.0),
+        }
+    }
+}
+
+/// Why a configuration was refused.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ConfigError {
+    /// The control period is not a whole number of base steps.
+    ControlPeriodNotMultipleOfDt,
+    /// A step, duration or rate is not positive and finite.
+    NonPositive,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ConfigError::ControlPeriodNotMultipleOfDt => {
+                write!(f, "the control period must be a whole number of steps dt")
+            }
+            ConfigError::NonPositive => write!(f, "dt, duration and control rate must be positive"),
+        }
+    }
+}
+
+impl std::error::Error for ConfigError {}
+
+/// Statistics over one time window.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WindowStats {
+    /// Window start, s.
+    pub start: f64,
+    /// Window end, s.
+    pub end: f64,
+    /// Mean thread friction torque T_r, N·m (time average from the exact integral).
+    pub mean_friction_torque: f64,
+    /// Peak-to-peak of θ − θ_i, rad.
+    pub twist_peak_to_peak: f64,
+    /// Fraction of the window spent stuck.
+    pub stick_fraction: f64,
+    /// Number of stick phases that began in the window.
+    pub sticks: usize,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Window {
+    a: f64,
+    b: f64,
+    q_a: Option<f64>,
+    q_b: Option<f64>,
+    twist_min: f64,
+    twist_max: f64,
+    stick_time: f64,
+    sticks: usize,
+}
+
+impl Window {
+    fn new(a: f64, b: f64) -> Self {
+        Self {
+            a,
+            b,
+            q_a: None,
+            q_b: None,
+            twist_min: f64::INFINITY,
+            twist_max: f64::NEG_INFINITY,
+            stick_time: 0.0,
+            sticks: 0,
+        }
+    }
+
+    fn overlap(&self, t0: f64, t1: f64) -> f64 {
+        (t1.min(self.b) - t0.max(self.a)).max(0.0)
+    }
+
+    fn stats(&self) -> Option<WindowStats> {
+        let len = self.b - self.a;
+        Some(WindowStats {
+            start: self.a,
+            end: self.b,
+            mean_friction_torque: (self.q_b? - self.q_a?) / len,
+            twist_peak_to_peak: self.twist_max - self.twist_min,
+            stick_fraction: self.stick_time / len,
+            sticks: self.sticks,
+        })
+    }
+}
+
+/// The outcome of a run.
+#[derive(Clone, Debug)]
+pub struct Summary {
+    /// Simulated time, s.
+    pub duration: f64,
+    /// Head height at start and end, m.
+    pub height: (f64, f64),
+    /// Arm angle at start and end, degrees.
+    pub alpha_deg: (f64, f64),
+    /// The requested window (default 0.999–1 s).
+    pub window: Option<WindowStats>,
+    /// The constant-speed phase of the paper profile (or the whole run in closed loop).
+    pub cruise: Option<WindowStats>,
+    /// Fraction of the whole run spent stuck.
+    pub stick_fraction: f64,
+    /// Number of stick phases.
+    pub sticks: usize,
+    /// Energy terms at the end.
+    pub energy: Energy,
+    /// Largest |motor current|, A.
+    pub peak_current: f64,
+    /// Mean screw speed over the second half of the run, rad/s.
+    pub late_screw_speed: f64,
+    /// Base steps taken and phase events located.
+    pub steps: u64,
+    /// Phase events located.
+    pub events: u64,
+}
+
+/// A run in progress.
+#[derive(Debug)]
+pub struct Sim {
+    /// Configuration.
+    pub cfg: SimConfig,
+    driver: Driver,
+    /// Continuous state.
+    pub state: State,
+    /// Stick/slip phase.
+    pub phase: Phase,
+    bridge: BridgeState,
+    sensors: Sensors,
+    theta_start: f64,
+    /// Recorded ground truth.
+    pub trace: Trace,
+    windows: [Window; 2],
+    stick_time: f64,
+    sticks: usize,
+    peak_current: f64,
+    steps: u64,
+    events: u64,
+    late: (f64, f64),
+}
+
+struct Eval {
+    deriv: State,
+    theta_i: f64,
+    t_c: f64,
+    mech: crate::plant::screw_nut::Mechanics,
+    loads: crate::plant::screw_nut::Loads,
+    drive: crate::plant::drive::DriveRates,
+}
+
+impl Sim {
+    /// A run of `cfg` driven by `driver`, starting at rest with the coupling relaxed.
+    pub fn new(cfg: SimConfig, driver: Driver) -> Result<Self, ConfigError> {
+        let pos = |v: f64| v.is_finite() && v > 0.0;
+        if !(pos(cfg.dt) && pos(cfg.duration) && pos(cfg.control_rate)) {
+            return Err(ConfigError::NonPositive);
+        }
+        if !driver.is_paper() {
+            let per = 1.0 / (cfg.control_rate * cfg.dt);
+            if (per - per.round()).abs() > 1e-6 || per.round() < 1.0 {
+                return Err(ConfigError::ControlPeriodNotMultipleOfDt);
+            }
+        }
+        let theta_start = cfg.plant.theta_at_alpha(cfg.start_alpha);
+        let cruise = match &driver {
+            Driver::Paper(p) => Window::new(p.ramp_end, p.brake_start.min(cfg.duration)),
+            _ => Window::new(0.0, cfg.duration),
+        };
+        Ok(Self {
+            state: State {
+                theta: theta_start,
+                ..State::default()
+            },
+            phase: Phase::Stick,
+            bridge: BridgeState::Coast,
+            sensors: Sensors::new(cfg.sensors, cfg.seed),
+            theta_start,
+            trace: Trace::default(),
+            windows: [Window::new(cfg.window.0, cfg.window.1), cruise],
+            stick_time: 0.0,
+            sticks: 0,
+            peak_current: 0.0,
+            steps: 0,
+            events: 0,
+            late: (0.0, 0.0),
+            cfg,
+            driver,
+        })
+    }
+
+    /// θ_i and θ̇_i at time t for state y.
+    fn input(&self, t: f64, y: &State) -> (f64, f64) {
+        match &self.driver {
+            Driver::Paper(p) => (self.theta_start + p.angle(t), p.speed(t)),
+            _ => {
+                let n = self.cfg.drive.ratio;
+                (self.theta_start + y.motor_angle / n, y.motor_speed / n)
+            }
+        }
+    }
+
+    fn eval(&self, t: f64, y: &State, phase: Phase, bridge: BridgeState) -> Eval {
+        let p = &self.cfg.plant;
+        let (theta_i, theta_i_dot) = self.input(t, y);
+        let t_c = p.screw.coupling * (theta_i - y.theta);
+        let loads = p.loads(y.theta);
+        let mut d = State::default();
+        let mech = match phase {
+            Phase::Slip(dir) => {
+                let m = p.slipping(&loads, y.theta_dot, t_c, dir);
+                let pw = p.powers(&loads, y.theta_dot, &m);
+                d.theta = y.theta_dot;
+                d.theta_dot = m.theta_ddot;
+                d.e_thread = pw.thread;
+                d.e_support = pw.support;
+                d.e_pins = pw.pins;
+                d.e_structure = pw.structure;
+                m
+            }
+            Phase::Stick => p.stuck(&loads, t_c),
+        };
+        d.e_input = t_c * theta_i_dot;
+        d.e_screw_input = t_c * d.theta;
+        d.q_friction_torque = mech.contact.friction_torque;
+        let mut drive = Default::default();
+        if !self.driver.is_paper() {
+            let r = self.cfg.drive.rates(y.current, y.motor_speed, bridge, t_c);
+            d.motor_angle = y.motor_speed;
+            d.motor_speed = r.dw;
+            d.current = r.di;
+            d.e_source = r.source_power;
+            d.e_electrical = r.ohmic_loss + r.diode_loss;
+            d.e_drive = r.motor_friction_loss + r.gear_loss;
+            drive = r;
+        }
+        Eval {
+            deriv: d,
+            theta_i,
+            t_c,
+            mech,
+            loads,
+            drive,
+        }
+    }
+
+    /// Event function of `phase`: crosses from ≤ 0 to > 0 when the phase must end.
+    fn event_fn(&self, t: f64, y: &State, phase: Phase) -> f64 {
+        match phase {
+            Phase::Slip(dir) => -dir.sign() * y.theta_dot,
+            Phase::Stick => {
+                let p = &self.cfg.plant;
+                let (theta_i, _) = self.input(t, y);
+                p.breakaway_margin(&p.loads(y.theta), p.screw.coupling * (theta_i - y.theta))
+            }
+        }
+    }
+
+    fn substep(&self, t: f64, y: &State, h: f64) -> State {
+        let (phase, bridge) = (self.phase, self.bridge);
+        let mut f = |t: f64, y: &State| self.eval(t, y, phase, bridge).deriv;
+        let mut out = rk23_step(&mut f, t, y, h);
+        out.current = coast_clamp(bridge, y.current, out.current);
+        if phase == Phase::Stick {
+            out.theta_dot = 0.0;
+        }
+        out
+    }
+
+    /// The phase to enter at (t, y), where the current phase's event fired.
+    fn next_phase(&self, t: f64, y: &State) -> Phase {
+        let p = &self.cfg.plant;
+        let (theta_i, _) = self.input(t, y);
+        match p.breakaway(&p.loads(y.theta), p.screw.coupling * (theta_i - y.theta)) {
+            Some(d) => Phase::Slip(d),
+            None => Phase::Stick,
+        }
+    }
+
+    /// Advances one base step from t to t_end.
+    fn advance(&mut self, t: f64, t_end: f64) {
+        let dt = self.cfg.dt;
+        let mut t0 = t;
+        let mut transitions = 0;
+        while t_end - t0 > 1e-15 {
+            let h = t_end - t0;
+            let y0 = self.state;
+            let y1 = self.substep(t0, &y0, h);
+            let g1 = self.event_fn(t0 + h, &y1, self.phase);
+            let (t1, y_new, fired) = if g1 > 0.0 && transitions < 8 {
+                let g0 = self.event_fn(t0, &y0, self.phase).min(0.0);
+                let mut g = |s: f64| self.event_fn(t0 + s, &self.substep(t0, &y0, s), self.phase);
+                let (_, hi) = bracket_root(&mut g, 0.0, h, g0, g1, 1e-6 * dt, 40);
+                let yh = if hi < h {
+                    self.substep(t0, &y0, hi)
+                } else {
+                    y1
+                };
+                (t0 + hi, yh, true)
+            } else {
+                (t_end, y1, false)
+            };
+            if self.phase == Phase::Stick {
+                self.stick_time += t1 - t0;
+                for w in &mut self.windows {
+                    w.stick_time += w.overlap(t0, t1);
+                }
+            }
+            self.integrate_windows(t0, t1, &y0, &y_new);
+            self.state = y_new;
+            t0 = t1;
+            if fired {
+                self.events += 1;
+                transitions += 1;
+                let old = self.phase;
+                if let Phase::Slip(_) = old {
+                    self.state.theta_dot = 0.0;
+                }
+                self.phase = self.next_phase(t0, &self.state);
+                if self.phase == Phase::Stick && old != Phase::Stick {
+                    self.sticks += 1;
+                    for w in &mut self.windows {
+                        if (w.a..w.b).contains(&t0) {
+                            w.sticks += 1;
+                        }
+                    }
+                }
+                if let (Phase::Slip(a), Phase::Slip(b)) = (old, self.phase) {
+                    debug_assert!(a != b, "slip continued in the same direction after θ̇ = 0");
+                }
+            }
+        }
+    }
+
+    fn integrate_windows(&mut self, t0: f64, t1: f64, y0: &State, y1: &State) {
+        let lerp = |s: f64| {
+            y0.q_friction_torque
+                + (y1.q_friction_torque - y0.q_friction_torque) * (s - t0) / (t1 - t0)
+        };
+        for w in &mut self.windows {
+            if w.q_a.is_none() && t1 > w.a && t0 <= w.a {
+                w.q_a = Some(lerp(w.a));
+            }
+            if w.q_b.is_none() && t1 >= w.b && t0 < w.b {
+                w.q_b = Some(lerp(w.b));
+            }
+        }
+    }
+
+    fn observe(&mut self, t: f64) {
+        let y = self.state;
+        let (theta_i, _) = self.input(t, &y);
+        let twist = y.theta - theta_i;
+        for w in &mut self.windows {
+            if t >= w.a && t <= w.b {
+                w.twist_min = w.twist_min.min(twist);
+                w.twist_max = w.twist_max.max(twist);
+            }
+        }
+        self.peak_current = self.peak_current.max(y.current.abs());
+        if t >= 0.5 * self.cfg.duration {
+            self.late.0 += y.theta_dot * self.cfg.dt;
+            self.late.1 += self.cfg.dt;
+        }
+    }
+
+    /// Energy terms of state y at time t.
+    pub fn energy(&self, t: f64, y: &State) -> Energy {
+        let p = &self.cfg.plant;
+        let (theta_i, _) = self.input(t, y);
+        let d = &self.cfg.drive;
+        let open = !self.driver.is_paper();
+        Energy {
+            input: y.e_input,
+            screw_input: y.e_screw_input,
+            thread: y.e_thread,
+            support: y.e_support,
+            pins: y.e_pins,
+            structure: y.e_structure,
+            potential: p.potential_energy(y.theta) - p.potential_energy(self.theta_start),
+            kinetic: p.kinetic_energy(y.theta_dot),
+            spring: 0.5 * p.screw.coupling * (theta_i - y.theta).powi(2),
+            source: y.e_source,
+            electrical_loss: y.e_electrical,
+            drive_loss: y.e_drive,
+            drive_stored: if open {
+                0.5 * d.inertia() * y.motor_speed.powi(2)
+                    + 0.5 * d.armature_inductance * y.current.powi(2)
+            } else {
+                0.0
+            },
+        }
+    }
+
+    /// The ground-truth record at time t.
+    pub fn record(&self, t: f64) -> Record {
+        let y = self.state;
+        let e = self.eval(t, &y, self.phase, self.bridge);
+        let c = e.mech.contact;
+        Record {
+            t,
+            theta_i: e.theta_i,
+            theta: y.theta,
+            theta_dot: y.theta_dot,
+            twist: y.theta - e.theta_i,
+            alpha_deg: e.loads.alpha.to_degrees(),
+            height: e.loads.height,
+            r: e.loads.r,
+            f0: e.loads.f0,
+            c_x: e.loads.c_x,
+            mu: c.mu,
+            mu_s: c.mu_s,
+            normal: c.normal,
+            friction_torque: c.friction_torque,
+            coupling_torque: e.t_c,
+            phase: self.phase,
+            flank: e.mech.flank,
+            current: y.current,
+            armature_voltage: e.drive.armature_voltage,
+            bus_voltage: e.drive.bus_voltage,
+            duty: self.bridge.duty(),
+            motor_speed: y.motor_speed,
+            energy: self.energy(t, &y),
+        }
+    }
+
+    /// One control tick: sample the sensors, run the driver, latch the bridge.
+    fn tick(&mut self, t: f64) {
+        let y = self.state;
+        let bus = self
+            .cfg
+            .drive
+            .rates(y.current, y.motor_speed, self.bridge, 0.0)
+            .bus_voltage;
+        let sensing = matches!(self.bridge, BridgeState::Drive(d) if d != 0.0);
+        let h = self.cfg.plant.loads(y.theta).height;
+        let inputs = self
+            .sensors
+            .sample(y.motor_angle, y.current, bus, sensing, h);
+        let cmd = match &mut self.driver {
+            Driver::Paper(_) => return,
+            Driver::Core(c) => {
+                c.step(Instant((t * 1e6).round() as u64 as u32), &inputs)
+                    .bridge
+            }
+            Driver::OpenLoop(o) => o.command(t, &inputs),
+            Driver::Custom(f) => f(t, &inputs),
+        };
+        self.bridge = BridgeState::from_command(cmd);
+    }
+
+    /// Runs to the configured duration and summarises.
+    pub fn run(&mut self) -> Summary {
+        let dt = self.cfg.dt;
+        let n_steps = (self.cfg.duration / dt).round() as u64;
+        let per_tick = (1.0 / (self.cfg.control_rate * dt)).round().max(1.0) as u64;
+        let per_record = if self.cfg.record_rate > 0.0 {
+            Some((1.0 / (self.cfg.record_rate * dt)).round().max(1.0) as u64)
+        } else {
+            None
+        };
+        let start = self.record(0.0);
+        for n in 0..n_steps {
+            let t = n as f64 * dt;
+            if !self.driver.is_paper() && n % per_tick == 0 {
+                self.tick(t);
+            }
+            if per_record.is_some_and(|k| n % k == 0) {
+                let r = self.record(t);
+                self.trace.records.push(r);
+            }
+            let t_next = (n + 1) as f64 * dt;
+            self.advance(t, t_next);
+            self.steps += 1;
+            self.observe(t_next);
+        }
+        let t_end = n_steps as f64 * dt;
+        // The last window may end within rounding of the last step.
+        for w in &mut self.windows {
+            if w.q_b.is_none() && w.b <= t_end + 0.5 * dt {
+                w.q_b = Some(self.state.q_friction_torque);
+            }
+        }
+        let end = self.record(t_end);
+        if per_record.is_some() {
+            self.trace.records.push(end);
+        }
+        Summary {
+            duration: t_end,
+            height: (start.height, end.height),
+            alpha_deg: (start.alpha_deg, end.alpha_deg),
+            window: self.windows[0].stats(),
+            cruise: self.windows[1].stats(),
+            stick_fraction: self.stick_time / t_end,
+            sticks: self.sticks,
+            energy: end.energy,
+            peak_current: self.peak_current,
+            late_screw_speed: if self.late.1 > 0.0 {
+                self.late.0 / self.late.1
+            } else {
+                0.0
+            },
+            steps: self.steps,
+            events: self.events,
+        }
+    }
+}
+
+/// Convenience: the paper-mode run of seed 000 with lubricant law, μ_b, start angle (deg) and
+/// cruise speed (rad/s, negative lowers), over `duration` s at step `dt`, without a trace; the
+/// summary window is the last millisecond (0.999–1 s for a 1 s run, as in the paper's figures).
+pub fn paper_run(
+    law: FrictionLaw,
+    mu_pin: f64,
+    start_deg: f64,
+    cruise: f64,
+    duration: f64,
+    dt: f64,
+) -> Summary {
+    let mut cfg = SimConfig::paper(law, mu_pin, start_deg);
+    cfg.duration = duration;
+    cfg.window = (duration - 1e-3, duration);
+    cfg.dt = dt;
+    cfg.record_rate = 0.0;
+    let mut sim = match Sim::new(cfg, Driver::Paper(SpeedProfile::paper(cruise))) {
+        Ok(s) => s,
+        Err(e) => unreachable!("paper mode has no control period: {e}"),
+    };
+    sim.run()
+}
+
+/// One line per direction, for humans.
+impl fmt::Display for Summary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "height      {:7.1} mm → {:7.1} mm   (α {:.2}° → {:.2}°) in {:.3} s",
+            self.height.0 * 1e3,
+            self.height.1 * 1e3,
+            self.alpha_deg.0,
+            self.alpha_deg.1,
+            self.duration
+        )?;
+        for (name, w) in [("window", self.window), ("cruise", self.cruise)] {
+            if let Some(w) = w {
+                writeln!(
+                    f,
+                    "{name:<11} {:.3}–{:.3} s: mean T_r {:8.3} N·m, twist θ−θi p-p {:8.3} mrad, stuck {:5.1} % ({} sticks)",
+                    w.start,
+                    w.end,
+                    w.mean_friction_torque,
+                    w.twist_peak_to_peak * 1e3,
+                    100.0 * w.stick_fraction,
+                    w.sticks
+                )?;
+            }
+        }
+        let e = &self.energy;
+        writeln!(
+            f,
+            "energy      in {:.3} J = thread {:.3} + supports {:.3} + pins {:.3} + structure {:.3} + ΔPE {:.3} + ΔKE {:.2e} + Δspring {:.3}  (error {:.4} %)",
+            e.input,
+            e.thread,
+            e.support,
+            e.pins,
+            e.structure,
+            e.potential,
+            e.kinetic,
+            e.spring,
+            100.0 * e.balance_error()
+        )?;
+        if e.source != 0.0 {
+            writeln!(
+                f,
+                "drive       battery {:.3} J = electrical {:.3} + motor/gear {:.3} + stored {:.3} + coupling {:.3}  (error {:.4} %), peak current {:.1} A",
+                e.source,
+                e.electrical_loss,
+                e.drive_loss,
+                e.drive_stored,
+                e.input,
+                100.0 * e.drive_balance_error(),
+                self.peak_current
+            )?;
+        }
+        write!(
+            f,
+            "stick-slip  stuck {:.1} % of the run, {} sticks; screw speed over the 2nd half {:.3} rad/s; {} steps, {} events",
+            100.0 * self.stick_fraction,
+            self.sticks,
+            self.late_screw_speed,
+            self.steps,
+            self.events
+        )
+    }
+}

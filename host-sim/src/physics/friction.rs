@@ -177,7 +177,10 @@ mod tests {
         let l = FrictionLaw::lithium();
         assert!((l.mu_of(0.0) - 0.193).abs() < 1e-12);
         assert!((l.mu_of(2e-3) - 0.19).abs() < 1e-3);
-        assert!((l.mu_of(0.1) - l.mu_of(2e-3)).abs() < 1e-9, "flat beyond the data");
+        assert!(
+            (l.mu_of(0.1) - l.mu_of(2e-3)).abs() < 1e-9,
+            "flat beyond the data"
+        );
     }
 
     #[test]

@@ -93,14 +93,31 @@ impl Screw {
     }
 
     /// Axial demand W = m·ẍ + R + F₀·sgn θ̇ + c_x·ẋ, N.
-    pub fn axial_demand(&self, theta_dot: f64, theta_ddot: f64, dir: f64, r: f64, f0: f64, c_x: f64) -> f64 {
+    pub fn axial_demand(
+        &self,
+        theta_dot: f64,
+        theta_ddot: f64,
+        dir: f64,
+        r: f64,
+        f0: f64,
+        c_x: f64,
+    ) -> f64 {
         let lead = self.lead_per_rad();
         self.nut_mass * lead * theta_ddot + r + f0 * dir + c_x * lead * theta_dot
     }
 
     /// Torque the coupling must deliver to the screw, N·m: I·θ̈ + c·θ̇ + T₀·sgn θ̇ + thread torque.
-    pub fn required_torque(&self, theta_dot: f64, theta_ddot: f64, dir: f64, contact: &Contact) -> f64 {
-        self.inertia * theta_ddot + self.damping * theta_dot + self.support_torque * dir + contact.thread_torque
+    pub fn required_torque(
+        &self,
+        theta_dot: f64,
+        theta_ddot: f64,
+        dir: f64,
+        contact: &Contact,
+    ) -> f64 {
+        self.inertia * theta_ddot
+            + self.damping * theta_dot
+            + self.support_torque * dir
+            + contact.thread_torque
     }
 }
 
@@ -144,8 +161,12 @@ mod tests {
             let c = s.contact(0.15, dir, w);
             let theta_dot = 10.0 * dir;
             let p_in = c.thread_torque * theta_dot;
-            let p_out = w * s.lead_per_rad() * theta_dot + c.mu * c.normal.abs() * s.sliding_speed(theta_dot).abs();
-            assert!((p_in - p_out).abs() < 1e-9 * p_in.abs().max(1.0), "{dir} {w}: {p_in} {p_out}");
+            let p_out = w * s.lead_per_rad() * theta_dot
+                + c.mu * c.normal.abs() * s.sliding_speed(theta_dot).abs();
+            assert!(
+                (p_in - p_out).abs() < 1e-9 * p_in.abs().max(1.0),
+                "{dir} {w}: {p_in} {p_out}"
+            );
         }
     }
 }

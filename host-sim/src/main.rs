@@ -79,6 +79,10 @@ struct RunArgs {
     /// Simulated time, s.
     #[arg(long, default_value_t = 5.0)]
     duration: f64,
+    /// Constant structure damping c_x, kg/s (default: Table 1's c_x(α); the paper's text
+    /// value 1e6 makes the thread slide steadily).
+    #[arg(long)]
+    cx: Option<f64>,
     /// Driving mode.
     #[arg(long, value_enum, default_value_t = Mode::Paper)]
     mode: Mode,
@@ -146,6 +150,9 @@ fn run(a: &RunArgs) -> Result<(), Box<dyn std::error::Error>> {
         a.start_deg,
     );
     cfg.plant.load = a.load_kg;
+    if let Some(cx) = a.cx {
+        cfg.plant.damping = host_sim::plant::StructureDamping::Constant(cx);
+    }
     cfg.duration = a.duration;
     cfg.dt = a.dt;
     cfg.seed = a.seed;

@@ -262,10 +262,6 @@ impl Geometry {
     /// Screw angle θ in Q16 radians for a motor encoder position.
     #[inline]
     pub fn screw_angle_q16(&self, counts: i32) -> i32 {
-        self.metres_per_count_to_rad(counts)
-    }
-
-    fn metres_per_count_to_rad(&self, counts: i32) -> i32 {
         self.screw_rad_per_count.apply32(counts)
     }
 

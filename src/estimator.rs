@@ -32,9 +32,10 @@ pub struct MotorConfig {
 }
 
 impl MotorConfig {
-    /// A 12 V gear motor of the jack class: k_t = 0.03 N·m/A, gearbox efficiency 0.85.
+    /// A 12 V gear motor of the jack class: k_t = 0.04 N·m/A, gearbox efficiency 0.85 (the
+    /// default board's motor; host-sim's drive uses the same values, docs/plant.md).
     pub const DEFAULT: MotorConfig = MotorConfig {
-        torque_constant: Ratio::lit("0.03"),
+        torque_constant: Ratio::lit("0.04"),
         gear_efficiency: Ratio::lit("0.85"),
     };
 }

@@ -35,6 +35,13 @@ pub enum ConfigError {
         /// Its accepted range with unit.
         range: &'static str,
     },
+    /// `field` contradicts another setting.
+    Conflict {
+        /// The setting's key, as the console names it.
+        field: &'static str,
+        /// What it must satisfy.
+        reason: &'static str,
+    },
 }
 
 impl core::fmt::Display for ConfigError {
@@ -43,6 +50,7 @@ impl core::fmt::Display for ConfigError {
             ConfigError::OutOfRange { field, range } => {
                 write!(f, "{field} out of range (allowed {range})")
             }
+            ConfigError::Conflict { field, reason } => write!(f, "{field} refused: {reason}"),
         }
     }
 }

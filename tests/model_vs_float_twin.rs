@@ -31,7 +31,7 @@ fn twin() -> Twin {
     Twin {
         geo: physics::Geometry::paper(),
         screw,
-        metres_per_count: screw.lead_per_rad() * 2.0 * std::f64::consts::PI / (44.0 * 20.0),
+        metres_per_count: screw.lead_per_rad() * 2.0 * std::f64::consts::PI / (48.0 * 60.0),
     }
 }
 

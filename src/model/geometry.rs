@@ -58,11 +58,11 @@ impl GeometryConfig {
 }
 
 impl DriveConfig {
-    /// The default drive: 44 counts per motor turn (11-pole Hall encoder ×4), 20:1 gearbox,
+    /// The default drive: 48 counts per motor turn (12-line Hall encoder ×4), 60:1 gearbox,
     /// seed 000's S12x2 screw (r_m = 4.265 mm, λ = 3.47°).
     pub const DEFAULT: DriveConfig = DriveConfig {
-        counts_per_rev: 44,
-        gear_ratio: I16F16::lit("20"),
+        counts_per_rev: 48,
+        gear_ratio: I16F16::lit("60"),
         pitch_radius: Metres::lit("0.004265"),
         lead_angle_deg: I16F16::lit("3.47"),
     };

@@ -5,6 +5,8 @@
 //! its peripherals accept. Conversion to physical units happens here, in the core, so that
 //! host-sim exercises exactly the arithmetic the board runs.
 
+pub mod config;
+
 use crate::units::Instant;
 
 /// Raw inputs sampled by the board at the start of a control tick.

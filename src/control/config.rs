@@ -1,0 +1,388 @@
+//! Everything the user can configure about motion, limit stops and protections, with the
+//! ranges the console and the flash store validate against.
+//!
+//! [`ControlConfig`] is the whole of it. It is validated once, by [`crate::control::Controller::new`]
+//! (or [`ControlConfig::validate`]), before a single tick runs with it; the hot path never
+//! re-checks. Every refusal names the setting's console key and its range.
+
+use crate::estimator::EstimatorConfig;
+use crate::model::geometry::Geometry;
+use crate::units::{Amperes, Kilograms, Metres, RadiansPerSecond, Ratio, Volts};
+use crate::ConfigError;
+
+/// Shape of the speed ramp.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum RampShape {
+    /// Constant acceleration (seed 000's Fig. 2 profile).
+    #[default]
+    Trapezoid,
+    /// Acceleration rises and falls linearly (jerk-limited): same ramp time, no acceleration
+    /// step, twice the trapezoid's peak acceleration.
+    SCurve,
+}
+
+/// How the UP/DOWN buttons command motion.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ButtonMode {
+    /// Motion lasts only while the button is held (the safe default for a car lift).
+    #[default]
+    HoldToRun,
+    /// A press starts motion to the limit stop; STOP (or the other button) stops it.
+    Latched,
+}
+
+/// Speed profile and button behaviour.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MotionConfig {
+    /// Cruise screw speed θ̇, 0.2…20 rad/s (the default motor reaches ≈ 4.2 rad/s at rated
+    /// load on a 12.6 V battery; docs/plant.md).
+    pub cruise_speed: RadiansPerSecond,
+    /// Time to accelerate from rest to cruise speed (and to brake back), 10…2000 ms.
+    pub ramp_ms: u32,
+    /// Ramp shape.
+    pub ramp_shape: RampShape,
+    /// Button behaviour.
+    pub buttons: ButtonMode,
+}
+
+impl MotionConfig {
+    /// 3 rad/s cruise (head ≈ 3.6 mm/s at α = 15°), seed 000's 60 ms trapezoid, hold-to-run.
+    pub const DEFAULT: MotionConfig = MotionConfig {
+        cruise_speed: RadiansPerSecond::lit("3"),
+        ramp_ms: 60,
+        ramp_shape: RampShape::Trapezoid,
+        buttons: ButtonMode::HoldToRun,
+    };
+}
+
+/// The user's limit stops, as head heights.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LimitStops {
+    /// Lowest head height the lift drives to.
+    pub lower: Metres,
+    /// Highest head height the lift drives to.
+    pub upper: Metres,
+}
+
+impl LimitStops {
+    /// Factory limits of the default lift: 145 mm (α ≈ 16.7°) and 410 mm (α ≈ 71.8°), inside
+    /// the limit switches at α = 16° and 74°.
+    pub const DEFAULT: LimitStops = LimitStops {
+        lower: Metres::lit("0.145"),
+        upper: Metres::lit("0.410"),
+    };
+
+    /// Smallest gap between the two stops.
+    pub const MIN_GAP: Metres = Metres::lit("0.010");
+
+    /// Check the stops against the mechanism: both inside α₀ … α_max and `lower + MIN_GAP ≤ upper`.
+    pub fn validate(&self, geometry: &Geometry) -> Result<(), ConfigError> {
+        if geometry.counts_for_height(self.lower).is_none() {
+            return Err(ConfigError::OutOfRange {
+                field: "limits.lower",
+                range: "the mechanism's height range (see `limits`)",
+            });
+        }
+        if geometry.counts_for_height(self.upper).is_none() {
+            return Err(ConfigError::OutOfRange {
+                field: "limits.upper",
+                range: "the mechanism's height range (see `limits`)",
+            });
+        }
+        if self.lower.sat_add(Self::MIN_GAP) > self.upper {
+            return Err(ConfigError::Conflict {
+                field: "limits.lower",
+                reason: "must be at least 10 mm below limits.upper",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Protection thresholds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ProtectionConfig {
+    /// Motor current that trips the over-current fault on the sample that exceeds it, 1…60 A.
+    pub overcurrent: Amperes,
+    /// Stall: duty magnitude at or above which "no motion" counts, 0.05…1.
+    pub stall_duty: Ratio,
+    /// Stall: time at high duty without encoder motion before the fault, 20…5000 ms.
+    pub stall_ms: u32,
+    /// Fastest plausible motor-shaft speed (faster means a broken or noisy encoder), 10…5000 rad/s.
+    pub max_motor_speed: RadiansPerSecond,
+    /// Refuse to start below this supply voltage, 8…16 V.
+    pub supply_start_min: Volts,
+    /// Stop while moving below this supply voltage (held for `supply_ms`), 6…16 V.
+    pub supply_run_min: Volts,
+    /// Stop above this supply voltage (charger surge, load dump), 12…20 V.
+    pub supply_max: Volts,
+    /// Supply out of range for this long trips the fault, 1…1000 ms.
+    pub supply_ms: u32,
+    /// Overload: measured screw torque above the model's torque at rated load by this
+    /// fraction, 0.05…2.
+    pub overload_margin: Ratio,
+    /// Overload: held for this long, 10…5000 ms.
+    pub overload_ms: u32,
+    /// Runaway: uncommanded travel (while stopped, or faster than commanded while lowering)
+    /// before the fault, nut travel 0.01…10 mm.
+    pub runaway_travel: Metres,
+}
+
+impl ProtectionConfig {
+    /// Defaults for the default board (40 A bridge budget, 12 V lead-acid battery).
+    pub const DEFAULT: ProtectionConfig = ProtectionConfig {
+        overcurrent: Amperes::lit("45"),
+        stall_duty: Ratio::lit("0.5"),
+        stall_ms: 300,
+        max_motor_speed: RadiansPerSecond::lit("600"),
+        supply_start_min: Volts::lit("11.0"),
+        supply_run_min: Volts::lit("9.5"),
+        supply_max: Volts::lit("15.5"),
+        supply_ms: 20,
+        overload_margin: Ratio::lit("0.25"),
+        overload_ms: 200,
+        runaway_travel: Metres::lit("0.0005"),
+    };
+}
+
+/// ADC scalings of the board (docs/plant.md, docs/board.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SensingConfig {
+    /// Current-sense ADC code at 0 A, 0…4095.
+    pub current_zero_code: u16,
+    /// Current per ADC code, µA (1…1 000 000).
+    pub current_ua_per_code: u32,
+    /// Supply voltage per ADC code, µV (1…100 000).
+    pub supply_uv_per_code: u32,
+}
+
+impl SensingConfig {
+    /// The default board: 25 mV/A around 1.65 V (32 227 µA/code), 10 k/2.2 k divider
+    /// (4 468 µV/code), 12-bit ADC at 3.3 V.
+    pub const DEFAULT: SensingConfig = SensingConfig {
+        current_zero_code: 2048,
+        current_ua_per_code: 32_227,
+        supply_uv_per_code: 4_468,
+    };
+}
+
+/// The whole control configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ControlConfig {
+    /// Lift geometry, drive, friction law, motor, tick rate, speed filter.
+    pub estimator: EstimatorConfig,
+    /// Rated load of the lift, 10…5000 kg.
+    pub rated_load: Kilograms,
+    /// Speed profile and buttons.
+    pub motion: MotionConfig,
+    /// Limit stops.
+    pub limits: LimitStops,
+    /// Protection thresholds.
+    pub protection: ProtectionConfig,
+    /// ADC scalings.
+    pub sensing: SensingConfig,
+}
+
+impl ControlConfig {
+    /// The default lift, board and motor at a 1 kHz tick, rated 1000 kg (seed 000's load).
+    pub const DEFAULT: ControlConfig = ControlConfig {
+        estimator: EstimatorConfig::DEFAULT,
+        rated_load: Kilograms::lit("1000"),
+        motion: MotionConfig::DEFAULT,
+        limits: LimitStops::DEFAULT,
+        protection: ProtectionConfig::DEFAULT,
+        sensing: SensingConfig::DEFAULT,
+    };
+
+    /// Check every range that does not need the compiled geometry, then the limit stops
+    /// against it. The estimator's own settings are checked by [`crate::estimator::Estimator::new`].
+    pub fn validate(&self, geometry: &Geometry) -> Result<(), ConfigError> {
+        range(
+            self.rated_load,
+            Kilograms::lit("10"),
+            Kilograms::lit("5000"),
+            "load.rated",
+            "10..5000 kg",
+        )?;
+        let m = &self.motion;
+        range(
+            m.cruise_speed,
+            RadiansPerSecond::lit("0.2"),
+            RadiansPerSecond::lit("20"),
+            "motion.cruise_speed",
+            "0.2..20 rad/s",
+        )?;
+        range(m.ramp_ms, 10, 2000, "motion.ramp_ms", "10..2000 ms")?;
+        let p = &self.protection;
+        range(
+            p.overcurrent,
+            Amperes::lit("1"),
+            Amperes::lit("60"),
+            "protect.overcurrent",
+            "1..60 A",
+        )?;
+        range(
+            p.stall_duty,
+            Ratio::lit("0.05"),
+            Ratio::ONE,
+            "protect.stall_duty",
+            "0.05..1",
+        )?;
+        range(p.stall_ms, 20, 5000, "protect.stall_ms", "20..5000 ms")?;
+        range(
+            p.max_motor_speed,
+            RadiansPerSecond::lit("10"),
+            RadiansPerSecond::lit("5000"),
+            "protect.max_motor_speed",
+            "10..5000 rad/s",
+        )?;
+        range(
+            p.supply_start_min,
+            Volts::lit("8"),
+            Volts::lit("16"),
+            "protect.supply_start_min",
+            "8..16 V",
+        )?;
+        range(
+            p.supply_run_min,
+            Volts::lit("6"),
+            Volts::lit("16"),
+            "protect.supply_run_min",
+            "6..16 V",
+        )?;
+        range(
+            p.supply_max,
+            Volts::lit("12"),
+            Volts::lit("20"),
+            "protect.supply_max",
+            "12..20 V",
+        )?;
+        if p.supply_run_min > p.supply_start_min {
+            return Err(ConfigError::Conflict {
+                field: "protect.supply_run_min",
+                reason: "must not exceed protect.supply_start_min",
+            });
+        }
+        if p.supply_start_min >= p.supply_max {
+            return Err(ConfigError::Conflict {
+                field: "protect.supply_start_min",
+                reason: "must be below protect.supply_max",
+            });
+        }
+        range(p.supply_ms, 1, 1000, "protect.supply_ms", "1..1000 ms")?;
+        range(
+            p.overload_margin,
+            Ratio::lit("0.05"),
+            Ratio::lit("2"),
+            "protect.overload_margin",
+            "0.05..2",
+        )?;
+        range(p.overload_ms, 10, 5000, "protect.overload_ms", "10..5000 ms")?;
+        range(
+            p.runaway_travel,
+            Metres::lit("0.00001"),
+            Metres::lit("0.01"),
+            "protect.runaway_travel",
+            "0.01..10 mm",
+        )?;
+        let s = &self.sensing;
+        range(
+            s.current_zero_code,
+            0,
+            4095,
+            "sense.current_zero",
+            "0..4095 codes",
+        )?;
+        range(
+            s.current_ua_per_code,
+            1,
+            1_000_000,
+            "sense.current_ua_per_code",
+            "1..1000000 uA",
+        )?;
+        range(
+            s.supply_uv_per_code,
+            1,
+            100_000,
+            "sense.supply_uv_per_code",
+            "1..100000 uV",
+        )?;
+        self.limits.validate(geometry)
+    }
+}
+
+fn range<T: PartialOrd>(
+    v: T,
+    lo: T,
+    hi: T,
+    field: &'static str,
+    range: &'static str,
+) -> Result<(), ConfigError> {
+    if v >= lo && v <= hi {
+        Ok(())
+    } else {
+        Err(ConfigError::OutOfRange { field, range })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::geometry::{DriveConfig, GeometryConfig};
+
+    fn geometry() -> Geometry {
+        Geometry::new(GeometryConfig::DEFAULT, DriveConfig::DEFAULT).unwrap()
+    }
+
+    #[test]
+    fn default_config_is_valid() {
+        ControlConfig::DEFAULT.validate(&geometry()).unwrap();
+    }
+
+    #[test]
+    fn lower_stop_above_upper_is_refused_naming_the_field() {
+        let mut c = ControlConfig::DEFAULT;
+        c.limits.lower = Metres::lit("0.400");
+        c.limits.upper = Metres::lit("0.300");
+        let e = c.validate(&geometry()).unwrap_err();
+        assert_eq!(
+            e,
+            ConfigError::Conflict {
+                field: "limits.lower",
+                reason: "must be at least 10 mm below limits.upper"
+            }
+        );
+    }
+
+    #[test]
+    fn stop_outside_the_mechanism_is_refused() {
+        let mut c = ControlConfig::DEFAULT;
+        c.limits.upper = Metres::lit("0.5"); // above h₀ + L·sin 75° = 416 mm
+        assert!(matches!(
+            c.validate(&geometry()),
+            Err(ConfigError::OutOfRange {
+                field: "limits.upper",
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn run_threshold_above_start_threshold_is_refused() {
+        let mut c = ControlConfig::DEFAULT;
+        c.protection.supply_run_min = Volts::lit("12");
+        assert!(matches!(
+            c.validate(&geometry()),
+            Err(ConfigError::Conflict {
+                field: "protect.supply_run_min",
+                ..
+            })
+        ));
+    }
+}

@@ -29,14 +29,19 @@ pub struct MotorConfig {
     pub torque_constant: Ratio,
     /// Gearbox efficiency, 0.1…1.
     pub gear_efficiency: Ratio,
+    /// Resistance of the motor loop (armature + bridge + battery + leads), Ω, 0.001…4: the
+    /// speed loop's feed-forward needs it to turn a torque into a voltage.
+    pub resistance: Ratio,
 }
 
 impl MotorConfig {
-    /// A 12 V gear motor of the jack class: k_t = 0.04 N·m/A, gearbox efficiency 0.85 (the
-    /// default board's motor; host-sim's drive uses the same values, docs/plant.md).
+    /// A 12 V gear motor of the jack class: k_t = 0.04 N·m/A, gearbox efficiency 0.85, loop
+    /// resistance 0.091 Ω (60 mΩ armature + 16 mΩ bridge + 15 mΩ battery): the default board's
+    /// motor, the same values as host-sim's drive (docs/plant.md).
     pub const DEFAULT: MotorConfig = MotorConfig {
         torque_constant: Ratio::lit("0.04"),
         gear_efficiency: Ratio::lit("0.85"),
+        resistance: Ratio::lit("0.091"),
     };
 }
 
@@ -189,6 +194,12 @@ impl Estimator {
             return Err(ConfigError::OutOfRange {
                 field: "motor.gear_efficiency",
                 range: "0.1..1",
+            });
+        }
+        if !(m.resistance >= Ratio::lit("0.001") && m.resistance <= Ratio::lit("4")) {
+            return Err(ConfigError::OutOfRange {
+                field: "motor.resistance",
+                range: "0.001..4 ohm",
             });
         }
         if !(100..=10_000).contains(&cfg.tick_us) {

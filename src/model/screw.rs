@@ -28,6 +28,10 @@ pub struct MechanicsConfig {
     pub support_torque: NewtonMetres,
     /// Translating (nut) mass m (seed 000: ≈ 1 kg), 0…5 kg.
     pub nut_mass: Kilograms,
+    /// Torsional stiffness k of the coupling between gear output and screw, N·m/rad
+    /// (DESIGN.md: 160), 1…10 000. The encoder sees the gear side: under torque T the screw
+    /// lags it by T/k, which the halt planner corrects for.
+    pub coupling_stiffness: NewtonMetres,
 }
 
 impl MechanicsConfig {
@@ -37,6 +41,7 @@ impl MechanicsConfig {
         damping_unms: 400,
         support_torque: NewtonMetres::lit("0.01"),
         nut_mass: Kilograms::lit("1"),
+        coupling_stiffness: NewtonMetres::lit("160"),
     };
 }
 
@@ -93,6 +98,11 @@ impl ScrewModel {
         }
         if !(mech.nut_mass >= Kilograms::ZERO && mech.nut_mass <= Kilograms::lit("5")) {
             return oor("mech.nut_mass", "0..5 kg");
+        }
+        if !(mech.coupling_stiffness >= NewtonMetres::lit("1")
+            && mech.coupling_stiffness <= NewtonMetres::lit("10000"))
+        {
+            return oor("mech.coupling_stiffness", "1..10000 Nm/rad");
         }
         if !(drive.pitch_radius >= Metres::lit("0.001")
             && drive.pitch_radius <= Metres::lit("0.05"))

@@ -1,0 +1,729 @@
+//! Golden vectors of the liftfw core: generated on the host, replayed bit for bit on the target.
+//!
+//! Issue 8 asks for proof that the core computes on the Cortex-M4 exactly what it computes on
+//! the host. This crate holds everything both sides share, so that they run the *same source*:
+//!
+//! - the case generator ([`generate`]): deterministic (SplitMix64, fixed seed), covering the
+//!   envelope, its edges and nonsense bit patterns, for every configuration in [`config`];
+//! - the evaluator ([`evaluate`]): decodes one input, calls the core, encodes every output field
+//!   as raw little-endian bits;
+//! - the file format and its checker ([`verify`]): the host writes inputs + outputs
+//!   (`golden-gen`), the QEMU program embeds the file (`include_bytes!`), re-evaluates each input
+//!   and compares the bytes.
+//!
+//! # File format (all little-endian)
+//! `b"LFGV"`, version `u16`, then records until the end: `kind u8`, `input_len u32`,
+//! `output_len u32`, input bytes, output bytes.
+//!
+//! # Adding a kind (detector, ramp/planner, console parser…)
+//! 1. a new [`Kind`] variant (never renumber the old ones);
+//! 2. its input codec and an arm in [`evaluate`] that calls the core and [`put_*`](Sink) its
+//!    outputs field by field (raw bits, fixed order);
+//! 3. a case generator called from [`generate`].
+//!
+//! The QEMU harness needs no change: it replays whatever kinds the file holds.
+#![no_std]
+#![forbid(unsafe_code)]
+
+use liftfw::estimator::MotorConfig;
+use liftfw::estimator::{Estimate, Estimator, EstimatorConfig, Measurements};
+use liftfw::model::friction::{FrictionLaw, LawVariable};
+use liftfw::model::geometry::{DriveConfig, GeometryConfig};
+use liftfw::model::screw::MechanicsConfig;
+use liftfw::units::{
+    Amperes, Instant, Kilograms, Metres, NewtonMetres, RadiansPerSecond, RadiansPerSecond2, Ratio,
+};
+
+/// File magic.
+pub const MAGIC: [u8; 4] = *b"LFGV";
+/// File format version.
+pub const VERSION: u16 = 1;
+/// Longest estimator sequence in one record (bounds the target's work per record).
+pub const MAX_SEQUENCE: usize = 64;
+
+/// What a record exercises.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Kind {
+    /// `Estimator::estimate` at a given speed and acceleration (no filter state).
+    EstimatorEstimate = 1,
+    /// A fresh `Estimator` fed a sequence of `step(now, measurements)`: the filter and its state.
+    EstimatorSequence = 2,
+}
+
+impl Kind {
+    /// All kinds, in file order.
+    pub const ALL: [Kind; 2] = [Kind::EstimatorEstimate, Kind::EstimatorSequence];
+
+    fn from_u8(v: u8) -> Option<Kind> {
+        Kind::ALL.into_iter().find(|k| *k as u8 == v)
+    }
+
+    /// Short name, for reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::EstimatorEstimate => "estimator.estimate",
+            Kind::EstimatorSequence => "estimator.step",
+        }
+    }
+}
+
+/// A malformed file or record.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Error {
+    /// The file does not start with [`MAGIC`].
+    BadMagic,
+    /// Another format version.
+    BadVersion(u16),
+    /// A record or field runs past the end.
+    Truncated,
+    /// A kind this build does not know.
+    UnknownKind(u8),
+    /// A configuration index outside [`config`].
+    UnknownConfig(u8),
+    /// A sequence longer than [`MAX_SEQUENCE`].
+    SequenceTooLong(u16),
+}
+
+impl core::fmt::Display for Error {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Error::BadMagic => write!(f, "not a golden-vector file"),
+            Error::BadVersion(v) => write!(f, "format version {v}, expected {VERSION}"),
+            Error::Truncated => write!(f, "truncated record"),
+            Error::UnknownKind(k) => write!(f, "unknown record kind {k}"),
+            Error::UnknownConfig(c) => write!(f, "unknown configuration {c}"),
+            Error::SequenceTooLong(n) => write!(f, "sequence of {n} steps (max {MAX_SEQUENCE})"),
+        }
+    }
+}
+
+/// Where encoded bytes go: a `Vec` on the host, a comparator on the target.
+pub trait Sink {
+    /// Append bytes.
+    fn put(&mut self, bytes: &[u8]);
+    /// Append an `i32`, little-endian.
+    fn put_i32(&mut self, v: i32) {
+        self.put(&v.to_le_bytes());
+    }
+    /// Append a `u32`, little-endian.
+    fn put_u32(&mut self, v: u32) {
+        self.put(&v.to_le_bytes());
+    }
+    /// Append a `u16`, little-endian.
+    fn put_u16(&mut self, v: u16) {
+        self.put(&v.to_le_bytes());
+    }
+    /// Append a byte.
+    fn put_u8(&mut self, v: u8) {
+        self.put(&[v]);
+    }
+}
+
+/// Counts the bytes put (to size a record before writing it).
+#[derive(Default)]
+pub struct Counter(pub usize);
+
+impl Sink for Counter {
+    fn put(&mut self, bytes: &[u8]) {
+        self.0 += bytes.len();
+    }
+}
+
+/// Compares the bytes put against an expected slice.
+pub struct Compare<'a> {
+    expected: &'a [u8],
+    pos: usize,
+    /// Byte offset of the first difference (or of the first byte past either end).
+    pub first_mismatch: Option<usize>,
+}
+
+impl<'a> Compare<'a> {
+    /// Compare against `expected`.
+    pub fn new(expected: &'a [u8]) -> Self {
+        Compare {
+            expected,
+            pos: 0,
+            first_mismatch: None,
+        }
+    }
+
+    /// Whether everything put matched and covered the whole expected slice.
+    pub fn finish(&mut self) -> bool {
+        if self.first_mismatch.is_none() && self.pos != self.expected.len() {
+            self.first_mismatch = Some(self.pos.min(self.expected.len()));
+        }
+        self.first_mismatch.is_none()
+    }
+}
+
+impl Sink for Compare<'_> {
+    fn put(&mut self, bytes: &[u8]) {
+        for (i, b) in bytes.iter().enumerate() {
+            let at = self.pos + i;
+            if self.first_mismatch.is_none() && self.expected.get(at) != Some(b) {
+                self.first_mismatch = Some(at);
+            }
+        }
+        self.pos += bytes.len();
+    }
+}
+
+/// A little-endian reader over a byte slice; every read is checked.
+struct Reader<'a> {
+    b: &'a [u8],
+}
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize) -> Result<&'a [u8], Error> {
+        if self.b.len() < n {
+            return Err(Error::Truncated);
+        }
+        let (h, t) = self.b.split_at(n);
+        self.b = t;
+        Ok(h)
+    }
+    fn array<const N: usize>(&mut self) -> Result<[u8; N], Error> {
+        let mut a = [0u8; N];
+        a.copy_from_slice(self.take(N)?);
+        Ok(a)
+    }
+    fn u8(&mut self) -> Result<u8, Error> {
+        Ok(self.array::<1>()?[0])
+    }
+    fn u16(&mut self) -> Result<u16, Error> {
+        Ok(u16::from_le_bytes(self.array()?))
+    }
+    fn u32(&mut self) -> Result<u32, Error> {
+        Ok(u32::from_le_bytes(self.array()?))
+    }
+    fn i32(&mut self) -> Result<i32, Error> {
+        Ok(i32::from_le_bytes(self.array()?))
+    }
+}
+
+/// Number of configurations in [`config`].
+pub const CONFIGS: u8 = 6;
+
+/// The estimator configurations the vectors run under: the presets and both corners of every
+/// validated range (so configuration-time quantisation is proven bit-exact too).
+pub fn config(id: u8) -> Option<EstimatorConfig> {
+    let d = EstimatorConfig::DEFAULT;
+    Some(match id {
+        0 => d,
+        1 => EstimatorConfig {
+            law: FrictionLaw::PTFE,
+            ..d
+        },
+        2 => EstimatorConfig {
+            law: FrictionLaw::LITHIUM,
+            ..d
+        },
+        3 => EstimatorConfig {
+            law: FrictionLaw::BALL_SCREW,
+            ..d
+        },
+        // Upper corners of the ranges.
+        4 => EstimatorConfig {
+            geometry: GeometryConfig {
+                length: Metres::lit("2"),
+                alpha0_deg: fixed_deg(60),
+                alpha_max_deg: fixed_deg(89),
+                h0: Metres::lit("1"),
+                mu_pin: Ratio::ONE,
+            },
+            drive: DriveConfig {
+                counts_per_rev: 65_536,
+                gear_ratio: fixed_deg(1000),
+                pitch_radius: Metres::lit("0.05"),
+                lead_angle_deg: fixed_deg(20),
+            },
+            mechanics: MechanicsConfig {
+                inertia_ukgm2: 100_000,
+                damping_unms: 1_000_000,
+                support_torque: NewtonMetres::lit("10"),
+                nut_mass: Kilograms::lit("5"),
+                ..MechanicsConfig::DEFAULT
+            },
+            law: FrictionLaw {
+                base: Ratio::ONE,
+                amp: Ratio::ONE,
+                rate: fixed::types::I32F32::lit("1000000"),
+                slope: fixed::types::I32F32::lit("1000"),
+                s_max: fixed::types::I32F32::lit("0.5"),
+                variable: LawVariable::SlidingSpeed,
+            },
+            motor: MotorConfig {
+                torque_constant: Ratio::ONE,
+                gear_efficiency: Ratio::lit("0.1"),
+                ..MotorConfig::DEFAULT
+            },
+            tick_us: 100,
+            speed_bandwidth_hz: 1000,
+            rest_speed: RadiansPerSecond::lit("50"),
+        },
+        // Lower corners.
+        5 => EstimatorConfig {
+            geometry: GeometryConfig {
+                length: Metres::lit("0.05"),
+                alpha0_deg: fixed_deg(12),
+                alpha_max_deg: fixed_deg(17),
+                h0: Metres::ZERO,
+                mu_pin: Ratio::ZERO,
+            },
+            drive: DriveConfig {
+                counts_per_rev: 4,
+                gear_ratio: fixed_deg(1),
+                pitch_radius: Metres::lit("0.001"),
+                lead_angle_deg: fixed::types::I16F16::lit("0.5"),
+            },
+            mechanics: MechanicsConfig {
+                inertia_ukgm2: 0,
+                damping_unms: 0,
+                support_torque: NewtonMetres::ZERO,
+                nut_mass: Kilograms::ZERO,
+                ..MechanicsConfig::DEFAULT
+            },
+            law: FrictionLaw {
+                base: Ratio::ZERO,
+                amp: Ratio::ONE.sat_neg(),
+                rate: fixed::types::I32F32::ZERO,
+                slope: fixed::types::I32F32::lit("-1000"),
+                s_max: fixed::types::I32F32::MAX,
+                variable: LawVariable::ScrewRate,
+            },
+            motor: MotorConfig {
+                torque_constant: Ratio::lit("0.001"),
+                gear_efficiency: Ratio::ONE,
+                ..MotorConfig::DEFAULT
+            },
+            tick_us: 10_000,
+            speed_bandwidth_hz: 1,
+            rest_speed: RadiansPerSecond::ZERO,
+        },
+        _ => return None,
+    })
+}
+
+fn fixed_deg(v: i32) -> fixed::types::I16F16 {
+    fixed::types::I16F16::from_num(v)
+}
+
+fn estimator(cfg_id: u8) -> Result<Estimator, Error> {
+    let cfg = config(cfg_id).ok_or(Error::UnknownConfig(cfg_id))?;
+    Estimator::new(&cfg).map_err(|_| Error::UnknownConfig(cfg_id))
+}
+
+/// Every field of an estimate, as raw bits in a fixed order.
+pub fn put_estimate(s: &mut impl Sink, e: &Estimate) {
+    let p = &e.pose;
+    s.put_i32(p.x.to_bits());
+    s.put_i32(p.cos_alpha.to_bits());
+    s.put_i32(p.sin_alpha.to_bits());
+    s.put_i32(p.inv_sin_alpha.to_bits());
+    s.put_i32(p.alpha.0);
+    s.put_i32(p.height.to_bits());
+    s.put_u8(u8::from(p.clamped));
+    s.put_i32(e.screw_speed.to_bits());
+    s.put_i32(e.screw_accel.to_bits());
+    s.put_i32(e.axial_load.to_bits());
+    s.put_i32(e.pin_friction.to_bits());
+    s.put_i32(e.structure_damping.to_bits());
+    s.put_i32(e.mu.to_bits());
+    let c = &e.contact;
+    s.put_i32(c.mu_s.to_bits());
+    s.put_i32(c.xi.to_bits());
+    s.put_i32(c.axial.to_bits());
+    s.put_i32(c.normal.to_bits());
+    s.put_i32(c.friction_torque.to_bits());
+    s.put_i32(c.thread_torque.to_bits());
+    s.put_i32(e.model_screw_torque.to_bits());
+    s.put_i32(e.model_motor_torque.to_bits());
+    s.put_i32(e.measured_screw_torque.to_bits());
+    s.put_i32(e.residual.to_bits());
+    s.put_i32(e.self_locking_margin.to_bits());
+    s.put_u8(e.flags.0);
+}
+
+fn put_measurements(s: &mut impl Sink, m: &Measurements) {
+    s.put_i32(m.position_counts);
+    s.put_i32(m.motor_current.to_bits());
+    s.put_i32(m.load.to_bits());
+    s.put(&m.commanded_dir.to_le_bytes());
+}
+
+fn read_measurements(r: &mut Reader<'_>) -> Result<Measurements, Error> {
+    Ok(Measurements {
+        position_counts: r.i32()?,
+        motor_current: Amperes::from_bits(r.i32()?),
+        load: Kilograms::from_bits(r.i32()?),
+        commanded_dir: i8::from_le_bytes(r.array()?),
+    })
+}
+
+/// One `estimate` case.
+#[derive(Clone, Copy, Debug)]
+pub struct EstimateCase {
+    /// Index into [`config`].
+    pub cfg: u8,
+    /// Measurements.
+    pub m: Measurements,
+    /// Screw speed handed to the model.
+    pub speed: RadiansPerSecond,
+    /// Screw acceleration handed to the model.
+    pub accel: RadiansPerSecond2,
+    /// Incoming flags.
+    pub flags: u8,
+}
+
+impl EstimateCase {
+    fn put(&self, s: &mut impl Sink) {
+        s.put_u8(self.cfg);
+        put_measurements(s, &self.m);
+        s.put_i32(self.speed.to_bits());
+        s.put_i32(self.accel.to_bits());
+        s.put_u8(self.flags);
+    }
+}
+
+/// Run one record's input through the core and put its outputs.
+pub fn evaluate(kind: u8, input: &[u8], out: &mut impl Sink) -> Result<(), Error> {
+    let mut r = Reader { b: input };
+    match Kind::from_u8(kind).ok_or(Error::UnknownKind(kind))? {
+        Kind::EstimatorEstimate => {
+            let est = estimator(r.u8()?)?;
+            let m = read_measurements(&mut r)?;
+            let speed = RadiansPerSecond::from_bits(r.i32()?);
+            let accel = RadiansPerSecond2::from_bits(r.i32()?);
+            let flags = r.u8()?;
+            put_estimate(out, &est.estimate(&m, speed, accel, flags));
+        }
+        Kind::EstimatorSequence => {
+            let mut est = estimator(r.u8()?)?;
+            let n = r.u16()?;
+            if usize::from(n) > MAX_SEQUENCE {
+                return Err(Error::SequenceTooLong(n));
+            }
+            for _ in 0..n {
+                let now = Instant(r.u32()?);
+                let m = read_measurements(&mut r)?;
+                put_estimate(out, &est.step(now, &m));
+            }
+        }
+    }
+    if r.b.is_empty() {
+        Ok(())
+    } else {
+        Err(Error::Truncated)
+    }
+}
+
+/// Longest record input, bytes.
+const INPUT_MAX: usize = 16 + MAX_SEQUENCE * 17;
+
+/// A record's input, built on the stack.
+struct InputBuf {
+    data: [u8; INPUT_MAX],
+    len: usize,
+    overflow: bool,
+}
+
+impl InputBuf {
+    fn new() -> Self {
+        InputBuf {
+            data: [0; INPUT_MAX],
+            len: 0,
+            overflow: false,
+        }
+    }
+}
+
+impl Sink for InputBuf {
+    fn put(&mut self, b: &[u8]) {
+        match self.data.get_mut(self.len..self.len + b.len()) {
+            Some(dst) => dst.copy_from_slice(b),
+            None => self.overflow = true,
+        }
+        self.len += b.len();
+    }
+}
+
+/// Write one record: its input and the outputs [`evaluate`] gives for it.
+fn record(s: &mut impl Sink, kind: Kind, input: &InputBuf) -> Result<(), Error> {
+    let bytes = match input.data.get(..input.len) {
+        Some(b) if !input.overflow => b,
+        _ => return Err(Error::Truncated),
+    };
+    let mut out_len = Counter::default();
+    evaluate(kind as u8, bytes, &mut out_len)?;
+    s.put_u8(kind as u8);
+    s.put_u32(bytes.len() as u32);
+    s.put_u32(out_len.0 as u32);
+    s.put(bytes);
+    evaluate(kind as u8, bytes, s)
+}
+
+/// SplitMix64: a tiny, well-mixed, seedable generator (no dependency, same on every target).
+pub struct SplitMix64(pub u64);
+
+impl SplitMix64 {
+    /// Next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// 32 random bits.
+    pub fn bits(&mut self) -> i32 {
+        (self.next_u64() >> 32) as i32
+    }
+    /// Uniform in `lo..=hi` (i64 arithmetic, no bias worth caring about here).
+    pub fn range(&mut self, lo: i64, hi: i64) -> i64 {
+        let span = (hi - lo) as u64 + 1;
+        lo + (self.next_u64() % span) as i64
+    }
+    /// True with probability `num/den`.
+    pub fn chance(&mut self, num: u64, den: u64) -> bool {
+        self.next_u64() % den < num
+    }
+}
+
+/// Motor counts at which the pose reaches `alpha_max` (binary search on the core's own pose).
+fn counts_at_alpha_max(est: &Estimator) -> i32 {
+    let g = est.geometry();
+    let (mut lo, mut hi) = (0i64, i64::from(i32::MAX));
+    while lo < hi {
+        let mid = (lo + hi) / 2;
+        if g.pose(mid as i32).alpha >= g.alpha_max() {
+            hi = mid;
+        } else {
+            lo = mid + 1;
+        }
+    }
+    lo as i32
+}
+
+/// Edge values of a 32-bit field around `centre`.
+const EDGES: [i64; 9] = [
+    i32::MIN as i64,
+    i32::MIN as i64 + 1,
+    -65_536,
+    -1,
+    0,
+    1,
+    65_536,
+    i32::MAX as i64 - 1,
+    i32::MAX as i64,
+];
+
+/// Number of `estimate` cases per configuration.
+pub const ESTIMATE_CASES_PER_CONFIG: u32 = 500;
+/// Number of step sequences per configuration.
+pub const SEQUENCES_PER_CONFIG: u32 = 6;
+/// Steps per sequence.
+pub const SEQUENCE_LEN: u16 = 50;
+
+fn estimate_case(rng: &mut SplitMix64, cfg: u8, c_max: i32, rest: i32, k: u32) -> EstimateCase {
+    let pick = |rng: &mut SplitMix64, envelope: i64, edges: &[i64]| -> i32 {
+        match rng.range(0, 9) {
+            // Nonsense: any bit pattern.
+            0 => rng.bits(),
+            // An edge value.
+            1 => edges[rng.range(0, edges.len() as i64 - 1) as usize] as i32,
+            // Inside the envelope.
+            _ => rng.range(-envelope, envelope) as i32,
+        }
+    };
+    let c_max_i = i64::from(c_max);
+    let counts_edges = [
+        -1,
+        0,
+        1,
+        c_max_i - 1,
+        c_max_i,
+        c_max_i + 1,
+        i64::from(i32::MIN),
+        i64::from(i32::MAX),
+    ];
+    let position_counts = match rng.range(0, 9) {
+        0 => rng.bits(),
+        1 => counts_edges[rng.range(0, 7) as usize] as i32,
+        // α₀ − 5° … past 89.5°: 10 % either side of the working range.
+        _ => rng.range(-c_max_i / 10, c_max_i + c_max_i / 10) as i32,
+    };
+    let rest = i64::from(rest);
+    let speed_edges = [
+        -rest - 1,
+        -rest,
+        -rest + 1,
+        rest - 1,
+        rest,
+        rest + 1,
+        0,
+        i64::from(i32::MIN),
+        i64::from(i32::MAX),
+    ];
+    // The first cases of each configuration walk the rest-band edges deterministically.
+    let speed = if (k as usize) < speed_edges.len() {
+        speed_edges[k as usize] as i32
+    } else {
+        pick(rng, 400 << 16, &speed_edges)
+    };
+    EstimateCase {
+        cfg,
+        m: Measurements {
+            position_counts,
+            motor_current: Amperes::from_bits(pick(rng, 30 << 16, &EDGES)),
+            load: Kilograms::from_bits(match rng.range(0, 9) {
+                0 => rng.bits(),
+                1 => EDGES[rng.range(0, 8) as usize] as i32,
+                _ => rng.range(0, 2000 << 12) as i32,
+            }),
+            commanded_dir: if rng.chance(1, 10) {
+                rng.bits() as i8
+            } else {
+                rng.range(-1, 1) as i8
+            },
+        },
+        speed: RadiansPerSecond::from_bits(speed),
+        accel: RadiansPerSecond2::from_bits(pick(rng, 2000 << 8, &EDGES)),
+        flags: if rng.chance(1, 10) {
+            rng.bits() as u8
+        } else {
+            0
+        },
+    }
+}
+
+/// One motion as the encoder sees it: accelerate, cruise, brake, with optional glitches.
+fn sequence(rng: &mut SplitMix64, cfg: &EstimatorConfig, c_max: i32, out: &mut impl Sink) {
+    let mut now = if rng.chance(1, 4) {
+        u32::MAX - 20 * cfg.tick_us // the µs clock wraps inside this run
+    } else {
+        rng.next_u64() as u32
+    };
+    // Position in Q16 counts; speed in Q16 counts per tick, acceleration per tick².
+    let mut pos = rng.range(0, i64::from(c_max)) << 16;
+    let mut vel: i64 = 0;
+    let acc = rng.range(-(1 << 16), 1 << 16);
+    let glitchy = rng.chance(1, 3);
+    let load = Kilograms::from_bits(rng.range(0, 2000 << 12) as i32);
+    for k in 0..SEQUENCE_LEN {
+        let phase = u32::from(k) * 3 / u32::from(SEQUENCE_LEN);
+        vel += match phase {
+            0 => acc,
+            1 => 0,
+            _ => -acc,
+        };
+        pos += vel;
+        let mut counts = (pos >> 16) as i32;
+        let mut step = cfg.tick_us;
+        if glitchy {
+            if rng.chance(1, 10) {
+                counts = rng.bits(); // encoder glitch
+            }
+            if rng.chance(1, 10) {
+                step = rng.range(0, i64::from(cfg.tick_us) * 5) as u32; // late or early tick
+            }
+        }
+        now = now.wrapping_add(step);
+        out.put_u32(now);
+        put_measurements(
+            out,
+            &Measurements {
+                position_counts: counts,
+                motor_current: Amperes::from_bits(rng.range(-(20 << 16), 20 << 16) as i32),
+                load,
+                commanded_dir: if vel >= 0 { 1 } else { -1 },
+            },
+        );
+    }
+}
+
+/// Every golden record, in a fixed order, from a fixed seed.
+pub fn generate(s: &mut impl Sink) -> Result<(), Error> {
+    s.put(&MAGIC);
+    s.put_u16(VERSION);
+    let mut rng = SplitMix64(0x6c69_6674_6677_0008); // "liftfw", issue 8
+    for cfg in 0..CONFIGS {
+        let est = estimator(cfg)?;
+        let c_max = counts_at_alpha_max(&est);
+        let rest = config(cfg).map_or(0, |c| c.rest_speed.to_bits());
+        for k in 0..ESTIMATE_CASES_PER_CONFIG {
+            let case = estimate_case(&mut rng, cfg, c_max, rest, k);
+            let mut input = InputBuf::new();
+            case.put(&mut input);
+            record(s, Kind::EstimatorEstimate, &input)?;
+        }
+    }
+    for cfg in 0..CONFIGS {
+        let conf = config(cfg).ok_or(Error::UnknownConfig(cfg))?;
+        let c_max = counts_at_alpha_max(&estimator(cfg)?);
+        for _ in 0..SEQUENCES_PER_CONFIG {
+            let seed = rng.next_u64();
+            let mut input = InputBuf::new();
+            input.put_u8(cfg);
+            input.put_u16(SEQUENCE_LEN);
+            sequence(&mut SplitMix64(seed), &conf, c_max, &mut input);
+            record(s, Kind::EstimatorSequence, &input)?;
+        }
+    }
+    Ok(())
+}
+
+/// Outcome of replaying a golden file.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Report {
+    /// Records replayed, per [`Kind`] (index = position in [`Kind::ALL`]).
+    pub records: [u32; 2],
+    /// Records whose outputs differed, per kind.
+    pub mismatches: [u32; 2],
+    /// The first mismatch: (record index, kind, byte offset into its output).
+    pub first_mismatch: Option<(u32, u8, u32)>,
+}
+
+impl Report {
+    /// No mismatch.
+    pub fn passed(&self) -> bool {
+        self.mismatches.iter().all(|&m| m == 0)
+    }
+}
+
+/// Replay every record of a golden file and compare the outputs byte for byte.
+pub fn verify(file: &[u8]) -> Result<Report, Error> {
+    let mut r = Reader { b: file };
+    if r.array::<4>()? != MAGIC {
+        return Err(Error::BadMagic);
+    }
+    let v = r.u16()?;
+    if v != VERSION {
+        return Err(Error::BadVersion(v));
+    }
+    let mut rep = Report::default();
+    let mut index = 0u32;
+    while !r.b.is_empty() {
+        let kind = r.u8()?;
+        let k = Kind::ALL
+            .iter()
+            .position(|x| *x as u8 == kind)
+            .ok_or(Error::UnknownKind(kind))?;
+        let in_len = r.u32()? as usize;
+        let out_len = r.u32()? as usize;
+        let input = r.take(in_len)?;
+        let expected = r.take(out_len)?;
+        let mut cmp = Compare::new(expected);
+        evaluate(kind, input, &mut cmp)?;
+        rep.records[k] += 1;
+        if !cmp.finish() {
+            rep.mismatches[k] += 1;
+            if rep.first_mismatch.is_none() {
+                let at = cmp.first_mismatch.unwrap_or(0) as u32;
+                rep.first_mismatch = Some((index, kind, at));
+            }
+        }
+        index += 1;
+    }
+    Ok(rep)
+}

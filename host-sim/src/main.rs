@@ -165,7 +165,10 @@ fn run(a: &RunArgs) -> Result<(), Box<dyn std::error::Error>> {
     };
     let driver = match a.mode {
         Mode::Paper => Driver::Paper(SpeedProfile::paper(sign * a.cruise.abs())),
-        Mode::Closed => Driver::Core(Box::default()),
+        Mode::Closed => Driver::Core(Box::new(
+            liftfw::control::Controller::new(&liftfw::control::config::ControlConfig::DEFAULT, 0)
+                .map_err(|e| format!("{e:?}"))?,
+        )),
         Mode::Duty => Driver::OpenLoop(OpenLoopDuty {
             duty: sign * a.duty.abs(),
             ramp: 0.2,

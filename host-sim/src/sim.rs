@@ -15,6 +15,8 @@
 //! step is cut there, the phase switched and the rest of the step taken in the new phase.
 
 use crate::physics::FrictionLaw;
+use crate::plant::kernel::Kernel;
+use crate::plant::screw_nut::Loads;
 use crate::plant::{
     drive::coast_clamp, BridgeState, DriveParams, Phase, ScrewNut, SensorParams, Sensors,
     SpeedProfile,
@@ -33,6 +35,7 @@ macro_rules! state {
         #[derive(Clone, Copy, Debug, Default, PartialEq)]
         pub struct State { $($(#[$m])* pub $f: f64,)* }
         impl OdeState for State {
+            #[inline(always)]
             fn add_scaled(&mut self, a: f64, o: &Self) { $(self.$f += a * o.$f;)* }
         }
     };
@@ -309,6 +312,10 @@ pub struct Sim {
     theta_start: f64,
     /// Recorded ground truth.
     pub trace: Trace,
+    /// The plant's hot-path form, built from `cfg.plant` by [`Sim::new`].
+    kernel: Kernel,
+    /// Loads at the angle the screw is stuck at (θ does not move while stuck): (θ, loads).
+    stuck_loads: (f64, Loads),
     windows: [Window; 2],
     stick_time: f64,
     sticks: usize,
@@ -345,11 +352,14 @@ impl Sim {
             Driver::Paper(p) => Window::new(p.ramp_end, p.brake_start.min(cfg.duration)),
             _ => Window::new(0.0, cfg.duration),
         };
+        let kernel = Kernel::new(cfg.plant);
         Ok(Self {
             state: State {
                 theta: theta_start,
                 ..State::default()
             },
+            kernel,
+            stuck_loads: (theta_start, kernel.loads(theta_start)),
             phase: Phase::Stick,
             bridge: BridgeState::Coast,
             sensors: Sensors::new(cfg.sensors, cfg.seed),
@@ -368,6 +378,7 @@ impl Sim {
     }
 
     /// θ_i and θ̇_i at time t for state y.
+    #[inline]
     fn input(&self, t: f64, y: &State) -> (f64, f64) {
         match &self.driver {
             Driver::Paper(p) => (self.theta_start + p.angle(t), p.speed(t)),
@@ -378,11 +389,22 @@ impl Sim {
         }
     }
 
+    /// Loads at θ; while stuck, from the cache filled when the screw stuck.
+    #[inline]
+    fn loads_at(&self, theta: f64, phase: Phase) -> Loads {
+        if phase == Phase::Stick && self.stuck_loads.0 == theta {
+            self.stuck_loads.1
+        } else {
+            self.kernel.loads(theta)
+        }
+    }
+
+    #[inline]
     fn eval(&self, t: f64, y: &State, phase: Phase, bridge: BridgeState) -> Eval {
-        let p = &self.cfg.plant;
+        let p = &self.kernel;
         let (theta_i, theta_i_dot) = self.input(t, y);
-        let t_c = p.screw.coupling * (theta_i - y.theta);
-        let loads = p.loads(y.theta);
+        let t_c = self.cfg.plant.screw.coupling * (theta_i - y.theta);
+        let loads = self.loads_at(y.theta, phase);
         let mut d = State::default();
         let mech = match phase {
             Phase::Slip(dir) => {
@@ -423,17 +445,21 @@ impl Sim {
     }
 
     /// Event function of `phase`: crosses from ≤ 0 to > 0 when the phase must end.
+    #[inline]
     fn event_fn(&self, t: f64, y: &State, phase: Phase) -> f64 {
         match phase {
             Phase::Slip(dir) => -dir.sign() * y.theta_dot,
             Phase::Stick => {
-                let p = &self.cfg.plant;
                 let (theta_i, _) = self.input(t, y);
-                p.breakaway_margin(&p.loads(y.theta), p.screw.coupling * (theta_i - y.theta))
+                self.kernel.breakaway_margin(
+                    &self.loads_at(y.theta, phase),
+                    self.cfg.plant.screw.coupling * (theta_i - y.theta),
+                )
             }
         }
     }
 
+    #[inline]
     fn substep(&self, t: f64, y: &State, h: f64) -> State {
         let (phase, bridge) = (self.phase, self.bridge);
         let mut f = |t: f64, y: &State| self.eval(t, y, phase, bridge).deriv;
@@ -447,9 +473,12 @@ impl Sim {
 
     /// The phase to enter at (t, y), where the current phase's event fired.
     fn next_phase(&self, t: f64, y: &State) -> Phase {
-        let p = &self.cfg.plant;
         let (theta_i, _) = self.input(t, y);
-        match p.breakaway(&p.loads(y.theta), p.screw.coupling * (theta_i - y.theta)) {
+        let t_c = self.cfg.plant.screw.coupling * (theta_i - y.theta);
+        match self
+            .kernel
+            .breakaway(&self.loads_at(y.theta, self.phase), t_c)
+        {
             Some(d) => Phase::Slip(d),
             None => Phase::Stick,
         }
@@ -495,6 +524,10 @@ impl Sim {
                     self.state.theta_dot = 0.0;
                 }
                 self.phase = self.next_phase(t0, &self.state);
+                if self.phase == Phase::Stick {
+                    let th = self.state.theta;
+                    self.stuck_loads = (th, self.kernel.loads(th));
+                }
                 if self.phase == Phase::Stick && old != Phase::Stick {
                     self.sticks += 1;
                     for w in &mut self.windows {

@@ -10,6 +10,7 @@ pub trait OdeState: Clone {
 }
 
 impl<const N: usize> OdeState for [f64; N] {
+    #[inline(always)]
     fn add_scaled(&mut self, a: f64, other: &Self) {
         for (y, k) in self.iter_mut().zip(other) {
             *y += a * k;
@@ -27,6 +28,7 @@ impl<const N: usize> OdeState for [f64; N] {
 /// let y = rk23_step(&mut |_t, y: &[f64; 1]| [-y[0]], 0.0, &[1.0], 0.1);
 /// assert!((y[0] - (-0.1f64).exp()).abs() < 1e-5);
 /// ```
+#[inline]
 pub fn rk23_step<S: OdeState>(f: &mut impl FnMut(f64, &S) -> S, t: f64, y: &S, h: f64) -> S {
     let k1 = f(t, y);
     let mut y2 = y.clone();

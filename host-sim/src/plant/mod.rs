@@ -2,11 +2,13 @@
 //!
 //! - [`screw_nut`]: screw-nut-scissor dynamics (one equation for lifting and lowering) with the
 //!   stick/slip treatment and the flank switch;
+//! - [`kernel`]: the same mechanics with its constants precomputed, for the run loop;
 //! - [`profile`]: seed 000's prescribed input speed (Fig. 2), for *paper mode*;
 //! - [`drive`]: battery, H-bridge, DC motor and gearbox, for *closed-loop mode*;
 //! - [`sensors`]: encoder, ADCs and limit switches, the board's view of the plant.
 
 pub mod drive;
+pub mod kernel;
 pub mod profile;
 pub mod screw_nut;
 pub mod sensors;

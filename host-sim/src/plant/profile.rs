@@ -29,6 +29,7 @@ impl SpeedProfile {
     }
 
     /// θ̇_i at time t, rad/s.
+    #[inline]
     pub fn speed(&self, t: f64) -> f64 {
         let w = self.cruise;
         if t <= 0.0 || t >= self.stop {
@@ -43,6 +44,7 @@ impl SpeedProfile {
     }
 
     /// θ_i at time t, rad (exact integral of [`SpeedProfile::speed`]).
+    #[inline]
     pub fn angle(&self, t: f64) -> f64 {
         let w = self.cruise;
         let (t1, t2, t3) = (self.ramp_end, self.brake_start, self.stop);

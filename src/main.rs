@@ -16,6 +16,7 @@ use embassy_executor::Spawner;
 use embassy_stm32::usart::{self, BufferedUart};
 use embassy_stm32::{bind_interrupts, peripherals};
 use embassy_time::{Duration, Instant as Clock, Ticker};
+use liftfw::control::config::ControlConfig;
 use liftfw::control::{Bridge, Controller};
 use liftfw::units::Instant;
 use {defmt_rtt as _, panic_probe as _};
@@ -51,7 +52,12 @@ async fn main(spawner: Spawner) {
 /// real `now`, so the core sees the short intervals as they are.
 #[embassy_executor::task]
 async fn control(mut board: Board) {
-    let mut controller = Controller::new();
+    // Until the flash store is wired (issue #6), boot on the factory configuration with the
+    // lift assumed fully down.
+    let mut controller = match Controller::new(&ControlConfig::DEFAULT, 0) {
+        Ok(c) => c,
+        Err(e) => defmt::panic!("factory configuration refused: {}", e),
+    };
     let mut ticker = Ticker::every(Duration::from_hz(CONTROL_HZ));
     let mut last_bridge = Bridge::Coast;
     let mut ticks: u32 = 0;

@@ -164,6 +164,9 @@ quantity!(
     /// Torque in newton-metres (I16F16).
     NewtonMetres, I16F16, "N·m");
 quantity!(
+    /// Unwrapped rotation in radians, e.g. a screw-position error (I16F16).
+    Radians, I16F16, "rad");
+quantity!(
     /// Angular speed in radians per second (I16F16).
     RadiansPerSecond, I16F16, "rad/s");
 quantity!(

@@ -9,6 +9,7 @@ use host_sim::physics::Lubricant;
 use host_sim::plant::sensors::current_of_code;
 use host_sim::sim::{Driver, OpenLoopDuty, Sim, SimConfig, Summary};
 use host_sim::trace::Trace;
+use liftfw::control::config::ControlConfig;
 use liftfw::control::{Bridge, Controller, Inputs};
 use std::sync::{Arc, Mutex};
 
@@ -43,7 +44,9 @@ fn lower_limit_switch_stops_the_open_loop_driver_at_the_bottom() {
 fn coasting_core_leaves_the_self_locking_lift_where_it_is() {
     let (s, trace) = run(
         cfg(1000.0, 0.2, 1),
-        Driver::Core(Box::new(Controller::new())),
+        Driver::Core(Box::new(
+            Controller::new(&ControlConfig::DEFAULT, 0).expect("default config"),
+        )),
     );
     assert_eq!(s.height.0, s.height.1);
     assert!(trace

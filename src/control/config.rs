@@ -283,7 +283,13 @@ impl ControlConfig {
             "protect.overload_margin",
             "0.05..2",
         )?;
-        range(p.overload_ms, 10, 5000, "protect.overload_ms", "10..5000 ms")?;
+        range(
+            p.overload_ms,
+            10,
+            5000,
+            "protect.overload_ms",
+            "10..5000 ms",
+        )?;
         range(
             p.runaway_travel,
             Metres::lit("0.00001"),

@@ -4,10 +4,39 @@
 //! Inputs are what the board's peripherals deliver (raw counts and codes), outputs are what
 //! its peripherals accept. Conversion to physical units happens here, in the core, so that
 //! host-sim exercises exactly the arithmetic the board runs.
+//!
+//! One tick, in order (data flows one way):
+//! 1. [`sense`]: encoder counter → position, ADC codes → A and V, switches debounced;
+//! 2. [`crate::estimator`]: pose, speed, the model's torques and the measured torque;
+//! 3. [`protect`]: every monitor; a trip latches a [`Fault`] with a snapshot and coasts the bridge;
+//! 4. the supervisor (this module): buttons and commands → Idle / Lifting / Lowering / Holding / Fault;
+//! 5. [`profile`]: the ramped reference toward the target (a limit stop or a set height);
+//! 6. [`speed`]: PI speed loop with the model's torque as feed-forward → duty.
+//!
+//! The halt planner works on the *screw* position: the encoder sits on the motor, and under a
+//! torque T the coupling (stiffness k) lets the screw lag the gear output by T/k (≈ 0.47 rad,
+//! 0.55 mm of head height at rated load near α₀). While driving, the estimated screw position is
+//! the encoder position minus the model's twist, so the head stops at the target and not half a
+//! millimetre short of it.
 
 pub mod config;
+pub mod profile;
+pub mod protect;
+pub mod sense;
+pub mod speed;
 
-use crate::units::Instant;
+use crate::estimator::{Estimate, Estimator, Measurements};
+use crate::model::Scale;
+use crate::units::{
+    qmul, sat32, Amperes, Instant, Metres, NewtonMetres, Radians, RadiansPerSecond, Ratio, Volts, Q,
+};
+use crate::ConfigError;
+use config::{ButtonMode, ControlConfig};
+use profile::Profile;
+pub use protect::FaultKind;
+use protect::{Limits, Monitors, Sample};
+use sense::{Adc, Debouncer, EncoderTracker};
+use speed::{SpeedGains, SpeedInputs, SpeedLoop};
 
 /// Raw inputs sampled by the board at the start of a control tick.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -68,44 +97,742 @@ pub struct Outputs {
     pub bridge: Bridge,
     /// True when this tick completed normally: only then may the board feed the watchdog.
     pub feed_watchdog: bool,
+    /// Something worth a log line happened this tick.
+    pub event: Option<Event>,
 }
 
-/// The control core's state between ticks.
-#[derive(Clone, Debug, Default)]
+/// The supervisor's states.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum State {
+    /// At rest since boot or since a fault was cleared.
+    #[default]
+    Idle,
+    /// Driving up.
+    Lifting,
+    /// Driving down.
+    Lowering,
+    /// At rest after a motion; the screw holds the load, the controller watches for back-drive.
+    Holding,
+    /// Stopped by a protection; only `fault clear` leaves it.
+    Fault,
+}
+
+impl State {
+    /// Name for logs and the console.
+    pub fn name(self) -> &'static str {
+        match self {
+            State::Idle => "idle",
+            State::Lifting => "lifting",
+            State::Lowering => "lowering",
+            State::Holding => "holding",
+            State::Fault => "fault",
+        }
+    }
+}
+
+/// A request to the supervisor (console or buttons).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Command {
+    /// Lift to the upper limit stop.
+    Up,
+    /// Lower to the lower limit stop (a deliberate action: never from a button held at boot).
+    Down,
+    /// Brake along the ramp and hold.
+    Stop,
+    /// Move to a head height (between the limit stops).
+    GoTo(Metres),
+    /// Clear a latched fault (back to Idle).
+    ClearFault,
+}
+
+/// Why a command was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Refusal {
+    /// A fault is latched: read it with `fault`, clear it with `fault clear`.
+    Faulted,
+    /// The supply is below the start threshold.
+    SupplyLow,
+    /// Already at (or past) that limit stop, or its limit switch is closed.
+    AtLimit,
+    /// The target lies outside the limit stops.
+    OutsideLimits,
+    /// Moving the other way: stop first.
+    Moving,
+    /// No fault to clear.
+    NoFault,
+}
+
+impl Refusal {
+    /// Message for the console.
+    pub fn message(self) -> &'static str {
+        match self {
+            Refusal::Faulted => "refused: a fault is latched (see `fault`, then `fault clear`)",
+            Refusal::SupplyLow => "refused: supply below the start threshold",
+            Refusal::AtLimit => "refused: already at that limit",
+            Refusal::OutsideLimits => "refused: target outside the limit stops",
+            Refusal::Moving => "refused: moving the other way, stop first",
+            Refusal::NoFault => "no fault latched",
+        }
+    }
+}
+
+impl core::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.message())
+    }
+}
+
+/// A latched fault with the state of the lift at the moment it tripped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Fault {
+    /// What tripped.
+    pub kind: FaultKind,
+    /// When.
+    pub at: Instant,
+    /// The state it interrupted.
+    pub state: State,
+    /// Encoder position, counts.
+    pub position: i32,
+    /// Head height (model).
+    pub height: Metres,
+    /// Measured screw speed.
+    pub screw_speed: RadiansPerSecond,
+    /// Motor current.
+    pub current: Amperes,
+    /// Supply.
+    pub supply: Volts,
+    /// Duty of the tick before, Q15.
+    pub duty: i16,
+    /// Screw torque measured from the current.
+    pub measured_torque: NewtonMetres,
+    /// Screw torque of the model at rated load.
+    pub model_torque: NewtonMetres,
+}
+
+/// What a tick reports for the logs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Event {
+    /// The supervisor changed state.
+    State {
+        /// Before.
+        from: State,
+        /// After.
+        to: State,
+    },
+    /// A protection tripped.
+    Fault(Fault),
+    /// A limit switch stopped the lift before the soft limit (switch inside the soft range).
+    SwitchStop,
+}
+
+/// A snapshot for the console's `status` line and telemetry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Status {
+    /// Supervisor state.
+    pub state: State,
+    /// Head height (model, from the encoder).
+    pub height: Metres,
+    /// Screw speed.
+    pub screw_speed: RadiansPerSecond,
+    /// Motor current.
+    pub current: Amperes,
+    /// Supply.
+    pub supply: Volts,
+    /// Estimated thread friction torque T_r.
+    pub friction_torque: NewtonMetres,
+    /// Stick-slip detected (the detector lands with issue #7; false until then).
+    pub stick_slip: bool,
+    /// The latched fault, if any.
+    pub fault: Option<FaultKind>,
+    /// Encoder position, counts.
+    pub position: i32,
+}
+
+/// Ticks after the reference arrives during which the loop may settle before the bridge coasts.
+const SETTLE_MS: u32 = 300;
+/// Position error accepted as arrived, screw counts.
+const ARRIVED_COUNTS: i32 = 40;
+/// Debounce of the switches, ticks at 1 kHz (scaled with the tick).
+const DEBOUNCE_MS: u32 = 3;
+/// Largest dynamic-braking current allowed, A (the BTS7960's low sides are rated 40 A).
+const BRAKE_AMPS: i32 = 30;
+/// Overload monitoring starts this long after a motion starts (breakaway, winding the coupling).
+const OVERLOAD_HOLDOFF_MS: u32 = 250;
+
+/// The control core: configuration (validated) and state.
+#[derive(Clone, Debug)]
 pub struct Controller {
+    cfg: ControlConfig,
+    est: Estimator,
+    adc: Adc,
+    enc: EncoderTracker,
+    debounce: Debouncer,
+    profile: Profile,
+    gains: SpeedGains,
+    speed: SpeedLoop,
+    limits: Limits,
+    monitors: Monitors,
+    /// Limit stops in encoder counts.
+    lower_counts: i32,
+    upper_counts: i32,
+    /// counts → screw rad (Q16).
+    rad_per_count: Scale,
+    /// Q16 counts/tick → screw rad/s (Q16).
+    speed_scale: Scale,
+    /// Screw torque (Q16 N·m) → coupling twist in counts.
+    twist_scale: Scale,
+    tick_us: u32,
+    state: State,
+    fault: Option<Fault>,
     last_tick: Option<Instant>,
-    last_encoder: u16,
-    /// Motor encoder position in counts, extended from the 16-bit counter (saturating).
-    position_counts: i32,
+    last_duty: i16,
+    last_bridge: Bridge,
+    current: Amperes,
+    supply: Volts,
+    switches: Switches,
+    estimate: Estimate,
+    /// Ticks since the reference arrived (settling) and since the motion started.
+    settle_ticks: u32,
+    motion_ticks: u32,
+    hold_position: i32,
+    /// Buttons pressed since boot/fault must be released before they count (edge-triggered).
+    buttons_armed: bool,
+    /// The motion was started by a hold-to-run button that is still held.
+    held_button: u8,
+    prev_buttons: u8,
+    /// The profile's speed of the last tick, Q32 counts/tick.
+    last_ref_speed: i64,
+    /// The profile's position of the last tick, counts.
+    last_ref_counts: i32,
+    /// 1/(k_e·n), screw rad/s per volt.
+    inv_ke_n: Ratio,
+    /// Measured screw torque, low-passed (1/8 per tick: 20 Hz at 1 kHz), for the twist.
+    torque_lp: NewtonMetres,
+    /// Highest screw speed at which shorting the motor keeps the current within [`BRAKE_AMPS`].
+    brake_speed: RadiansPerSecond,
+    pending_event: Option<Event>,
 }
 
 impl Controller {
-    /// A controller at rest; the first tick only latches the encoder counter.
-    pub fn new() -> Self {
-        Self::default()
+    /// Validate `cfg` and start at rest with the encoder at `position` counts (the position
+    /// survives power loss with the configuration: the lead screw is self-locking).
+    pub fn new(cfg: &ControlConfig, position: i32) -> Result<Controller, ConfigError> {
+        let est = Estimator::new(&cfg.estimator)?;
+        let geometry = est.geometry();
+        cfg.validate(geometry)?;
+        let lower_counts =
+            geometry
+                .counts_for_height(cfg.limits.lower)
+                .ok_or(ConfigError::OutOfRange {
+                    field: "limits.lower",
+                    range: "the mechanism's height range",
+                })?;
+        let upper_counts =
+            geometry
+                .counts_for_height(cfg.limits.upper)
+                .ok_or(ConfigError::OutOfRange {
+                    field: "limits.upper",
+                    range: "the mechanism's height range",
+                })?;
+        let tick_us = cfg.estimator.tick_us;
+        let tick_hz = i128::from(1_000_000 / tick_us);
+        let rad_per_count = geometry.screw_rad_per_count(); // counts → Q16 rad
+        let speed_scale = rad_per_count.times(tick_hz, 1 << 16);
+        // counts per screw rad (Q16) = 2^32 / rad_per_count(Q16 value).
+        let (mant, shift) = rad_per_count.parts();
+        let counts_per_rad_q16 = ((1i128 << (32 + shift)) / i128::from(mant.max(1))) as i64;
+        // Twist counts = T/k · counts/rad: from Q16 N·m.
+        let k = i128::from(cfg.estimator.mechanics.coupling_stiffness.bits()); // Q16
+        let twist_scale = Scale::from_ratio(i128::from(counts_per_rad_q16), k << 16);
+        // Cruise: rad/s → Q32 counts/tick = ω·counts/rad·T·2^32.
+        let cruise_q32 = (i128::from(cfg.motion.cruise_speed.bits())
+            * i128::from(counts_per_rad_q16)
+            * i128::from(tick_us)
+            / 1_000_000) as i64;
+        let ramp_ticks = cfg.motion.ramp_ms.saturating_mul(1000) / tick_us;
+        let gear_ratio = cfg.estimator.drive.gear_ratio;
+        let counts_per_motor_rad_q16 =
+            (i128::from(counts_per_rad_q16) << 16) / i128::from(gear_ratio.to_bits().max(1));
+        // Nut metres per count in Q40: the travel of 2^16 counts in Q24.
+        let nut_q40 =
+            i64::from(geometry.travel(1 << 16).bits()) - i64::from(geometry.travel(0).bits());
+        let limits = Limits::new(
+            &cfg.protection,
+            tick_us,
+            counts_per_motor_rad_q16 as i64,
+            nut_q40,
+            cfg.motion.cruise_speed,
+        );
+        let gains: SpeedGains = SpeedGains::design(
+            cfg.estimator.motor.torque_constant,
+            cfg.estimator.motor.resistance,
+            crate::units::Factor::from_raw(gear_ratio.to_bits()),
+            tick_us,
+        );
+        let inv_ke_n = Ratio::from_raw(sat32((1i64 << 44) / i64::from(gains.ke_n.bits().max(1))));
+        let debounce_ticks = (DEBOUNCE_MS * 1000 / tick_us).max(1) as u16;
+        Ok(Controller {
+            cfg: *cfg,
+            est,
+            adc: Adc::new(&cfg.sensing),
+            enc: EncoderTracker::new(position),
+            debounce: Debouncer::new(debounce_ticks),
+            profile: Profile::new(position, cruise_q32, ramp_ticks, cfg.motion.ramp_shape),
+            speed: SpeedLoop::default(),
+            limits,
+            monitors: Monitors::default(),
+            lower_counts,
+            upper_counts,
+            rad_per_count,
+            speed_scale,
+            twist_scale,
+            tick_us,
+            state: State::Idle,
+            fault: None,
+            last_tick: None,
+            last_duty: 0,
+            last_bridge: Bridge::Coast,
+            current: Amperes::ZERO,
+            supply: Volts::ZERO,
+            switches: Switches(0),
+            estimate: Estimate::default(),
+            settle_ticks: 0,
+            motion_ticks: 0,
+            hold_position: position,
+            buttons_armed: false,
+            held_button: 0,
+            prev_buttons: 0,
+            last_ref_speed: 0,
+            last_ref_counts: position,
+            gains,
+            inv_ke_n,
+            torque_lp: NewtonMetres::ZERO,
+            brake_speed: qmul(
+                qmul::<_, _, Volts>(
+                    Amperes::from_int(BRAKE_AMPS),
+                    cfg.estimator.motor.resistance,
+                ),
+                inv_ke_n,
+            ),
+            pending_event: None,
+        })
+    }
+
+    /// The configuration in force.
+    pub fn config(&self) -> &ControlConfig {
+        &self.cfg
+    }
+
+    /// The estimator (geometry, model).
+    pub fn estimator(&self) -> &Estimator {
+        &self.est
+    }
+
+    /// Supervisor state.
+    pub fn state(&self) -> State {
+        self.state
+    }
+
+    /// The latched fault.
+    pub fn fault(&self) -> Option<&Fault> {
+        self.fault.as_ref()
+    }
+
+    /// The last estimate.
+    pub fn estimate(&self) -> &Estimate {
+        &self.estimate
+    }
+
+    /// Motor encoder position in counts.
+    pub fn position_counts(&self) -> i32 {
+        self.enc.position()
+    }
+
+    /// Limit stops in encoder counts (lower, upper).
+    pub fn limit_counts(&self) -> (i32, i32) {
+        (self.lower_counts, self.upper_counts)
+    }
+
+    /// The current motion target, counts (screw position).
+    pub fn target_counts(&self) -> i32 {
+        self.profile.target_counts()
+    }
+
+    /// The reference (screw) position of the last tick, counts, and the screw-position estimate.
+    pub fn tracking(&self) -> (i32, i32) {
+        (self.last_ref_counts, self.screw_position())
+    }
+
+    /// Values for the status line.
+    pub fn status(&self) -> Status {
+        Status {
+            state: self.state,
+            height: self.estimate.pose.height,
+            screw_speed: self.estimate.screw_speed,
+            current: self.current,
+            supply: self.supply,
+            friction_torque: self.estimate.contact.friction_torque,
+            stick_slip: false,
+            fault: self.fault.map(|f| f.kind),
+            position: self.enc.position(),
+        }
+    }
+
+    /// Report that the previous run ended in a watchdog reset: latches a fault so that the lift
+    /// does not resume a motion by itself after the reboot.
+    pub fn report_watchdog_reset(&mut self, now: Instant) {
+        self.latch(now, FaultKind::WatchdogReset);
+    }
+
+    /// Apply a command now (the next tick acts on it).
+    pub fn command(&mut self, cmd: Command) -> Result<(), Refusal> {
+        match cmd {
+            Command::ClearFault => {
+                if self.fault.is_none() {
+                    return Err(Refusal::NoFault);
+                }
+                self.fault = None;
+                self.monitors.reset();
+                self.buttons_armed = false;
+                self.enter_rest(State::Idle);
+                Ok(())
+            }
+            Command::Stop => {
+                self.held_button = 0;
+                if matches!(self.state, State::Lifting | State::Lowering) {
+                    self.profile.stop();
+                }
+                Ok(())
+            }
+            Command::Up => self.start(self.upper_counts, false),
+            Command::Down => self.start(self.lower_counts, false),
+            Command::GoTo(h) => {
+                let counts = self
+                    .est
+                    .geometry()
+                    .counts_for_height(h)
+                    .ok_or(Refusal::OutsideLimits)?;
+                if counts < self.lower_counts || counts > self.upper_counts {
+                    return Err(Refusal::OutsideLimits);
+                }
+                self.start(counts, true)
+            }
+        }
+    }
+
+    fn start(&mut self, target: i32, goto: bool) -> Result<(), Refusal> {
+        if self.fault.is_some() {
+            return Err(Refusal::Faulted);
+        }
+        let here = self.screw_position();
+        let dir = (target - here).signum();
+        match (self.state, dir) {
+            (State::Lifting, d) if d < 0 => return Err(Refusal::Moving),
+            (State::Lowering, d) if d > 0 => return Err(Refusal::Moving),
+            _ => {}
+        }
+        let moving = matches!(self.state, State::Lifting | State::Lowering);
+        if !moving && self.supply < self.cfg.protection.supply_start_min {
+            return Err(Refusal::SupplyLow);
+        }
+        let switch = if dir > 0 {
+            Switches::LIMIT_UPPER
+        } else {
+            Switches::LIMIT_LOWER
+        };
+        if dir == 0 || (!goto && (target - here).abs() <= ARRIVED_COUNTS) {
+            return Err(Refusal::AtLimit);
+        }
+        if self.switches.is_active(switch) {
+            return Err(Refusal::AtLimit);
+        }
+        if !moving {
+            self.profile.reset(here);
+            self.speed.reset();
+            self.monitors.reset();
+            self.motion_ticks = 0;
+        }
+        self.profile.set_target(target);
+        self.settle_ticks = 0;
+        self.set_state(if dir > 0 {
+            State::Lifting
+        } else {
+            State::Lowering
+        });
+        Ok(())
+    }
+
+    /// Screw position estimate: the encoder less the coupling twist while driving. The twist
+    /// comes from the *measured* torque (low-passed), not the model's: the model assumes the
+    /// rated load, and with an empty lift it would over-correct by the whole rated twist.
+    fn screw_position(&self) -> i32 {
+        if matches!(self.state, State::Lifting | State::Lowering) {
+            let twist = self.twist_scale.apply32(self.torque_lp.bits());
+            self.enc.position().saturating_sub(twist)
+        } else {
+            self.enc.position()
+        }
+    }
+
+    fn set_state(&mut self, to: State) {
+        if to != self.state {
+            let from = self.state;
+            self.state = to;
+            if !matches!(self.pending_event, Some(Event::Fault(_))) {
+                self.pending_event = Some(Event::State { from, to });
+            }
+        }
+    }
+
+    fn enter_rest(&mut self, to: State) {
+        self.held_button = 0;
+        self.hold_position = self.enc.position();
+        self.speed.reset();
+        self.profile.reset(self.enc.position());
+        self.set_state(to);
+    }
+
+    fn latch(&mut self, now: Instant, kind: FaultKind) {
+        if self.fault.is_some() {
+            return;
+        }
+        let f = Fault {
+            kind,
+            at: now,
+            state: self.state,
+            position: self.enc.position(),
+            height: self.estimate.pose.height,
+            screw_speed: self.estimate.screw_speed,
+            current: self.current,
+            supply: self.supply,
+            duty: self.last_duty,
+            measured_torque: self.estimate.measured_screw_torque,
+            model_torque: self.estimate.model_screw_torque,
+        };
+        self.fault = Some(f);
+        self.held_button = 0;
+        self.speed.reset();
+        self.profile.reset(self.enc.position());
+        self.state = State::Fault;
+        self.pending_event = Some(Event::Fault(f));
     }
 
     /// One control tick. Never panics, whatever the inputs.
     pub fn step(&mut self, now: Instant, inputs: &Inputs) -> Outputs {
-        match self.last_tick {
-            None => self.last_encoder = inputs.encoder_count,
-            Some(_) => {
-                // The counter wraps; the signed 16-bit difference is exact as long as the
-                // motor turns less than 32 767 counts per tick.
-                let delta = inputs.encoder_count.wrapping_sub(self.last_encoder) as i16;
-                self.last_encoder = inputs.encoder_count;
-                self.position_counts = self.position_counts.saturating_add(i32::from(delta));
+        // 1. Sense.
+        let delta = self.enc.update(inputs.encoder_count);
+        self.current = self.adc.current(inputs.current_raw);
+        self.supply = self.adc.supply(inputs.supply_raw);
+        self.switches = self.debounce.update(inputs.switches);
+        let moving = matches!(self.state, State::Lifting | State::Lowering);
+        let dir: i8 = match self.state {
+            State::Lifting => 1,
+            State::Lowering => -1,
+            _ => 0,
+        };
+        // 2. Estimate at rated load.
+        self.estimate = self.est.step(
+            now,
+            &Measurements {
+                position_counts: self.enc.position(),
+                motor_current: self.current,
+                load: self.cfg.rated_load,
+                commanded_dir: dir,
+            },
+        );
+        self.last_tick = Some(now);
+        if moving {
+            let d = self.estimate.measured_screw_torque.sat_sub(self.torque_lp);
+            self.torque_lp = self
+                .torque_lp
+                .sat_add(NewtonMetres::from_raw(d.bits() >> 3));
+        } else {
+            self.torque_lp = NewtonMetres::ZERO;
+        }
+
+        // 3. Protections.
+        self.motion_ticks = if moving {
+            self.motion_ticks.saturating_add(1)
+        } else {
+            0
+        };
+        let reference = if moving {
+            self.reference_speed()
+        } else {
+            RadiansPerSecond::ZERO
+        };
+        let emf_speed = self.emf_speed();
+        let project = |t: NewtonMetres| if dir < 0 { t.sat_neg() } else { t };
+        let holdoff = OVERLOAD_HOLDOFF_MS * 1000 / self.tick_us
+            + self.cfg.motion.ramp_ms * 1000 / self.tick_us;
+        let sample = Sample {
+            moving,
+            lowering: dir < 0,
+            duty: self.last_duty,
+            delta,
+            current: self.current,
+            supply: self.supply,
+            emf_speed,
+            speed: self.estimate.screw_speed,
+            reference,
+            cruise: self.cfg.motion.cruise_speed,
+            travel_while_stopped: if moving || self.state == State::Fault {
+                0
+            } else {
+                self.enc.position().saturating_sub(self.hold_position)
+            },
+            measured_torque: project(self.estimate.measured_screw_torque),
+            model_torque: project(self.estimate.model_screw_torque),
+            overload_armed: moving
+                && matches!(self.last_bridge, Bridge::Drive(_))
+                && self.motion_ticks > holdoff,
+        };
+        if self.state != State::Fault {
+            if let Some(kind) = self.monitors.check(&self.limits, &sample) {
+                self.latch(now, kind);
             }
         }
-        self.last_tick = Some(now);
+        // Limit switches: both closed is a wiring fault; one closed in the direction of
+        // travel stops the lift at once.
+        let both = Switches::LIMIT_UPPER | Switches::LIMIT_LOWER;
+        if self.switches.is_active(both) && self.state != State::Fault {
+            self.latch(now, FaultKind::SwitchesImplausible);
+        }
+        if moving && self.state != State::Fault {
+            let (switch, stop) = if dir > 0 {
+                (Switches::LIMIT_UPPER, self.upper_counts)
+            } else {
+                (Switches::LIMIT_LOWER, self.lower_counts)
+            };
+            if self.switches.is_active(switch) {
+                // The soft limit should have caught it if the lift is already at or past it.
+                let past =
+                    (self.screw_position() - stop) * i32::from(dir) >= -self.limits.runaway_counts;
+                if past {
+                    self.latch(now, FaultKind::LimitSwitch);
+                } else {
+                    self.enter_rest(State::Holding);
+                    self.pending_event = Some(Event::SwitchStop);
+                }
+            }
+        }
+
+        // 4. Buttons.
+        self.buttons();
+
+        // 5–6. Motion.
+        let bridge = match self.state {
+            State::Lifting | State::Lowering => self.drive(),
+            _ => self.rest_bridge(),
+        };
+        self.last_duty = match bridge {
+            Bridge::Drive(d) => d,
+            _ => 0,
+        };
+        self.last_bridge = bridge;
         Outputs {
-            bridge: Bridge::Coast,
+            bridge,
             feed_watchdog: true,
+            event: self.pending_event.take(),
         }
     }
 
-    /// Motor encoder position in counts since boot.
-    pub fn position_counts(&self) -> i32 {
-        self.position_counts
+    /// Screw speed from the motor's voltage balance, (V_a − R·i)/(k_e·n): independent of the
+    /// encoder, so a dead encoder and a jammed screw can be told apart.
+    fn emf_speed(&self) -> RadiansPerSecond {
+        let va = Volts::from_raw(sat32(
+            i64::from(self.supply.bits()) * i64::from(self.last_duty) >> 15,
+        ));
+        let ri: Volts = qmul(self.current, self.cfg.estimator.motor.resistance);
+        qmul(va.sat_sub(ri), self.inv_ke_n)
+    }
+
+    fn buttons(&mut self) {
+        let pressed = self.switches.0 & (Switches::BUTTON_UP | Switches::BUTTON_DOWN);
+        let edges = pressed & !self.prev_buttons;
+        self.prev_buttons = pressed;
+        if self.switches.is_active(Switches::BUTTON_STOP) {
+            let _ = self.command(Command::Stop);
+            return;
+        }
+        if !self.buttons_armed {
+            // A button held at boot or through a fault must be released first.
+            self.buttons_armed = pressed == 0;
+            return;
+        }
+        if self.held_button != 0 && pressed & self.held_button == 0 {
+            let _ = self.command(Command::Stop);
+        }
+        // Both buttons at once: do nothing new.
+        if edges == Switches::BUTTON_UP && pressed == Switches::BUTTON_UP {
+            if self.state == State::Lowering {
+                let _ = self.command(Command::Stop);
+            } else if self.command(Command::Up).is_ok()
+                && self.cfg.motion.buttons == ButtonMode::HoldToRun
+            {
+                self.held_button = Switches::BUTTON_UP;
+            }
+        } else if edges == Switches::BUTTON_DOWN && pressed == Switches::BUTTON_DOWN {
+            // Lowering is always hold-to-run from the buttons: a car comes down only while a
+            // person keeps a finger on DOWN.
+            if self.state == State::Lifting {
+                let _ = self.command(Command::Stop);
+            } else if self.command(Command::Down).is_ok() {
+                self.held_button = Switches::BUTTON_DOWN;
+            }
+        }
+    }
+
+    /// Profile → speed loop → bridge, and the arrival check.
+    fn drive(&mut self) -> Bridge {
+        let r = self.profile.step();
+        self.last_ref_speed = r.speed;
+        self.last_ref_counts = r.counts();
+        let reference = self.reference_speed();
+        let error_counts = r.counts().saturating_sub(self.screw_position());
+        if r.done {
+            self.settle_ticks = self.settle_ticks.saturating_add(1);
+            let still = self.estimate.screw_speed.sat_abs() < self.cfg.estimator.rest_speed;
+            if (error_counts.abs() <= ARRIVED_COUNTS && still)
+                || self.settle_ticks > SETTLE_MS * 1000 / self.tick_us
+            {
+                self.enter_rest(State::Holding);
+                return self.rest_bridge();
+            }
+        }
+        let duty = self.speed.step(
+            &self.gains,
+            &SpeedInputs {
+                reference,
+                position_error: Radians::from_raw(self.rad_per_count.apply32(error_counts)),
+                measured: self.estimate.screw_speed,
+                model_motor_torque: self.estimate.model_motor_torque,
+                supply: self.supply,
+            },
+        );
+        Bridge::Drive(duty)
+    }
+
+    /// The bridge at rest: short the motor (dynamic brake) once it turns slowly enough that the
+    /// short-circuit current k_e·ω/R stays within the brake limit; coast above that. Braking
+    /// matters: when a move ends, the wound-up coupling unwinds through the motor, and a coasting
+    /// rotor would overshoot and drag the screw back (host-sim shows 0.7 mm of head height
+    /// lost with dry threads); the brake damps it with a time constant J·R/k² of about 3 ms.
+    fn rest_bridge(&self) -> Bridge {
+        if self.estimate.screw_speed.sat_abs() <= self.brake_speed {
+            Bridge::Brake
+        } else {
+            Bridge::Coast
+        }
+    }
+
+    fn reference_speed(&self) -> RadiansPerSecond {
+        RadiansPerSecond::from_raw(self.speed_scale.apply32(sat32(self.last_ref_speed >> 16)))
     }
 }

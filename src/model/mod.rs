@@ -61,6 +61,11 @@ impl Scale {
         crate::units::sat32(if self.shift >= 64 { 0 } else { p >> self.shift })
     }
 
+    /// This constant times `num/den` (exact integer arithmetic, configuration time only).
+    pub fn times(self, num: i128, den: i128) -> Scale {
+        Scale::from_ratio(i128::from(self.mant) * num, den << self.shift)
+    }
+
     /// Mantissa and shift: the constant is `mant·2^−shift`.
     pub fn parts(self) -> (i32, u32) {
         (self.mant, self.shift)

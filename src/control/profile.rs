@@ -1,0 +1,305 @@
+//! The speed-profile planner: a reference position and speed that accelerate along the ramp,
+//! cruise, and brake along the same ramp so that the reference comes to rest exactly on the
+//! target (seed 000's Fig. 2 profile when the target is far; a triangle when it is near).
+//!
+//! Units: motor encoder counts (of the *screw* position, see the halt planner in
+//! [`super::Controller`]) and control ticks. Position and speed are `i64` in Q32 so that a
+//! 10 kHz tick with a 2 s ramp still has 16 significant bits of acceleration.
+//!
+//! Braking: the reference may move at most `√(2·a·d)` when `d` counts remain, so it always
+//! has room to stop at `a`; the last step snaps onto the target, so the reference never
+//! passes it. The S-curve shape runs the trapezoid with half the ramp time through a moving
+//! average of the other half: the same end position (a moving average keeps the area under
+//! the speed curve), no acceleration step, twice the trapezoid's peak acceleration.
+
+use super::config::RampShape;
+
+/// Length of the S-curve's moving-average window, entries (each spans one or more ticks).
+const SMOOTH_LEN: usize = 64;
+
+/// Reference position and speed for one tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Reference {
+    /// Position, counts in Q32.
+    pub position: i64,
+    /// Speed, counts per tick in Q32 (signed).
+    pub speed: i64,
+    /// True once the reference rests on the target.
+    pub done: bool,
+}
+
+impl Reference {
+    /// Position rounded to whole counts.
+    pub fn counts(&self) -> i32 {
+        crate::units::sat32((self.position + (1 << 31)) >> 32)
+    }
+}
+
+/// The planner's configuration (quantised once) and state.
+#[derive(Clone, Debug)]
+pub struct Profile {
+    accel: i64,
+    cruise: i64,
+    shape: RampShape,
+    // Trapezoid generator state.
+    p: i64,
+    v: i64,
+    target: i64,
+    done: bool,
+    // S-curve smoothing: a moving average of the trapezoid's speed.
+    window: [i64; SMOOTH_LEN],
+    ticks_per_entry: u32,
+    tick_in_entry: u32,
+    entry_acc: i64,
+    head: usize,
+    sum: i64,
+    out_p: i64,
+    out_v: i64,
+}
+
+/// Q32 one.
+const ONE: i64 = 1 << 32;
+
+impl Profile {
+    /// A planner at rest at `position` counts. `cruise_q32` is the cruise speed in Q32 counts per
+    /// tick and `ramp_ticks` the ramp time in ticks (≥ 1).
+    pub fn new(position: i32, cruise_q32: i64, ramp_ticks: u32, shape: RampShape) -> Profile {
+        let ramp_ticks = ramp_ticks.max(2);
+        let cruise = cruise_q32.clamp(1, 64 * ONE);
+        let (trap_ticks, smooth_ticks) = match shape {
+            RampShape::Trapezoid => (ramp_ticks, 0),
+            RampShape::SCurve => (ramp_ticks / 2, ramp_ticks - ramp_ticks / 2),
+        };
+        let ticks_per_entry = smooth_ticks.div_ceil(SMOOTH_LEN as u32).max(1);
+        let p = i64::from(position) << 32;
+        Profile {
+            accel: (cruise / i64::from(trap_ticks.max(1))).max(1),
+            cruise,
+            shape,
+            p,
+            v: 0,
+            target: p,
+            done: true,
+            window: [0; SMOOTH_LEN],
+            ticks_per_entry,
+            tick_in_entry: 0,
+            entry_acc: 0,
+            head: 0,
+            sum: 0,
+            out_p: p,
+            out_v: 0,
+        }
+    }
+
+    /// Entries of the moving-average window actually used (0 for the trapezoid).
+    fn smooth_entries(&self) -> usize {
+        match self.shape {
+            RampShape::Trapezoid => 0,
+            RampShape::SCurve => SMOOTH_LEN,
+        }
+    }
+
+    /// Move the target to `counts` (the reference keeps its current speed and re-plans).
+    pub fn set_target(&mut self, counts: i32) {
+        self.target = i64::from(counts) << 32;
+        self.done = false;
+    }
+
+    /// Brake along the ramp from the current speed: the target becomes the stopping point.
+    pub fn stop(&mut self) {
+        let v = self.v.unsigned_abs() as i128;
+        // v²/(2a) + v/2 (the discrete ramp covers half a step more than the continuous one).
+        let dist = (v * v / (2 * self.accel.max(1) as i128) + v / 2) as i64;
+        self.target = self.p.saturating_add(dist * self.v.signum());
+        self.done = false;
+    }
+
+    /// Restart at rest at `position` counts (after a fault, or when the measured position
+    /// disagrees with the reference).
+    pub fn reset(&mut self, position: i32) {
+        let p = i64::from(position) << 32;
+        self.p = p;
+        self.v = 0;
+        self.target = p;
+        self.done = true;
+        self.window = [0; SMOOTH_LEN];
+        self.tick_in_entry = 0;
+        self.entry_acc = 0;
+        self.head = 0;
+        self.sum = 0;
+        self.out_p = p;
+        self.out_v = 0;
+    }
+
+    /// The target, counts.
+    pub fn target_counts(&self) -> i32 {
+        crate::units::sat32(self.target >> 32)
+    }
+
+    /// Advance one tick.
+    pub fn step(&mut self) -> Reference {
+        if !self.done {
+            self.step_trapezoid();
+        }
+        if self.smooth_entries() == 0 {
+            self.out_p = self.p;
+            self.out_v = self.v;
+        } else {
+            self.step_smoothing();
+        }
+        Reference {
+            position: self.out_p,
+            speed: self.out_v,
+            done: self.done && self.out_v == 0 && self.out_p == self.p,
+        }
+    }
+
+    fn step_trapezoid(&mut self) {
+        let d = self.target.saturating_sub(self.p);
+        let dir = d.signum();
+        // Largest next speed v' from which the ramp still stops on the target after this
+        // step moves (v + v')/2: v'² ≤ 2a(d − (v + v')/2), i.e. v' = √(a²/4 + a(2d − v)) − a/2.
+        // Q32 operands give a Q64 discriminant; its Q40 root is Q20.
+        let a = i128::from(self.accel);
+        let disc = a * a / 4 + a * (2 * i128::from(d).abs() - i128::from(self.v) * i128::from(dir));
+        let brake = if disc <= 0 {
+            0
+        } else {
+            let q40 = u64::try_from(disc >> 24).unwrap_or(u64::MAX);
+            ((q40.isqrt() << 12) as i64 - self.accel / 2).max(0)
+        };
+        let v_goal = dir * brake.min(self.cruise);
+        let v_new = if v_goal > self.v {
+            (self.v + self.accel).min(v_goal)
+        } else {
+            (self.v - self.accel).max(v_goal)
+        };
+        let step = (self.v + v_new) / 2;
+        let p_new = self.p.saturating_add(step);
+        let remaining = self.target.saturating_sub(p_new);
+        // Arrived: the next step would reach or pass the target at a speed the ramp can stop.
+        if remaining == 0
+            || remaining.signum() != dir
+            || (remaining.abs() <= v_new.abs().max(ONE) && v_new.abs() <= 2 * self.accel)
+        {
+            self.p = self.target;
+            self.v = 0;
+            self.done = true;
+        } else {
+            self.p = p_new;
+            self.v = v_new;
+        }
+    }
+
+    fn step_smoothing(&mut self) {
+        // Each window entry holds the trapezoid's mean speed over `ticks_per_entry` ticks; the
+        // output speed is the window mean and the output position its running sum, so the
+        // output ends exactly where the trapezoid ends.
+        self.entry_acc += self.v;
+        self.tick_in_entry += 1;
+        let n = SMOOTH_LEN as i64 * i64::from(self.ticks_per_entry);
+        // Output position advances by the mean over the whole window (entries + partial).
+        let out_v = (self.sum + self.entry_acc) / n;
+        self.out_v = out_v;
+        self.out_p = self.out_p.saturating_add(out_v);
+        if self.tick_in_entry >= self.ticks_per_entry {
+            let old = self.window[self.head];
+            self.window[self.head] = self.entry_acc;
+            self.sum += self.entry_acc - old;
+            self.head = (self.head + 1) % SMOOTH_LEN;
+            self.tick_in_entry = 0;
+            self.entry_acc = 0;
+        }
+        // Rounding leaves the output a few LSB off the trapezoid at rest: snap once both rest.
+        if self.done && self.sum == 0 && self.entry_acc == 0 {
+            self.out_p = self.p;
+            self.out_v = 0;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(shape: RampShape, from: i32, to: i32, cruise: f64, ramp: u32) -> Vec<Reference> {
+        let mut p = Profile::new(from, (cruise * ONE as f64) as i64, ramp, shape);
+        p.set_target(to);
+        let mut out = Vec::new();
+        for _ in 0..200_000 {
+            let r = p.step();
+            out.push(r);
+            if r.done {
+                break;
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn trapezoid_reaches_the_target_without_passing_it() {
+        for &(from, to) in &[(0, 10_000), (5_000, -3_000), (0, 7), (100, 99)] {
+            let refs = run(RampShape::Trapezoid, from, to, 1.375, 60);
+            let last = refs.last().unwrap();
+            assert!(last.done);
+            assert_eq!(last.counts(), to);
+            let dir = (to - from).signum() as i64;
+            for r in &refs {
+                assert!(
+                    (r.position - (i64::from(to) << 32)) * dir <= 0,
+                    "passed target"
+                );
+                assert!(r.speed * dir >= 0, "moved backwards");
+            }
+        }
+    }
+
+    #[test]
+    fn trapezoid_accelerates_in_the_ramp_time_and_cruises() {
+        let refs = run(RampShape::Trapezoid, 0, 100_000, 1.375, 60);
+        let cruise = (1.375 * ONE as f64) as i64;
+        let first_cruise = refs.iter().position(|r| r.speed == cruise).unwrap();
+        assert!((59..=61).contains(&first_cruise), "{first_cruise}");
+        // Braking also takes ≈ 60 ticks.
+        let last_cruise = refs.iter().rposition(|r| r.speed == cruise).unwrap();
+        let braking = refs.len() - last_cruise;
+        assert!((58..=63).contains(&braking), "{braking}");
+    }
+
+    #[test]
+    fn s_curve_ends_on_the_same_target_with_no_acceleration_step() {
+        let refs = run(RampShape::SCurve, 0, 50_000, 1.375, 60);
+        let last = refs.last().unwrap();
+        assert_eq!(last.counts(), 50_000);
+        // Largest speed change per tick: twice the trapezoid's (1.375/60), never a jump.
+        let max_dv = refs
+            .windows(2)
+            .map(|w| (w[1].speed - w[0].speed).abs())
+            .max()
+            .unwrap();
+        let trap = (1.375 * ONE as f64 / 60.0) as i64;
+        assert!(max_dv <= 2 * trap + trap / 10, "{max_dv} vs {trap}");
+        let first_dv = (refs[1].speed - refs[0].speed).abs();
+        assert!(first_dv < trap, "S-curve starts gently: {first_dv}");
+    }
+
+    #[test]
+    fn stop_brakes_along_the_ramp() {
+        let cruise = (1.375 * ONE as f64) as i64;
+        let mut p = Profile::new(0, cruise, 60, RampShape::Trapezoid);
+        p.set_target(1_000_000);
+        for _ in 0..200 {
+            p.step();
+        }
+        p.stop();
+        let mut n = 0;
+        loop {
+            let r = p.step();
+            n += 1;
+            if r.done {
+                break;
+            }
+        }
+        assert!((58..=63).contains(&n), "{n}");
+    }
+}

@@ -1,0 +1,239 @@
+//! Protections: each monitor looks at one tick's measurements and says whether its fault
+//! trips. They keep only counters; the supervisor decides what a trip does (stop, latch,
+//! snapshot).
+//!
+//! | fault | trips when | reaction time |
+//! |---|---|---|
+//! | over-current | one current sample above the limit | the same tick |
+//! | stall | duty ≥ stall duty, no encoder count, and the motor's voltage balance says the shaft is still, for `stall_ms` | `stall_ms` |
+//! | encoder lost | no encoder count while the voltage balance says the shaft turns, for `stall_ms` | `stall_ms` |
+//! | encoder implausible | a jump faster than the motor can turn | the same tick |
+//! | under-voltage | supply below the run threshold while moving, for `supply_ms` | `supply_ms` |
+//! | over-voltage | supply above the maximum, for `supply_ms` | `supply_ms` |
+//! | overload | measured screw torque above the model's at rated load by the margin, for `overload_ms` | `overload_ms` |
+//! | runaway | travel while stopped beyond `runaway_travel`, or lowering faster than 1.5× the reference + 25 % of cruise for 100 ms | immediate / 100 ms |
+
+use super::config::ProtectionConfig;
+use crate::units::{qmul, sat32, Amperes, NewtonMetres, RadiansPerSecond, Ratio, Volts, Q};
+
+/// What went wrong.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FaultKind {
+    /// Motor current above the limit.
+    OverCurrent,
+    /// High duty, no motion, no back-EMF: the mechanism is jammed.
+    Stall,
+    /// The motor turns (back-EMF) but the encoder does not count.
+    EncoderLost,
+    /// The encoder jumped faster than the motor can turn.
+    EncoderImplausible,
+    /// Supply below the run threshold while moving.
+    UnderVoltage,
+    /// Supply above the maximum.
+    OverVoltage,
+    /// Measured torque above the model's torque at rated load by the margin.
+    Overload,
+    /// Motion the motor did not command.
+    Runaway,
+    /// A limit switch closed where the soft limit should have stopped the lift first.
+    LimitSwitch,
+    /// Both limit switches closed at once (wiring fault).
+    SwitchesImplausible,
+    /// The watchdog reset the controller (reported at the next boot).
+    WatchdogReset,
+}
+
+impl FaultKind {
+    /// Short name for logs and the console.
+    pub fn name(self) -> &'static str {
+        match self {
+            FaultKind::OverCurrent => "over-current",
+            FaultKind::Stall => "stall",
+            FaultKind::EncoderLost => "encoder lost",
+            FaultKind::EncoderImplausible => "encoder implausible",
+            FaultKind::UnderVoltage => "under-voltage",
+            FaultKind::OverVoltage => "over-voltage",
+            FaultKind::Overload => "overload",
+            FaultKind::Runaway => "runaway",
+            FaultKind::LimitSwitch => "limit switch before soft limit missed",
+            FaultKind::SwitchesImplausible => "both limit switches closed",
+            FaultKind::WatchdogReset => "watchdog reset",
+        }
+    }
+}
+
+impl core::fmt::Display for FaultKind {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Thresholds in tick units, quantised once.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Limits {
+    /// Current limit.
+    pub overcurrent: Amperes,
+    /// Stall duty, Q15.
+    pub stall_duty: i16,
+    /// Ticks.
+    pub stall_ticks: u32,
+    /// Largest plausible encoder step per tick, counts.
+    pub max_counts_per_tick: i32,
+    /// Motor speed from the voltage balance above which the shaft must be turning, screw rad/s.
+    pub turning_speed: RadiansPerSecond,
+    /// Supply thresholds.
+    pub supply_run_min: Volts,
+    /// Supply maximum.
+    pub supply_max: Volts,
+    /// Ticks.
+    pub supply_ticks: u32,
+    /// 1 + overload margin.
+    pub overload_factor: Ratio,
+    /// Ticks.
+    pub overload_ticks: u32,
+    /// Uncommanded travel, counts.
+    pub runaway_counts: i32,
+    /// Ticks of too-fast lowering.
+    pub runaway_ticks: u32,
+}
+
+impl Limits {
+    /// Quantise `p` for a tick of `tick_us` and a drive with `counts_per_motor_rad` (Q16) and a
+    /// nut travel of `nut_metres_per_count_q40` (metres per count in Q40).
+    pub fn new(
+        p: &ProtectionConfig,
+        tick_us: u32,
+        counts_per_motor_rad_q16: i64,
+        nut_metres_per_count_q40: i64,
+        cruise: RadiansPerSecond,
+    ) -> Limits {
+        let ticks = |ms: u32| (ms.saturating_mul(1000) / tick_us.max(1)).max(1);
+        // counts/tick = ω·(counts/rad)·T.
+        let max_counts = (i64::from(p.max_motor_speed.bits()) * counts_per_motor_rad_q16 >> 32)
+            * i64::from(tick_us)
+            / 1_000_000;
+        let runaway_counts =
+            (i64::from(p.runaway_travel.bits()) << 16) / nut_metres_per_count_q40.max(1);
+        Limits {
+            overcurrent: p.overcurrent,
+            stall_duty: sat32(i64::from(p.stall_duty.bits()) >> 13).clamp(0, 32767) as i16,
+            stall_ticks: ticks(p.stall_ms),
+            max_counts_per_tick: sat32(max_counts + 1).max(1),
+            turning_speed: RadiansPerSecond::from_raw(cruise.bits() / 4),
+            supply_run_min: p.supply_run_min,
+            supply_max: p.supply_max,
+            supply_ticks: ticks(p.supply_ms),
+            overload_factor: Ratio::ONE.sat_add(p.overload_margin),
+            overload_ticks: ticks(p.overload_ms),
+            runaway_counts: sat32(runaway_counts).max(1),
+            runaway_ticks: ticks(100),
+        }
+    }
+}
+
+/// One tick's view for the monitors.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Sample {
+    /// Whether the supervisor is driving a motion.
+    pub moving: bool,
+    /// Whether the motion is lowering.
+    pub lowering: bool,
+    /// Duty applied during the last tick, Q15.
+    pub duty: i16,
+    /// Encoder counts moved this tick.
+    pub delta: i32,
+    /// Motor current.
+    pub current: Amperes,
+    /// Supply.
+    pub supply: Volts,
+    /// Screw speed from the voltage balance (V − R·i)/(k_e·n).
+    pub emf_speed: RadiansPerSecond,
+    /// Measured screw speed (encoder filter).
+    pub speed: RadiansPerSecond,
+    /// Reference screw speed.
+    pub reference: RadiansPerSecond,
+    /// Cruise speed.
+    pub cruise: RadiansPerSecond,
+    /// Travel since the lift stopped, counts (0 while moving).
+    pub travel_while_stopped: i32,
+    /// Measured and model (rated load) screw torque, projected on the direction of motion.
+    pub measured_torque: NewtonMetres,
+    /// Model screw torque at rated load, projected on the direction of motion.
+    pub model_torque: NewtonMetres,
+    /// Whether the overload check applies this tick (driving, past the start-up transient).
+    pub overload_armed: bool,
+}
+
+/// Counters of the time-filtered monitors.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Monitors {
+    still: u32,
+    blind: u32,
+    low_supply: u32,
+    high_supply: u32,
+    overload: u32,
+    fast_lowering: u32,
+}
+
+impl Monitors {
+    /// Reset every counter (on a new motion or a fault clear).
+    pub fn reset(&mut self) {
+        *self = Self::default();
+    }
+
+    /// The first fault that trips this tick, if any, in order of urgency.
+    pub fn check(&mut self, l: &Limits, s: &Sample) -> Option<FaultKind> {
+        if s.current.sat_abs() > l.overcurrent {
+            return Some(FaultKind::OverCurrent);
+        }
+        if s.delta.unsigned_abs() > l.max_counts_per_tick.unsigned_abs() {
+            return Some(FaultKind::EncoderImplausible);
+        }
+        if count(&mut self.high_supply, s.supply > l.supply_max) >= l.supply_ticks {
+            return Some(FaultKind::OverVoltage);
+        }
+        if count(
+            &mut self.low_supply,
+            s.moving && s.supply < l.supply_run_min,
+        ) >= l.supply_ticks
+        {
+            return Some(FaultKind::UnderVoltage);
+        }
+        if !s.moving && s.travel_while_stopped.unsigned_abs() > l.runaway_counts.unsigned_abs() {
+            return Some(FaultKind::Runaway);
+        }
+        let too_fast = {
+            let limit = s
+                .reference
+                .sat_abs()
+                .sat_add(s.reference.sat_abs().scale(Ratio::lit("0.5")))
+                .sat_add(s.cruise.scale(Ratio::lit("0.25")));
+            s.moving && s.lowering && s.speed.sat_neg() > limit
+        };
+        if count(&mut self.fast_lowering, too_fast) >= l.runaway_ticks {
+            return Some(FaultKind::Runaway);
+        }
+        let no_count = s.moving && s.delta == 0;
+        let turning = s.emf_speed.sat_abs() > l.turning_speed;
+        if count(&mut self.blind, no_count && turning) >= l.stall_ticks {
+            return Some(FaultKind::EncoderLost);
+        }
+        let pushing = s.duty.unsigned_abs() >= l.stall_duty.unsigned_abs();
+        if count(&mut self.still, no_count && pushing && !turning) >= l.stall_ticks {
+            return Some(FaultKind::Stall);
+        }
+        let limit: NewtonMetres = qmul(s.model_torque, l.overload_factor);
+        let over = s.overload_armed && s.measured_torque > limit.sat_add(NewtonMetres::from_int(2));
+        if count(&mut self.overload, over) >= l.overload_ticks {
+            return Some(FaultKind::Overload);
+        }
+        None
+    }
+}
+
+/// Count consecutive ticks of `cond` (reset when it clears); returns the count.
+fn count(c: &mut u32, cond: bool) -> u32 {
+    *c = if cond { c.saturating_add(1) } else { 0 };
+    *c
+}

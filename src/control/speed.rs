@@ -1,0 +1,168 @@
+//! The speed loop: a PI on the encoder speed of the gear output, with the motor's steady-state
+//! voltage as feed-forward (back-EMF at the reference speed plus R·i for the model's torque),
+//! and a position term that pulls the reference onto the screw-position estimate.
+//!
+//! Gains follow from the motor constants (docs/control.md): the proportional gain is 1/8 of
+//! k_e·n (so it adds little to the encoder's quantisation noise), the integral gives a 5 Hz
+//! crossover with the plant's DC gain 1/(k_e·n), well below the 40 Hz speed filter whose three
+//! poles add ≈ 12 ms of lag; the position gain is 4 /s.
+
+use crate::math::recip_q30;
+use crate::units::{qmul, sat32, Factor, NewtonMetres, Radians, RadiansPerSecond, Ratio, Volts, Q};
+
+/// Quantised gains.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SpeedGains {
+    /// Back-EMF per screw speed, k_e·n, V/(rad/s).
+    pub ke_n: Factor,
+    /// R/k_t, V per N·m at the motor shaft.
+    pub r_over_kt: Factor,
+    /// Proportional gain, V/(rad/s).
+    pub kp: Factor,
+    /// Integral gain × tick, V/(rad/s) per tick.
+    pub ki_t: Ratio,
+    /// Position gain, 1/s (screw rad/s per screw rad).
+    pub kpos: Factor,
+}
+
+impl SpeedGains {
+    /// Gains for motor constants k_t (= k_e), loop resistance R, gear ratio n and tick `tick_us`.
+    pub fn design(kt: Ratio, resistance: Ratio, ratio: Factor, tick_us: u32) -> SpeedGains {
+        let ke_n: Factor = qmul(kt, ratio);
+        let r_over_kt = Factor::from_raw(sat32(
+            (i64::from(resistance.bits()) << 16) / i64::from(kt.bits().max(1)),
+        ));
+        // kp = k_e·n/8; ki = 2π·5 Hz·k_e·n; ki·T in V/(rad/s) per tick.
+        let kp = Factor::from_raw(ke_n.bits() / 8);
+        const TWO_PI_5_Q16: i64 = 2_058_874; // 2π·5·2^16
+        let ki_t = Ratio::from_raw(sat32(
+            i64::from(ke_n.bits()) * TWO_PI_5_Q16 * i64::from(tick_us) / 1_000_000 >> 4,
+        ));
+        SpeedGains {
+            ke_n,
+            r_over_kt,
+            kp,
+            ki_t,
+            kpos: Factor::from_int(4),
+        }
+    }
+}
+
+/// What the loop needs each tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SpeedInputs {
+    /// Reference screw speed.
+    pub reference: RadiansPerSecond,
+    /// Reference screw position − estimated screw position.
+    pub position_error: Radians,
+    /// Measured (filtered) screw speed.
+    pub measured: RadiansPerSecond,
+    /// The model's torque at the motor shaft (feed-forward).
+    pub model_motor_torque: NewtonMetres,
+    /// Supply voltage.
+    pub supply: Volts,
+}
+
+/// The integrator state.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SpeedLoop {
+    integral: Volts,
+}
+
+impl SpeedLoop {
+    /// Forget the integrator.
+    pub fn reset(&mut self) {
+        self.integral = Volts::ZERO;
+    }
+
+    /// One tick: the duty cycle in Q15 (±`i16::MAX`).
+    pub fn step(&mut self, g: &SpeedGains, x: &SpeedInputs) -> i16 {
+        let pos_term: RadiansPerSecond = qmul(x.position_error, g.kpos);
+        let command = x.reference.sat_add(pos_term);
+        let error = command.sat_sub(x.measured);
+        let ff: Volts = qmul::<_, _, Volts>(x.reference, g.ke_n)
+            .sat_add(qmul(x.model_motor_torque, g.r_over_kt));
+        let p: Volts = qmul(error, g.kp);
+        let unsat = ff.sat_add(p).sat_add(self.integral);
+        let vmax = x.supply.sat_abs();
+        let out = unsat.max(vmax.sat_neg()).min(vmax);
+        // Conditional integration: stop integrating into a saturated output.
+        let di: Volts = qmul(error, g.ki_t);
+        let winding_up = (out != unsat) && ((di.bits() > 0) == (unsat.bits() > 0));
+        if !winding_up {
+            self.integral = self.integral.sat_add(di).max(vmax.sat_neg()).min(vmax);
+        }
+        duty_q15(out, x.supply)
+    }
+}
+
+/// `v / supply` as a Q15 duty, saturated to ±1; zero if the supply reads below 1 V.
+pub fn duty_q15(v: Volts, supply: Volts) -> i16 {
+    if supply < Volts::from_int(1) {
+        return 0;
+    }
+    // supply/32 in Q2.30 (1…31 V → 2^-5…0.97); recip gives 32/supply in Q4.28.
+    let s = (supply.bits().clamp(1 << 16, 31 << 16) as u32) << 9;
+    let r = i64::from(recip_q30(s));
+    // duty = v·(32/supply)/32: Q16·Q28 = Q44, /32 and → Q15: >> 34.
+    let d = (i64::from(v.bits()) * r) >> 34;
+    d.clamp(-i64::from(i16::MAX), i64::from(i16::MAX)) as i16
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn duty_is_voltage_over_supply() {
+        for &(v, s) in &[
+            (6.0, 12.0),
+            (-3.0, 12.6),
+            (12.6, 12.6),
+            (20.0, 12.0),
+            (0.5, 9.0),
+        ] {
+            let d = duty_q15(Volts::from_f64(v), Volts::from_f64(s));
+            let want = (v / s).clamp(-1.0, 1.0) * 32767.0;
+            assert!((f64::from(d) - want).abs() <= 3.0, "{v}/{s}: {d} vs {want}");
+        }
+        assert_eq!(duty_q15(Volts::from_f64(5.0), Volts::ZERO), 0);
+    }
+
+    #[test]
+    fn gains_follow_the_motor_constants() {
+        let g = SpeedGains::design(
+            Ratio::lit("0.04"),
+            Ratio::lit("0.091"),
+            Factor::from_int(60),
+            1000,
+        );
+        assert!((g.ke_n.to_f64() - 2.4).abs() < 1e-4);
+        assert!((g.r_over_kt.to_f64() - 2.275).abs() < 1e-3);
+        assert!((g.kp.to_f64() - 0.3).abs() < 1e-4);
+        assert!((g.ki_t.to_f64() - 2.4 * 31.4159 * 1e-3).abs() < 1e-4);
+    }
+
+    #[test]
+    fn integrator_does_not_wind_up_at_full_duty() {
+        let g = SpeedGains::design(
+            Ratio::lit("0.04"),
+            Ratio::lit("0.091"),
+            Factor::from_int(60),
+            1000,
+        );
+        let mut l = SpeedLoop::default();
+        let x = SpeedInputs {
+            reference: RadiansPerSecond::from_int(10),
+            position_error: Radians::ZERO,
+            measured: RadiansPerSecond::ZERO,
+            model_motor_torque: NewtonMetres::ZERO,
+            supply: Volts::from_int(12),
+        };
+        for _ in 0..10_000 {
+            assert_eq!(l.step(&g, &x), i16::MAX);
+        }
+        // The integrator stopped growing once the output saturated.
+        assert!(l.integral <= Volts::from_int(12));
+    }
+}

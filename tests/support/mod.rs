@@ -1,0 +1,220 @@
+//! Closed-loop harness shared by the behaviour tests: the liftfw core's `Controller` driving
+//! host-sim's float64 plant (motor, bridge, battery, encoder, ADCs, limit switches) at its own
+//! 1 kHz tick, with hooks to send commands and to inject faults into what the board sees.
+#![allow(dead_code, clippy::expect_used, clippy::unwrap_used)]
+
+use host_sim::physics::Lubricant;
+use host_sim::sim::{Driver, Sim, SimConfig, Summary};
+use host_sim::trace::Trace;
+use liftfw::control::config::ControlConfig;
+use liftfw::control::{Bridge, Controller, Event, Inputs};
+use liftfw::model::friction::FrictionLaw;
+use liftfw::units::{Instant, Kilograms, Metres};
+use std::sync::{Arc, Mutex};
+
+/// The core's preset for a plant lubricant.
+pub fn core_law(l: Lubricant) -> FrictionLaw {
+    match l {
+        Lubricant::Dry => FrictionLaw::DRY,
+        Lubricant::Ptfe => FrictionLaw::PTFE,
+        Lubricant::Lithium => FrictionLaw::LITHIUM,
+    }
+}
+
+/// One closed-loop scenario.
+#[derive(Clone, Debug)]
+pub struct Scenario {
+    /// Plant lubricant (the core is configured with the same preset).
+    pub lubricant: Lubricant,
+    /// Mass on the head, kg.
+    pub load: f64,
+    /// Arm angle at the start, degrees.
+    pub start_deg: f64,
+    /// Simulated time, s.
+    pub duration: f64,
+    /// Noise seed.
+    pub seed: u64,
+    /// The core's configuration.
+    pub control: ControlConfig,
+    /// Integration step, s.
+    pub dt: f64,
+    /// Battery open-circuit voltage, V.
+    pub battery: f64,
+}
+
+impl Scenario {
+    /// Default lift and board, `load` kg, starting at `start_deg`, 1 kHz trace.
+    pub fn new(lubricant: Lubricant, load: f64, start_deg: f64, duration: f64) -> Self {
+        let mut control = ControlConfig::DEFAULT;
+        control.estimator.law = core_law(lubricant);
+        Self {
+            lubricant,
+            load,
+            start_deg,
+            duration,
+            seed: 1,
+            control,
+            dt: 4e-6,
+            battery: 12.6,
+        }
+    }
+}
+
+/// What a hook may do each tick, before the controller sees the inputs.
+pub struct Tick<'a> {
+    /// Simulated time, s.
+    pub t: f64,
+    /// The board's inputs (mutable: fault injection).
+    pub inputs: &'a mut Inputs,
+    /// The controller (commands).
+    pub controller: &'a mut Controller,
+    /// Skip the controller this tick (a hung control task): the bridge keeps its last command.
+    pub skip: bool,
+}
+
+/// A tick hook.
+pub type Hook = Box<dyn FnMut(&mut Tick<'_>) + Send>;
+
+/// What one tick did.
+#[derive(Clone, Copy, Debug)]
+pub struct TickLog {
+    /// Time, s.
+    pub t: f64,
+    /// The bridge command applied.
+    pub bridge: Bridge,
+    /// Whether the watchdog was fed.
+    pub fed: bool,
+}
+
+/// The outcome of a closed-loop run.
+pub struct Run {
+    /// Ground truth.
+    pub trace: Trace,
+    /// Summary.
+    pub summary: Summary,
+    /// Events the core reported, with their time.
+    pub events: Vec<(f64, Event)>,
+    /// Every tick.
+    pub ticks: Vec<TickLog>,
+    /// The controller at the end.
+    pub controller: Controller,
+}
+
+impl Run {
+    /// True head height at the end, m.
+    pub fn final_height(&self) -> f64 {
+        self.summary.height.1
+    }
+
+    /// Highest (lifting) or lowest (lowering) true height reached, m.
+    pub fn extreme_height(&self, lifting: bool) -> f64 {
+        let it = self.trace.records.iter().map(|r| r.height);
+        if lifting {
+            it.fold(f64::NEG_INFINITY, f64::max)
+        } else {
+            it.fold(f64::INFINITY, f64::min)
+        }
+    }
+
+    /// Time of the first fault event, s.
+    pub fn first_fault(&self) -> Option<(f64, liftfw::control::Fault)> {
+        self.events.iter().find_map(|(t, e)| match e {
+            Event::Fault(f) => Some((*t, *f)),
+            _ => None,
+        })
+    }
+}
+
+/// Encoder position (counts from fully down) the core must boot with for a start angle.
+pub fn start_counts(c: &Controller, start_deg: f64) -> i32 {
+    let g = host_sim::physics::Geometry::paper();
+    let h = g.height(start_deg.to_radians());
+    c.estimator()
+        .geometry()
+        .counts_for_height(Metres::from_f64(h))
+        .expect("start inside the mechanism")
+}
+
+/// Run `s` with `hook` called every tick before the controller.
+pub fn run(s: &Scenario, mut hook: Hook) -> Run {
+    let mut cfg = SimConfig::paper(s.lubricant.law(), 0.3, s.start_deg);
+    cfg.plant.load = s.load;
+    cfg.duration = s.duration;
+    cfg.dt = s.dt;
+    cfg.record_rate = 1000.0;
+    cfg.seed = s.seed;
+    cfg.drive.battery_voltage = s.battery;
+    let probe = Controller::new(&s.control, 0).expect("valid control config");
+    let start = start_counts(&probe, s.start_deg);
+    let controller = Controller::new(&s.control, start).expect("valid control config");
+    let shared = Arc::new(Mutex::new((
+        controller,
+        Vec::<(f64, Event)>::new(),
+        Vec::<TickLog>::new(),
+    )));
+    let inner = Arc::clone(&shared);
+    let mut last = Bridge::Coast;
+    let driver = Driver::Custom(Box::new(move |t: f64, inputs: &Inputs| {
+        let mut g = inner.lock().expect("not poisoned");
+        let (c, events, ticks) = &mut *g;
+        let mut inputs = *inputs;
+        let mut tick = Tick {
+            t,
+            inputs: &mut inputs,
+            controller: c,
+            skip: false,
+        };
+        hook(&mut tick);
+        if tick.skip {
+            ticks.push(TickLog {
+                t,
+                bridge: last,
+                fed: false,
+            });
+            return last;
+        }
+        let out = c.step(Instant((t * 1e6).round() as u64 as u32), &inputs);
+        if let Some(e) = out.event {
+            events.push((t, e));
+        }
+        ticks.push(TickLog {
+            t,
+            bridge: out.bridge,
+            fed: out.feed_watchdog,
+        });
+        last = out.bridge;
+        out.bridge
+    }));
+    let mut sim = Sim::new(cfg, driver).expect("valid sim config");
+    let summary = sim.run();
+    let trace = std::mem::take(&mut sim.trace);
+    drop(sim);
+    let (controller, events, ticks) = Arc::try_unwrap(shared)
+        .ok()
+        .expect("driver dropped")
+        .into_inner()
+        .expect("not poisoned");
+    Run {
+        trace,
+        summary,
+        events,
+        ticks,
+        controller,
+    }
+}
+
+/// A hook that sends `cmd` once at time `at`.
+pub fn command_at(at: f64, cmd: liftfw::control::Command) -> Hook {
+    let mut sent = false;
+    Box::new(move |k: &mut Tick<'_>| {
+        if !sent && k.t >= at {
+            sent = true;
+            k.controller.command(cmd).expect("command accepted");
+        }
+    })
+}
+
+/// Kilograms from f64.
+pub fn kg(v: f64) -> Kilograms {
+    Kilograms::from_f64(v)
+}

@@ -109,6 +109,10 @@ impl LimitStops {
 pub struct ProtectionConfig {
     /// Motor current that trips the over-current fault on the sample that exceeds it, 1…60 A.
     pub overcurrent: Amperes,
+    /// Current the speed loop never asks for (it limits the voltage to back-EMF ± R·I), 1…60 A,
+    /// at most `overcurrent`. A jammed lift then sits at this current until the stall
+    /// protection trips, instead of tripping over-current.
+    pub current_limit: Amperes,
     /// Stall: duty magnitude at or above which "no motion" counts, 0.05…1.
     pub stall_duty: Ratio,
     /// Stall: time at high duty without encoder motion before the fault, 20…5000 ms.
@@ -137,6 +141,7 @@ impl ProtectionConfig {
     /// Defaults for the default board (40 A bridge budget, 12 V lead-acid battery).
     pub const DEFAULT: ProtectionConfig = ProtectionConfig {
         overcurrent: Amperes::lit("45"),
+        current_limit: Amperes::lit("40"),
         stall_duty: Ratio::lit("0.5"),
         stall_ms: 300,
         max_motor_speed: RadiansPerSecond::lit("600"),
@@ -227,6 +232,19 @@ impl ControlConfig {
             "protect.overcurrent",
             "1..60 A",
         )?;
+        range(
+            p.current_limit,
+            Amperes::lit("1"),
+            Amperes::lit("60"),
+            "protect.current_limit",
+            "1..60 A",
+        )?;
+        if p.current_limit > p.overcurrent {
+            return Err(ConfigError::Conflict {
+                field: "protect.current_limit",
+                reason: "must not exceed protect.overcurrent",
+            });
+        }
         range(
             p.stall_duty,
             Ratio::lit("0.05"),

@@ -260,6 +260,8 @@ const SETTLE_MS: u32 = 300;
 const ARRIVED_COUNTS: i32 = 40;
 /// Debounce of the switches, ticks at 1 kHz (scaled with the tick).
 const DEBOUNCE_MS: u32 = 3;
+/// Buttons must be seen released this long before they can start a motion.
+const ARM_MS: u32 = 50;
 /// Largest dynamic-braking current allowed, A (the BTS7960's low sides are rated 40 A).
 const BRAKE_AMPS: i32 = 30;
 /// Overload monitoring starts this long after a motion starts (breakaway, winding the coupling).
@@ -303,6 +305,8 @@ pub struct Controller {
     hold_position: i32,
     /// Buttons pressed since boot/fault must be released before they count (edge-triggered).
     buttons_armed: bool,
+    /// Consecutive ticks with both motion buttons released (raw), toward arming.
+    release_ticks: u32,
     /// The motion was started by a hold-to-run button that is still held.
     held_button: u8,
     prev_buttons: u8,
@@ -312,6 +316,8 @@ pub struct Controller {
     last_ref_counts: i32,
     /// 1/(k_e·n), screw rad/s per volt.
     inv_ke_n: Ratio,
+    /// R·I_limit.
+    current_headroom: Volts,
     /// Measured screw torque, low-passed (1/8 per tick: 20 Hz at 1 kHz), for the twist.
     torque_lp: NewtonMetres,
     /// Highest screw speed at which shorting the motor keeps the current within [`BRAKE_AMPS`].
@@ -406,6 +412,7 @@ impl Controller {
             motion_ticks: 0,
             hold_position: position,
             buttons_armed: false,
+            release_ticks: 0,
             held_button: 0,
             prev_buttons: 0,
             last_ref_speed: 0,
@@ -413,6 +420,7 @@ impl Controller {
             gains,
             inv_ke_n,
             torque_lp: NewtonMetres::ZERO,
+            current_headroom: qmul(cfg.protection.current_limit, cfg.estimator.motor.resistance),
             brake_speed: qmul(
                 qmul::<_, _, Volts>(
                     Amperes::from_int(BRAKE_AMPS),
@@ -500,6 +508,7 @@ impl Controller {
                 self.fault = None;
                 self.monitors.reset();
                 self.buttons_armed = false;
+                self.release_ticks = 0;
                 self.enter_rest(State::Idle);
                 Ok(())
             }
@@ -724,7 +733,7 @@ impl Controller {
         }
 
         // 4. Buttons.
-        self.buttons();
+        self.buttons(inputs.switches.0);
 
         // 5–6. Motion.
         let bridge = match self.state {
@@ -753,7 +762,7 @@ impl Controller {
         qmul(va.sat_sub(ri), self.inv_ke_n)
     }
 
-    fn buttons(&mut self) {
+    fn buttons(&mut self, raw: u8) {
         let pressed = self.switches.0 & (Switches::BUTTON_UP | Switches::BUTTON_DOWN);
         let edges = pressed & !self.prev_buttons;
         self.prev_buttons = pressed;
@@ -762,8 +771,14 @@ impl Controller {
             return;
         }
         if !self.buttons_armed {
-            // A button held at boot or through a fault must be released first.
-            self.buttons_armed = pressed == 0;
+            // A button held at boot or through a fault must be seen released (raw, for
+            // ARM_MS) first: the debouncer's initial "released" is not evidence.
+            self.release_ticks = if raw & (Switches::BUTTON_UP | Switches::BUTTON_DOWN) == 0 {
+                self.release_ticks.saturating_add(1)
+            } else {
+                0
+            };
+            self.buttons_armed = self.release_ticks >= ARM_MS * 1000 / self.tick_us;
             return;
         }
         if self.held_button != 0 && pressed & self.held_button == 0 {
@@ -814,6 +829,7 @@ impl Controller {
                 measured: self.estimate.screw_speed,
                 model_motor_torque: self.estimate.model_motor_torque,
                 supply: self.supply,
+                current_headroom: self.current_headroom,
             },
         );
         Bridge::Drive(duty)

@@ -6,6 +6,10 @@
 //! k_e·n (so it adds little to the encoder's quantisation noise), the integral gives a 5 Hz
 //! crossover with the plant's DC gain 1/(k_e·n), well below the 40 Hz speed filter whose three
 //! poles add ≈ 12 ms of lag; the position gain is 4 /s.
+//!
+//! Current limit without a current loop: the voltage may leave the back-EMF of the measured
+//! speed by at most R·I_limit, so the steady current never exceeds the limit (the armature's
+//! L/R ≈ 1 ms is shorter than the tick).
 
 use crate::math::recip_q30;
 use crate::units::{qmul, sat32, Factor, NewtonMetres, Radians, RadiansPerSecond, Ratio, Volts, Q};
@@ -61,6 +65,8 @@ pub struct SpeedInputs {
     pub model_motor_torque: NewtonMetres,
     /// Supply voltage.
     pub supply: Volts,
+    /// R·I_limit: how far the voltage may leave the back-EMF of the measured speed.
+    pub current_headroom: Volts,
 }
 
 /// The integrator state.
@@ -85,7 +91,11 @@ impl SpeedLoop {
         let p: Volts = qmul(error, g.kp);
         let unsat = ff.sat_add(p).sat_add(self.integral);
         let vmax = x.supply.sat_abs();
-        let out = unsat.max(vmax.sat_neg()).min(vmax);
+        // Current limit from the motor model: |V − k_e·n·ω| ≤ R·I_limit.
+        let emf: Volts = qmul(x.measured, g.ke_n);
+        let hi = emf.sat_add(x.current_headroom).min(vmax);
+        let lo = emf.sat_sub(x.current_headroom).max(vmax.sat_neg());
+        let out = unsat.max(lo).min(hi);
         // Conditional integration: stop integrating into a saturated output.
         let di: Volts = qmul(error, g.ki_t);
         let winding_up = (out != unsat) && ((di.bits() > 0) == (unsat.bits() > 0));
@@ -158,6 +168,7 @@ mod tests {
             measured: RadiansPerSecond::ZERO,
             model_motor_torque: NewtonMetres::ZERO,
             supply: Volts::from_int(12),
+            current_headroom: Volts::from_int(20),
         };
         for _ in 0..10_000 {
             assert_eq!(l.step(&g, &x), i16::MAX);

@@ -1,0 +1,73 @@
+//! Persistent configuration: the whole [`ControlConfig`] as one versioned, CRC-checked record
+//! in NOR flash, written power-fail-safe through `sequential-storage`.
+//!
+//! - [`settings`]: the registry of every setting by its console key (typed get/set on raw
+//!   bits, unit and range for messages). The flash record is laid out in registry order.
+//! - [`record`]: the record's fixed little-endian layout (magic, version, schema fingerprint,
+//!   sequence number, one `i64` per stored setting, CRC-32).
+//! - [`store`]: [`store::ConfigStore`], load (never fails: falls back to factory defaults and
+//!   says why) and save over any `embedded-storage-async` `NorFlash`.
+//! - [`sim_flash`]: a simulated STM32G4-like flash with power-cut injection, for host tests.
+//!
+//! A configuration reaches the controller only as a [`ValidatedConfig`], which can only be
+//! built through [`ControlConfig::validate`] and [`Estimator::new`]: a value from the console
+//! or from flash that fails either never leaves this module. docs/config-store.md describes the
+//! scheme and the power-loss argument.
+
+pub mod record;
+pub mod settings;
+pub mod sim_flash;
+pub mod store;
+
+use crate::control::config::ControlConfig;
+use crate::estimator::Estimator;
+use crate::ConfigError;
+
+/// A [`ControlConfig`] that passed [`ControlConfig::validate`] against its own geometry and
+/// [`Estimator::new`]: the only form in which a configuration reaches the controller.
+///
+/// Replacing the controller's `ValidatedConfig` is one assignment between ticks, so a running
+/// motion never sees a half-applied change.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ValidatedConfig(ControlConfig);
+
+impl ValidatedConfig {
+    /// Validate a whole configuration: the estimator's settings first (geometry, drive,
+    /// mechanics, friction law, motor, tick), then motion, protections, sensing and the limit
+    /// stops against the geometry.
+    pub fn new(cfg: ControlConfig) -> Result<ValidatedConfig, ConfigError> {
+        let estimator = Estimator::new(&cfg.estimator)?;
+        cfg.validate(estimator.geometry())?;
+        Ok(ValidatedConfig(cfg))
+    }
+
+    /// The factory configuration ([`ControlConfig::DEFAULT`]; a unit test proves it valid). Its
+    /// limit stops are the factory limits, inside the limit switches.
+    pub const fn factory() -> ValidatedConfig {
+        ValidatedConfig(ControlConfig::DEFAULT)
+    }
+
+    /// The configuration.
+    pub const fn get(&self) -> &ControlConfig {
+        &self.0
+    }
+}
+
+impl Default for ValidatedConfig {
+    fn default() -> Self {
+        Self::factory()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn factory_configuration_passes_validation() {
+        assert_eq!(
+            ValidatedConfig::new(ControlConfig::DEFAULT),
+            Ok(ValidatedConfig::factory())
+        );
+    }
+}

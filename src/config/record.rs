@@ -1,0 +1,200 @@
+//! The configuration record: a fixed little-endian layout, versioned and CRC-checked.
+//!
+//! ```text
+//! offset  size  field
+//!      0     4  magic "LFCF"
+//!      4     2  format version (VERSION)
+//!      6     2  n = number of settings that follow
+//!      8     4  schema: CRC-32 of the stored settings' keys, in order, each followed by '\n'
+//!     12     4  sequence number of the save (1, 2, …)
+//!     16   8·n  each stored setting's raw bits as i64, in registry order
+//!  16+8n     4  CRC-32 (IEEE, as zlib) of bytes 0 … 16+8n
+//! ```
+//!
+//! A hand-written layout rather than serde/postcard: it needs no derives on the configuration
+//! types (other modules own them), its size does not depend on the values (postcard's varints
+//! do), a field's position cannot move silently when someone reorders a struct (the order is
+//! this registry's, and the schema word catches changes to it), and decoding is 60 lines with
+//! no error path that is not tested byte by byte.
+
+use crate::config::settings::SETTINGS;
+use crate::control::config::ControlConfig;
+
+/// Record magic, "LFCF".
+pub const MAGIC: [u8; 4] = *b"LFCF";
+/// Format version written by this firmware.
+pub const VERSION: u16 = 1;
+/// Bytes before the settings.
+pub const HEADER_LEN: usize = 16;
+
+/// Number of settings in the record.
+pub fn stored_count() -> usize {
+    SETTINGS.iter().filter(|s| s.stored).count()
+}
+
+/// Record length for this firmware.
+pub fn record_len() -> usize {
+    HEADER_LEN + 8 * stored_count() + 4
+}
+
+/// Largest record this firmware writes (every setting stored): the size of the store's buffers.
+pub const MAX_RECORD_LEN: usize = HEADER_LEN + 8 * SETTINGS.len() + 4;
+
+/// CRC-32/ISO-HDLC (the zlib/Ethernet CRC), bitwise: no table in flash; a record costs ~3k
+/// shift-xor steps, once per load or save.
+pub fn crc32(data: &[u8]) -> u32 {
+    crc32_update(0xFFFF_FFFF, data) ^ 0xFFFF_FFFF
+}
+
+fn crc32_update(mut crc: u32, data: &[u8]) -> u32 {
+    for &b in data {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = (crc >> 1) ^ (0xEDB8_8320 & (crc & 1).wrapping_neg());
+        }
+    }
+    crc
+}
+
+/// The schema fingerprint: CRC-32 of the stored keys in order, each followed by `\n`.
+pub fn schema() -> u32 {
+    let mut crc = 0xFFFF_FFFF;
+    for s in SETTINGS.iter().filter(|s| s.stored) {
+        crc = crc32_update(crc, s.key.as_bytes());
+        crc = crc32_update(crc, b"\n");
+    }
+    crc ^ 0xFFFF_FFFF
+}
+
+/// Why a stored record was not used.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum DecodeError {
+    /// Shorter than a header and CRC, or longer than this firmware's buffer.
+    BadLength,
+    /// Not a configuration record.
+    BadMagic,
+    /// The CRC does not match: some byte changed after it was written.
+    BadCrc,
+    /// An intact record of another format version.
+    Version {
+        /// The record's version.
+        found: u16,
+    },
+    /// An intact record of this version whose list of settings differs from this firmware's
+    /// (a firmware that changed the list without raising the version).
+    Schema,
+    /// A value that does not fit its field (only possible with a forged CRC).
+    BadField {
+        /// The setting's key.
+        field: &'static str,
+    },
+}
+
+impl core::fmt::Display for DecodeError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            DecodeError::BadLength => f.write_str("record has a wrong length"),
+            DecodeError::BadMagic => f.write_str("record has no LFCF magic"),
+            DecodeError::BadCrc => f.write_str("record fails its CRC"),
+            DecodeError::Version { found } => {
+                write!(
+                    f,
+                    "record is format version {found}, this firmware reads version {VERSION}"
+                )
+            }
+            DecodeError::Schema => {
+                f.write_str("record lists other settings than this firmware (schema mismatch)")
+            }
+            DecodeError::BadField { field } => write!(f, "record value of {field} does not fit"),
+        }
+    }
+}
+
+/// Encode `cfg` as a record with sequence number `seq` into `out`; returns the length, or
+/// `None` if `out` is too short.
+pub fn encode(cfg: &ControlConfig, seq: u32, out: &mut [u8]) -> Option<usize> {
+    let n = stored_count();
+    let len = HEADER_LEN + 8 * n + 4;
+    let out = out.get_mut(..len)?;
+    out[0..4].copy_from_slice(&MAGIC);
+    out[4..6].copy_from_slice(&VERSION.to_le_bytes());
+    out[6..8].copy_from_slice(&(n as u16).to_le_bytes());
+    out[8..12].copy_from_slice(&schema().to_le_bytes());
+    out[12..16].copy_from_slice(&seq.to_le_bytes());
+    for (i, s) in SETTINGS.iter().filter(|s| s.stored).enumerate() {
+        let at = HEADER_LEN + 8 * i;
+        out[at..at + 8].copy_from_slice(&s.get(cfg).to_le_bytes());
+    }
+    let crc = crc32(&out[..len - 4]);
+    out[len - 4..].copy_from_slice(&crc.to_le_bytes());
+    Some(len)
+}
+
+fn le_u16(b: &[u8], at: usize) -> u16 {
+    let mut w = [0; 2];
+    w.copy_from_slice(&b[at..at + 2]);
+    u16::from_le_bytes(w)
+}
+
+fn le_u32(b: &[u8], at: usize) -> u32 {
+    let mut w = [0; 4];
+    w.copy_from_slice(&b[at..at + 4]);
+    u32::from_le_bytes(w)
+}
+
+/// Decode a record into `(config, sequence)`. The configuration is *not* validated yet: see
+/// [`crate::config::ValidatedConfig::new`]. Settings start from [`ControlConfig::DEFAULT`], so a
+/// field the record does not hold (none, in version 1) keeps its factory value.
+pub fn decode(bytes: &[u8]) -> Result<(ControlConfig, u32), DecodeError> {
+    if bytes.len() < HEADER_LEN + 4 || bytes.len() > MAX_RECORD_LEN {
+        return Err(DecodeError::BadLength);
+    }
+    if bytes[0..4] != MAGIC {
+        return Err(DecodeError::BadMagic);
+    }
+    let body = bytes.len() - 4;
+    if crc32(&bytes[..body]) != le_u32(bytes, body) {
+        return Err(DecodeError::BadCrc);
+    }
+    let version = le_u16(bytes, 4);
+    if version != VERSION {
+        return Err(DecodeError::Version { found: version });
+    }
+    let n = usize::from(le_u16(bytes, 6));
+    if n != stored_count() || le_u32(bytes, 8) != schema() {
+        return Err(DecodeError::Schema);
+    }
+    if bytes.len() != HEADER_LEN + 8 * n + 4 {
+        return Err(DecodeError::BadLength);
+    }
+    let seq = le_u32(bytes, 12);
+    let mut cfg = ControlConfig::DEFAULT;
+    for (i, s) in SETTINGS.iter().filter(|s| s.stored).enumerate() {
+        let at = HEADER_LEN + 8 * i;
+        let mut w = [0; 8];
+        w.copy_from_slice(&bytes[at..at + 8]);
+        if !s.set(&mut cfg, i64::from_le_bytes(w)) {
+            return Err(DecodeError::BadField { field: s.key });
+        }
+    }
+    Ok((cfg, seq))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crc32_matches_the_standard_check_value() {
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+    }
+
+    #[test]
+    fn record_round_trips_and_fits_the_buffer() {
+        let mut buf = [0u8; MAX_RECORD_LEN];
+        let len = encode(&ControlConfig::DEFAULT, 7, &mut buf).unwrap();
+        assert_eq!(len, record_len());
+        assert_eq!(decode(&buf[..len]), Ok((ControlConfig::DEFAULT, 7)));
+    }
+}

@@ -1,0 +1,599 @@
+//! The settings registry: every field of [`ControlConfig`] by its console key.
+//!
+//! Each [`Setting`] reads and writes its field as raw bits in an `i64` (the Q format's bits, an
+//! integer, or a choice index), knows its unit for parsing and display and its accepted range
+//! for messages. Range checks themselves stay where they are defined
+//! ([`ControlConfig::validate`], [`crate::estimator::Estimator::new`]): [`apply`] changes one
+//! field of a copy and re-validates the whole configuration, so a refused change leaves the
+//! running one untouched. The flash record ([`crate::config::record`]) stores the `stored`
+//! settings in this table's order.
+
+use crate::config::ValidatedConfig;
+use crate::control::config::{ButtonMode, ControlConfig, RampShape};
+use crate::model::friction::{FrictionLaw, LawVariable};
+use crate::units::{Amperes, Kilograms, Metres, NewtonMetres, RadiansPerSecond, Ratio, Volts};
+use crate::ConfigError;
+use fixed::types::{I16F16, I32F32};
+
+/// A unit a value is typed and shown in.
+#[derive(Debug, PartialEq, Eq)]
+pub struct Unit {
+    /// The unit values are shown in (empty: a plain number).
+    pub display: &'static str,
+    /// Accepted suffixes (lower case) with their power of ten relative to `display`; a bare
+    /// number is always read in `display`.
+    pub accepts: &'static [(&'static str, i32)],
+    /// What the value is, for messages ("a length").
+    pub what: &'static str,
+}
+
+macro_rules! unit {
+    ($(#[$doc:meta])* $name:ident, $display:literal, $what:literal, [$(($s:literal, $p:literal)),* $(,)?]) => {
+        $(#[$doc])*
+        pub const $name: Unit = Unit { display: $display, accepts: &[$(($s, $p)),*], what: $what };
+    };
+}
+
+unit!(
+    /// Lengths, shown in mm.
+    MILLIMETRES, "mm", "a length", [("mm", 0), ("m", 3), ("cm", 1), ("um", -3)]);
+unit!(
+    /// Screw or motor speeds.
+    RAD_PER_S, "rad/s", "an angular speed", [("rad/s", 0)]);
+unit!(
+    /// Durations in ms.
+    MILLIS, "ms", "a duration", [("ms", 0), ("s", 3)]);
+unit!(
+    /// Durations in µs.
+    MICROS, "us", "a duration", [("us", 0), ("ms", 3), ("s", 6)]);
+unit!(
+    /// Currents.
+    AMPS, "A", "a current", [("a", 0), ("ma", -3)]);
+unit!(
+    /// Voltages.
+    VOLTS, "V", "a voltage", [("v", 0), ("mv", -3)]);
+unit!(
+    /// Masses.
+    KILOGRAMS, "kg", "a mass", [("kg", 0), ("t", 3), ("g", -3)]);
+unit!(
+    /// Dimensionless ratios (a percentage is accepted).
+    RATIO, "", "a ratio", [("%", -2)]);
+unit!(
+    /// Plain numbers (gear ratio, law parameters).
+    NUMBER, "", "a number", []);
+unit!(
+    /// Counts and ADC codes.
+    COUNTS, "", "a whole number", [("counts", 0), ("codes", 0)]);
+unit!(
+    /// Angles in degrees.
+    DEGREES, "deg", "an angle", [("deg", 0), ("°", 0)]);
+unit!(
+    /// Torques.
+    NEWTON_METRES, "Nm", "a torque", [("nm", 0), ("n*m", 0), ("n.m", 0), ("n·m", 0), ("mnm", -3)]);
+unit!(
+    /// Torque constants.
+    NM_PER_AMP, "Nm/A", "a torque constant", [("nm/a", 0), ("n*m/a", 0), ("n·m/a", 0)]);
+unit!(
+    /// Frequencies.
+    HERTZ, "Hz", "a frequency", [("hz", 0)]);
+unit!(
+    /// ADC scalings of current, per code.
+    MICROAMPS, "uA", "a current per ADC code", [("ua", 0), ("ma", 3)]);
+unit!(
+    /// ADC scalings of voltage, per code.
+    MICROVOLTS, "uV", "a voltage per ADC code", [("uv", 0), ("mv", 3)]);
+unit!(
+    /// Torsional stiffness.
+    NM_PER_RAD, "Nm/rad", "a torsional stiffness", [("nm/rad", 0), ("n*m/rad", 0), ("n·m/rad", 0)]);
+unit!(
+    /// Resistances.
+    OHMS, "ohm", "a resistance", [("ohm", 0), ("mohm", -3), ("Ω", 0), ("mΩ", -3)]);
+unit!(
+    /// Screw inertia in µkg·m².
+    MICRO_KGM2, "ukgm2", "an inertia", [("ukgm2", 0), ("ukg*m2", 0)]);
+unit!(
+    /// Screw support damping in µN·m·s/rad.
+    MICRO_NMS, "uNms/rad", "a rotational damping", [("unms/rad", 0), ("unms", 0)]);
+
+/// How a setting's raw bits read as a value.
+#[derive(Debug, PartialEq, Eq)]
+pub enum Kind {
+    /// `raw / 2^frac` in the field's base unit, shown as that times `10^pow10` in `unit.display`.
+    Number {
+        /// Fractional bits of the field's Q format (0 for integers).
+        frac: u32,
+        /// Display unit per base unit as a power of ten (mm per m: 3).
+        pow10: i32,
+        /// Unit for parsing and display.
+        unit: &'static Unit,
+        /// The field's largest value means "no limit" (typed and shown as `none`).
+        none_at_max: bool,
+    },
+    /// An index into the names.
+    Choice(&'static [&'static str]),
+}
+
+/// One configurable field.
+pub struct Setting {
+    /// Console key (lower case, as [`ConfigError`] names it).
+    pub key: &'static str,
+    /// Raw-bits interpretation.
+    pub kind: Kind,
+    /// Accepted range, for messages (the text of the validation that checks it).
+    pub range: &'static str,
+    /// One line of help.
+    pub about: &'static str,
+    /// Part of the flash record (false only for derived settings such as `friction.law`).
+    pub stored: bool,
+    get: fn(&ControlConfig) -> i64,
+    set: fn(&mut ControlConfig, i64) -> bool,
+}
+
+impl core::fmt::Debug for Setting {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Setting").field("key", &self.key).finish()
+    }
+}
+
+impl Setting {
+    /// The field's raw bits in `cfg`.
+    pub fn get(&self, cfg: &ControlConfig) -> i64 {
+        (self.get)(cfg)
+    }
+
+    /// Write raw bits into the field; false (and `cfg` unchanged) if they do not fit its type.
+    /// No range check: see [`apply`].
+    pub fn set(&self, cfg: &mut ControlConfig, raw: i64) -> bool {
+        (self.set)(cfg, raw)
+    }
+}
+
+/// Index of a setting in [`SETTINGS`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SettingId(u8);
+
+impl SettingId {
+    /// The setting.
+    pub fn setting(self) -> &'static Setting {
+        // Ids are only made by `find`/`all`, so the index is in bounds; `get` keeps it total.
+        SETTINGS.get(usize::from(self.0)).unwrap_or(&SETTINGS[0])
+    }
+
+    /// Its console key.
+    pub fn key(self) -> &'static str {
+        self.setting().key
+    }
+
+    /// Position in [`SETTINGS`].
+    pub fn index(self) -> usize {
+        usize::from(self.0)
+    }
+}
+
+/// The setting with this key (ASCII case-insensitive).
+pub fn find(key: &str) -> Option<SettingId> {
+    SETTINGS
+        .iter()
+        .position(|s| s.key.eq_ignore_ascii_case(key))
+        .map(|i| SettingId(i as u8))
+}
+
+/// Every setting, in registry order.
+pub fn all() -> impl Iterator<Item = SettingId> {
+    (0..SETTINGS.len()).map(|i| SettingId(i as u8))
+}
+
+/// Change one setting of a copy of `cfg` and validate the whole copy; the copy is returned
+/// only if it is valid. Raw bits that do not fit the field's type are refused with the
+/// setting's own range.
+pub fn apply(
+    cfg: &ValidatedConfig,
+    id: SettingId,
+    raw: i64,
+) -> Result<ValidatedConfig, ConfigError> {
+    let s = id.setting();
+    let mut next = *cfg.get();
+    if !s.set(&mut next, raw) {
+        return Err(ConfigError::OutOfRange {
+            field: s.key,
+            range: s.range,
+        });
+    }
+    ValidatedConfig::new(next)
+}
+
+/// Raw-bit access to the fixed-point types the configuration is made of.
+trait Bits32: Sized {
+    fn bits(self) -> i32;
+    fn with_bits(b: i32) -> Self;
+}
+
+macro_rules! bits32 {
+    ($($t:ty),*) => {$(
+        impl Bits32 for $t {
+            fn bits(self) -> i32 { self.to_bits() }
+            fn with_bits(b: i32) -> Self { <$t>::from_bits(b) }
+        }
+    )*};
+}
+bits32!(
+    Metres,
+    Ratio,
+    Amperes,
+    Volts,
+    Kilograms,
+    NewtonMetres,
+    RadiansPerSecond,
+    I16F16
+);
+
+const fn num(frac: u32, unit: &'static Unit) -> Kind {
+    Kind::Number {
+        frac,
+        pow10: 0,
+        unit,
+        none_at_max: false,
+    }
+}
+
+/// Metres (I8F24) shown in mm.
+const LEN: Kind = Kind::Number {
+    frac: 24,
+    pow10: 3,
+    unit: &MILLIMETRES,
+    none_at_max: false,
+};
+
+macro_rules! setting {
+    // A fixed-point field stored as 32 raw bits.
+    ($key:literal, $kind:expr, $range:literal, $about:literal, q32 $($f:ident).+) => {
+        Setting {
+            key: $key, kind: $kind, range: $range, about: $about, stored: true,
+            get: |c| i64::from(Bits32::bits(c.$($f).+)),
+            set: |c, v| match i32::try_from(v) {
+                Ok(b) => { c.$($f).+ = Bits32::with_bits(b); true }
+                Err(_) => false,
+            },
+        }
+    };
+    // An I32F32 field stored as its 64 raw bits.
+    ($key:literal, $kind:expr, $range:literal, $about:literal, q64 $($f:ident).+) => {
+        Setting {
+            key: $key, kind: $kind, range: $range, about: $about, stored: true,
+            get: |c| c.$($f).+.to_bits(),
+            set: |c, v| { c.$($f).+ = I32F32::from_bits(v); true },
+        }
+    };
+    // An integer field.
+    ($key:literal, $kind:expr, $range:literal, $about:literal, int $t:ty, $($f:ident).+) => {
+        Setting {
+            key: $key, kind: $kind, range: $range, about: $about, stored: true,
+            get: |c| i64::from(c.$($f).+),
+            set: |c, v| match <$t>::try_from(v) {
+                Ok(b) => { c.$($f).+ = b; true }
+                Err(_) => false,
+            },
+        }
+    };
+}
+
+/// The friction-law presets `friction.law` selects, in its choice order.
+pub const LAW_PRESETS: [FrictionLaw; 4] = [
+    FrictionLaw::DRY,
+    FrictionLaw::PTFE,
+    FrictionLaw::LITHIUM,
+    FrictionLaw::BALL_SCREW,
+];
+
+/// Every setting. The flash record's layout follows this order (the `stored` ones): changing
+/// it changes the record's schema fingerprint (see [`crate::config::record`]).
+pub static SETTINGS: [Setting; 48] = [
+    setting!("limits.lower", LEN, "the mechanism's height range (see `limits`)",
+        "lowest head height the lift drives to", q32 limits.lower),
+    setting!("limits.upper", LEN, "the mechanism's height range (see `limits`)",
+        "highest head height the lift drives to", q32 limits.upper),
+    setting!("load.rated", num(12, &KILOGRAMS), "10..5000 kg",
+        "rated load of the lift", q32 rated_load),
+    setting!("motion.cruise_speed", num(16, &RAD_PER_S), "0.2..20 rad/s",
+        "cruise screw speed", q32 motion.cruise_speed),
+    setting!("motion.ramp_ms", num(0, &MILLIS), "10..2000 ms",
+        "time from rest to cruise speed (and back)", int u32, motion.ramp_ms),
+    Setting {
+        key: "motion.ramp_shape",
+        kind: Kind::Choice(&["trapezoid", "scurve"]),
+        range: "trapezoid or scurve",
+        about: "speed ramp: constant acceleration or jerk-limited",
+        stored: true,
+        get: |c| match c.motion.ramp_shape {
+            RampShape::Trapezoid => 0,
+            RampShape::SCurve => 1,
+        },
+        set: |c, v| {
+            c.motion.ramp_shape = match v {
+                0 => RampShape::Trapezoid,
+                1 => RampShape::SCurve,
+                _ => return false,
+            };
+            true
+        },
+    },
+    Setting {
+        key: "motion.buttons",
+        kind: Kind::Choice(&["hold", "latched"]),
+        range: "hold or latched",
+        about: "UP/DOWN buttons: hold-to-run or latched until STOP",
+        stored: true,
+        get: |c| match c.motion.buttons {
+            ButtonMode::HoldToRun => 0,
+            ButtonMode::Latched => 1,
+        },
+        set: |c, v| {
+            c.motion.buttons = match v {
+                0 => ButtonMode::HoldToRun,
+                1 => ButtonMode::Latched,
+                _ => return false,
+            };
+            true
+        },
+    },
+    setting!("protect.overcurrent", num(16, &AMPS), "1..60 A",
+        "motor current that trips the over-current fault", q32 protection.overcurrent),
+    setting!("protect.stall_duty", num(28, &RATIO), "0.05..1",
+        "duty at or above which no encoder motion counts as a stall", q32 protection.stall_duty),
+    setting!("protect.stall_ms", num(0, &MILLIS), "20..5000 ms",
+        "time stalled before the fault", int u32, protection.stall_ms),
+    setting!("protect.max_motor_speed", num(16, &RAD_PER_S), "10..5000 rad/s",
+        "fastest plausible motor-shaft speed", q32 protection.max_motor_speed),
+    setting!("protect.supply_start_min", num(16, &VOLTS), "8..16 V",
+        "refuse to start below this supply voltage", q32 protection.supply_start_min),
+    setting!("protect.supply_run_min", num(16, &VOLTS), "6..16 V",
+        "stop while moving below this supply voltage", q32 protection.supply_run_min),
+    setting!("protect.supply_max", num(16, &VOLTS), "12..20 V",
+        "stop above this supply voltage", q32 protection.supply_max),
+    setting!("protect.supply_ms", num(0, &MILLIS), "1..1000 ms",
+        "supply out of range this long trips the fault", int u32, protection.supply_ms),
+    setting!("protect.overload_margin", num(28, &RATIO), "0.05..2",
+        "overload: measured torque above the rated-load model by this fraction",
+        q32 protection.overload_margin),
+    setting!("protect.overload_ms", num(0, &MILLIS), "10..5000 ms",
+        "overload held this long trips the fault", int u32, protection.overload_ms),
+    setting!("protect.runaway_travel", LEN, "0.01..10 mm",
+        "uncommanded nut travel before the runaway fault", q32 protection.runaway_travel),
+    setting!("sense.current_zero", num(0, &COUNTS), "0..4095 codes",
+        "current-sense ADC code at 0 A", int u16, sensing.current_zero_code),
+    setting!("sense.current_ua_per_code", num(0, &MICROAMPS), "1..1000000 uA",
+        "motor current per ADC code", int u32, sensing.current_ua_per_code),
+    setting!("sense.supply_uv_per_code", num(0, &MICROVOLTS), "1..100000 uV",
+        "supply voltage per ADC code", int u32, sensing.supply_uv_per_code),
+    setting!("geometry.length", LEN, "0.05..2 m",
+        "Eq 1's length L (twice the arm length)", q32 estimator.geometry.length),
+    setting!("geometry.alpha0", num(16, &DEGREES), "12..60 deg",
+        "arm angle fully down", q32 estimator.geometry.alpha0_deg),
+    setting!("geometry.alpha_max", num(16, &DEGREES), "alpha0+5..89 deg",
+        "largest arm angle of the mechanism", q32 estimator.geometry.alpha_max_deg),
+    setting!("geometry.h0", LEN, "0..1 m",
+        "head height with the arms collapsed", q32 estimator.geometry.h0),
+    setting!("geometry.mu_pin", num(28, &RATIO), "0..1",
+        "pin friction coefficient (Eq 6)", q32 estimator.geometry.mu_pin),
+    setting!("drive.counts_per_rev", num(0, &COUNTS), "4..65536",
+        "encoder counts per motor turn", int u32, estimator.drive.counts_per_rev),
+    setting!("drive.gear_ratio", num(16, &NUMBER), "1..1000",
+        "motor turns per screw turn", q32 estimator.drive.gear_ratio),
+    setting!("drive.pitch_radius", LEN, "1..50 mm",
+        "screw pitch radius r_m", q32 estimator.drive.pitch_radius),
+    setting!("drive.lead_angle", num(16, &DEGREES), "0.5..20 deg",
+        "screw lead angle", q32 estimator.drive.lead_angle_deg),
+    setting!("mech.inertia", num(0, &MICRO_KGM2), "0..100000 ukgm2",
+        "screw inertia I", int i32, estimator.mechanics.inertia_ukgm2),
+    setting!("mech.damping", num(0, &MICRO_NMS), "0..1e6 uNms/rad",
+        "screw support damping c", int i32, estimator.mechanics.damping_unms),
+    setting!("mech.support_torque", num(16, &NEWTON_METRES), "0..10 Nm",
+        "support friction torque T0", q32 estimator.mechanics.support_torque),
+    setting!("mech.nut_mass", num(12, &KILOGRAMS), "0..5 kg",
+        "translating (nut) mass m", q32 estimator.mechanics.nut_mass),
+    setting!("mech.coupling_stiffness", num(16, &NM_PER_RAD), "1..10000 Nm/rad",
+        "torsional stiffness k of the coupling", q32 estimator.mechanics.coupling_stiffness),
+    Setting {
+        key: "friction.law",
+        kind: Kind::Choice(&["dry", "ptfe", "lithium", "ball"]),
+        range: "dry, ptfe, lithium or ball",
+        about: "load a preset friction law (shows `custom` after edits)",
+        stored: false,
+        get: |c| {
+            LAW_PRESETS
+                .iter()
+                .position(|l| *l == c.estimator.law)
+                .map_or(-1, |i| i as i64)
+        },
+        set: |c, v| match usize::try_from(v).ok().and_then(|i| LAW_PRESETS.get(i)) {
+            Some(l) => {
+                c.estimator.law = *l;
+                true
+            }
+            None => false,
+        },
+    },
+    Setting {
+        key: "friction.variable",
+        kind: Kind::Choice(&["rate", "speed", "tau"]),
+        range: "rate, speed or tau",
+        about: "law variable: screw rate |w| rad/s, sliding speed m/s, or tau",
+        stored: true,
+        get: |c| match c.estimator.law.variable {
+            LawVariable::ScrewRate => 0,
+            LawVariable::SlidingSpeed => 1,
+            LawVariable::Lubrication => 2,
+        },
+        set: |c, v| {
+            c.estimator.law.variable = match v {
+                0 => LawVariable::ScrewRate,
+                1 => LawVariable::SlidingSpeed,
+                2 => LawVariable::Lubrication,
+                _ => return false,
+            };
+            true
+        },
+    },
+    setting!("friction.base", num(28, &RATIO), "0..1",
+        "law: constant term", q32 estimator.law.base),
+    setting!("friction.amp", num(28, &RATIO), "-1..1",
+        "law: exponential (Stribeck) amplitude", q32 estimator.law.amp),
+    setting!("friction.rate", num(32, &NUMBER), "0..1e6",
+        "law: exponential rate per unit of the variable", q64 estimator.law.rate),
+    setting!("friction.slope", num(32, &NUMBER), "-1000..1000",
+        "law: viscous slope per unit of the variable", q64 estimator.law.slope),
+    setting!("friction.s_max", Kind::Number { frac: 32, pow10: 0, unit: &NUMBER, none_at_max: true },
+        ">0", "law: viscous term flat beyond this (none: never)", q64 estimator.law.s_max),
+    setting!("motor.kt", num(28, &NM_PER_AMP), "0.001..1 Nm/A",
+        "motor torque constant", q32 estimator.motor.torque_constant),
+    setting!("motor.gear_efficiency", num(28, &RATIO), "0.1..1",
+        "gearbox efficiency", q32 estimator.motor.gear_efficiency),
+    setting!("motor.resistance", num(28, &OHMS), "0.001..4 ohm",
+        "motor loop resistance (armature, bridge, battery)", q32 estimator.motor.resistance),
+    setting!("control.tick_us", num(0, &MICROS), "100..10000 us",
+        "control tick period", int u32, estimator.tick_us),
+    setting!("control.speed_bandwidth", num(0, &HERTZ), "1..tick rate/10 Hz",
+        "speed filter bandwidth", int u32, estimator.speed_bandwidth_hz),
+    setting!("control.rest_speed", num(16, &RAD_PER_S), "0..50 rad/s",
+        "screw speed below which the screw counts as at rest", q32 estimator.rest_speed),
+];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_are_unique_lower_case_and_findable() {
+        for (i, s) in SETTINGS.iter().enumerate() {
+            assert_eq!(s.key, s.key.to_ascii_lowercase());
+            assert_eq!(find(s.key).map(SettingId::index), Some(i));
+            assert_eq!(
+                find(&s.key.to_ascii_uppercase()).map(SettingId::index),
+                Some(i)
+            );
+        }
+        assert_eq!(find("limits.middle"), None);
+    }
+
+    /// Compile-time guard: this destructuring lists every field of the configuration without
+    /// `..`, so a new field breaks this test's build until it has a key in [`SETTINGS`] (and so
+    /// in the flash record, whose schema word then changes).
+    #[test]
+    fn registry_covers_every_field() {
+        use crate::control::config::{LimitStops, MotionConfig, ProtectionConfig, SensingConfig};
+        use crate::estimator::{EstimatorConfig, MotorConfig};
+        use crate::model::geometry::{DriveConfig, GeometryConfig};
+        use crate::model::screw::MechanicsConfig;
+        let ControlConfig {
+            estimator:
+                EstimatorConfig {
+                    geometry:
+                        GeometryConfig {
+                            length: _,
+                            alpha0_deg: _,
+                            alpha_max_deg: _,
+                            h0: _,
+                            mu_pin: _,
+                        },
+                    drive:
+                        DriveConfig {
+                            counts_per_rev: _,
+                            gear_ratio: _,
+                            pitch_radius: _,
+                            lead_angle_deg: _,
+                        },
+                    mechanics:
+                        MechanicsConfig {
+                            inertia_ukgm2: _,
+                            damping_unms: _,
+                            support_torque: _,
+                            nut_mass: _,
+                            coupling_stiffness: _,
+                        },
+                    law:
+                        FrictionLaw {
+                            base: _,
+                            amp: _,
+                            rate: _,
+                            slope: _,
+                            s_max: _,
+                            variable: _,
+                        },
+                    motor:
+                        MotorConfig {
+                            torque_constant: _,
+                            gear_efficiency: _,
+                            resistance: _,
+                        },
+                    tick_us: _,
+                    speed_bandwidth_hz: _,
+                    rest_speed: _,
+                },
+            rated_load: _,
+            motion:
+                MotionConfig {
+                    cruise_speed: _,
+                    ramp_ms: _,
+                    ramp_shape: _,
+                    buttons: _,
+                },
+            limits: LimitStops { lower: _, upper: _ },
+            protection:
+                ProtectionConfig {
+                    overcurrent: _,
+                    stall_duty: _,
+                    stall_ms: _,
+                    max_motor_speed: _,
+                    supply_start_min: _,
+                    supply_run_min: _,
+                    supply_max: _,
+                    supply_ms: _,
+                    overload_margin: _,
+                    overload_ms: _,
+                    runaway_travel: _,
+                },
+            sensing:
+                SensingConfig {
+                    current_zero_code: _,
+                    current_ua_per_code: _,
+                    supply_uv_per_code: _,
+                },
+        } = ControlConfig::DEFAULT;
+        // 47 fields above, one key each, plus the `friction.law` preset selector.
+        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 47);
+    }
+
+    #[test]
+    fn every_setting_writes_back_what_it_reads() {
+        let c = ControlConfig::DEFAULT;
+        for s in SETTINGS.iter() {
+            let mut d = c;
+            assert!(s.set(&mut d, s.get(&c)), "{}", s.key);
+            assert_eq!(d, c, "{}", s.key);
+        }
+    }
+
+    #[test]
+    fn refused_change_names_the_field_and_keeps_the_config() {
+        let cfg = ValidatedConfig::factory();
+        let lower = find("limits.lower").unwrap();
+        let e = apply(&cfg, lower, Metres::lit("0.405").to_bits().into()).unwrap_err();
+        assert_eq!(
+            e,
+            ConfigError::Conflict {
+                field: "limits.lower",
+                reason: "must be at least 10 mm below limits.upper"
+            }
+        );
+        let ramp = find("motion.ramp_ms").unwrap();
+        let e = apply(&cfg, ramp, -1).unwrap_err();
+        assert_eq!(
+            e,
+            ConfigError::OutOfRange {
+                field: "motion.ramp_ms",
+                range: "10..2000 ms"
+            }
+        );
+    }
+}

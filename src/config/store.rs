@@ -1,0 +1,433 @@
+//! The configuration store: the record kept in two independent `sequential-storage` maps.
+//!
+//! `sequential-storage` appends every save as a new item (header with a CRC-16 of the length,
+//! CRC-32 of the data) and only erases a page after copying its still-current items forward,
+//! so an interrupted append leaves an item that fails its CRC and is skipped. One case defeats
+//! a single map: a power cut *during the erase* of the page it just migrated from can leave
+//! that page looking closed, and the repair on the next start then erases the page holding
+//! the migrated record (found by `tests/config_store.rs` with torn erases). So the store keeps
+//! two copies in two disjoint ranges and writes them one after the other, the copy that does
+//! not hold the newest record first: whatever a cut destroys, it touches one copy, and the
+//! other holds the newest or the previous record. Loading takes the intact, valid record with
+//! the higher sequence number. Our own record adds a version, a schema fingerprint and a
+//! second CRC (see [`crate::config::record`]), and loading re-validates through
+//! [`ValidatedConfig::new`]. docs/config-store.md gives the whole argument.
+
+use crate::config::record::{self, DecodeError, MAX_RECORD_LEN};
+use crate::config::ValidatedConfig;
+use crate::control::config::ControlConfig;
+use crate::ConfigError;
+use core::ops::Range;
+use embedded_storage_async::nor_flash::{NorFlash, NorFlashError, NorFlashErrorKind};
+use sequential_storage::cache::{Cache, Uncached};
+use sequential_storage::map::{MapConfig, MapStorage, SerializationError, Value};
+
+/// The map key of the configuration record (other keys are free for later records).
+pub const CONFIG_KEY: u8 = 1;
+
+/// Work buffer: key + record, rounded up to the 8-byte program unit of the G4.
+const BUF_LEN: usize = (1 + MAX_RECORD_LEN).div_ceil(8) * 8;
+
+#[repr(align(8))]
+struct Buf([u8; BUF_LEN]);
+
+type Map<'f, F> = MapStorage<u8, &'f mut F, Cache<Uncached, Uncached, Uncached, u8>>;
+
+/// Why the store could not be used.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum StoreError {
+    /// The flash range is not an even number of whole pages, at least four.
+    BadRange,
+    /// The flash driver failed (power, alignment, bounds, hardware).
+    Flash(FlashErrorKind),
+    /// No room even after `sequential-storage` reclaimed old pages.
+    Full,
+    /// `sequential-storage` found its structures damaged beyond its own repair.
+    Corrupted,
+    /// The record read back after a save differs from what was written.
+    Verify,
+    /// Any other `sequential-storage` error (buffer sizes, a logic error it reports).
+    Internal,
+}
+
+/// The flash driver's error class.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FlashErrorKind {
+    /// Misaligned access.
+    NotAligned,
+    /// Outside the flash.
+    OutOfBounds,
+    /// Driver-specific (including a power cut in the simulation).
+    Other,
+}
+
+impl core::fmt::Display for StoreError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            StoreError::BadRange => {
+                f.write_str("store range is not an even number (at least 4) of whole pages")
+            }
+            StoreError::Flash(k) => write!(f, "flash driver error ({k:?})"),
+            StoreError::Full => f.write_str("store is full"),
+            StoreError::Corrupted => f.write_str("store structure is corrupted"),
+            StoreError::Verify => f.write_str("read-back after save differs"),
+            StoreError::Internal => f.write_str("storage library error"),
+        }
+    }
+}
+
+fn flash_error<E: NorFlashError>(e: &E) -> StoreError {
+    StoreError::Flash(match e.kind() {
+        NorFlashErrorKind::NotAligned => FlashErrorKind::NotAligned,
+        NorFlashErrorKind::OutOfBounds => FlashErrorKind::OutOfBounds,
+        _ => FlashErrorKind::Other,
+    })
+}
+
+fn store_error<E: NorFlashError>(e: sequential_storage::Error<E>) -> StoreError {
+    match e {
+        sequential_storage::Error::Storage { value, .. } => flash_error(&value),
+        sequential_storage::Error::FullStorage => StoreError::Full,
+        sequential_storage::Error::Corrupted { .. } => StoreError::Corrupted,
+        _ => StoreError::Internal,
+    }
+}
+
+/// Where the loaded configuration came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Source {
+    /// The newest intact record, save number `seq`.
+    Stored {
+        /// Sequence number of the save.
+        seq: u32,
+        /// Both copies hold it (false: one copy is older or damaged; the next save rewrites it).
+        both_copies: bool,
+    },
+    /// The store is erased: nothing was ever saved. Factory defaults.
+    Missing,
+    /// The store holds data but no intact record (damaged, or the very first save was
+    /// interrupted), or a record failed its own checks. Factory defaults.
+    Corrupt(Corruption),
+    /// An intact record of another format version or list of settings. Factory defaults.
+    Incompatible(DecodeError),
+    /// An intact record whose values this firmware refuses. Factory defaults.
+    Rejected(ConfigError),
+    /// The flash could not be read. Factory defaults.
+    Unreadable(StoreError),
+}
+
+/// What exactly was corrupt.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Corruption {
+    /// The store is not erased but holds no item that passes `sequential-storage`'s CRCs.
+    NoIntactRecord,
+    /// `sequential-storage` reported damage it could not repair.
+    Structure,
+    /// The item passed the storage CRCs but the record failed its own.
+    Record(DecodeError),
+}
+
+impl Source {
+    /// True when the configuration is the factory one because nothing usable was stored.
+    pub fn is_fallback(&self) -> bool {
+        !matches!(self, Source::Stored { .. })
+    }
+
+    /// How much a failed copy says about the store: the more specific wins the message.
+    fn weight(&self) -> u8 {
+        match self {
+            Source::Stored { .. } => 6,
+            Source::Rejected(_) => 5,
+            Source::Incompatible(_) => 4,
+            Source::Corrupt(Corruption::Record(_)) => 3,
+            Source::Corrupt(_) => 2,
+            Source::Unreadable(_) => 1,
+            Source::Missing => 0,
+        }
+    }
+}
+
+impl core::fmt::Display for Source {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        const DEFAULTS: &str = "factory defaults in use (limits at the factory stops)";
+        match self {
+            Source::Stored {
+                seq,
+                both_copies: true,
+            } => write!(f, "configuration #{seq} loaded from flash"),
+            Source::Stored {
+                seq,
+                both_copies: false,
+            } => write!(
+                f,
+                "configuration #{seq} loaded from flash (its second copy is older or damaged; \
+                 `save` rewrites it)"
+            ),
+            Source::Missing => write!(
+                f,
+                "no stored configuration: {DEFAULTS}; `save` stores the current settings"
+            ),
+            Source::Corrupt(Corruption::NoIntactRecord) => write!(
+                f,
+                "stored configuration is corrupt (no intact record: damaged, or the first save \
+                 was interrupted): {DEFAULTS}"
+            ),
+            Source::Corrupt(Corruption::Structure) => write!(
+                f,
+                "stored configuration is corrupt (store structure damaged): {DEFAULTS}"
+            ),
+            Source::Corrupt(Corruption::Record(e)) => {
+                write!(f, "stored configuration is corrupt ({e}): {DEFAULTS}")
+            }
+            Source::Incompatible(e) => {
+                write!(
+                    f,
+                    "stored configuration not used, version mismatch ({e}): {DEFAULTS}"
+                )
+            }
+            Source::Rejected(e) => {
+                write!(f, "stored configuration refused ({e}): {DEFAULTS}")
+            }
+            Source::Unreadable(e) => write!(f, "configuration store unreadable ({e}): {DEFAULTS}"),
+        }
+    }
+}
+
+/// The result of [`ConfigStore::load`]: always a usable configuration, and where it came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Loaded {
+    /// The configuration to run with.
+    pub config: ValidatedConfig,
+    /// Where it came from; its `Display` is the message for the console and the log.
+    pub source: Source,
+}
+
+/// A record to write: encoded straight into `sequential-storage`'s buffer.
+struct Outgoing<'c>(&'c ControlConfig, u32);
+
+impl<'a> Value<'a> for Outgoing<'_> {
+    fn serialize_into(&self, buffer: &mut [u8]) -> Result<usize, SerializationError> {
+        record::encode(self.0, self.1, buffer).ok_or(SerializationError::BufferTooSmall)
+    }
+
+    fn deserialize_from(_: &'a [u8]) -> Result<(Self, usize), SerializationError> {
+        // Records are read back as bytes and decoded by `record::decode`.
+        Err(SerializationError::InvalidFormat)
+    }
+}
+
+/// One copy's newest valid record, or why there is none.
+type CopyState = Result<(ValidatedConfig, u32), Source>;
+
+/// `a` is a later save than `b` (sequence numbers compared with wrapping arithmetic).
+fn newer(a: u32, b: u32) -> bool {
+    (a.wrapping_sub(b) as i32) > 0
+}
+
+/// Whether every byte of `range` reads erased.
+async fn is_erased<F: NorFlash>(flash: &mut F, range: &Range<u32>) -> Result<bool, StoreError> {
+    let mut chunk = [0u8; 64];
+    let mut at = range.start;
+    while at < range.end {
+        let n = ((range.end - at) as usize).min(chunk.len());
+        flash
+            .read(at, &mut chunk[..n])
+            .await
+            .map_err(|e| flash_error(&e))?;
+        if chunk[..n].iter().any(|&b| b != 0xFF) {
+            return Ok(false);
+        }
+        at += n as u32;
+    }
+    Ok(true)
+}
+
+/// The configuration store over a flash range of an even number of erase pages, at least
+/// four: the first half holds copy A, the second copy B.
+pub struct ConfigStore<F: NorFlash> {
+    flash: F,
+    copies: [Range<u32>; 2],
+    buf: Buf,
+    seq: u32,
+    /// The copy to write first on the next save: one that does not hold the newest record.
+    first: usize,
+}
+
+/// An uncached map over one copy's range: rebuilt per operation at no cost.
+fn map<'f, F: NorFlash>(flash: &'f mut F, range: &Range<u32>) -> Result<Map<'f, F>, StoreError> {
+    let config = MapConfig::try_new(range.clone()).map_err(|_| StoreError::BadRange)?;
+    Ok(MapStorage::new(flash, config, Cache::new_uncached()))
+}
+
+impl<F: NorFlash> ConfigStore<F> {
+    /// A store over `range` of `flash` (an even number of whole erase pages, at least four).
+    pub fn new(flash: F, range: Range<u32>) -> Result<ConfigStore<F>, StoreError> {
+        let page = F::ERASE_SIZE as u32;
+        let len = range
+            .end
+            .checked_sub(range.start)
+            .ok_or(StoreError::BadRange)?;
+        if len % (2 * page) != 0 || len < 4 * page {
+            return Err(StoreError::BadRange);
+        }
+        let mid = range.start + len / 2;
+        let copies = [range.start..mid, mid..range.end];
+        for c in &copies {
+            MapConfig::<F>::try_new(c.clone()).map_err(|_| StoreError::BadRange)?;
+        }
+        Ok(ConfigStore {
+            flash,
+            copies,
+            buf: Buf([0; BUF_LEN]),
+            seq: 0,
+            first: 0,
+        })
+    }
+
+    /// The newest intact, valid configuration; otherwise the factory one and why. Never fails.
+    ///
+    /// May write to flash: `sequential-storage` repairs the traces of an interrupted operation
+    /// on its first access.
+    pub async fn load(&mut self) -> Loaded {
+        let a = self.load_copy(0).await;
+        let b = self.load_copy(1).await;
+        let a_ok = a.is_ok();
+        let (config, source) = match (a, b) {
+            (Ok((ca, sa)), Ok((cb, sb))) => {
+                // Next save writes the older copy first; equal copies: either.
+                let (cfg, seq, first) = if newer(sb, sa) {
+                    (cb, sb, 0)
+                } else {
+                    (ca, sa, 1)
+                };
+                self.first = first;
+                self.seq = seq;
+                let both_copies = sa == sb && ca == cb;
+                (cfg, Source::Stored { seq, both_copies })
+            }
+            (Ok(good), Err(_)) | (Err(_), Ok(good)) => {
+                let (cfg, seq) = good;
+                // Next save writes the damaged copy (the one that failed) first.
+                self.first = usize::from(a_ok);
+                self.seq = seq;
+                let both_copies = false;
+                (cfg, Source::Stored { seq, both_copies })
+            }
+            (Err(ea), Err(eb)) => {
+                let worst = if eb.weight() > ea.weight() { eb } else { ea };
+                (ValidatedConfig::factory(), worst)
+            }
+        };
+        Loaded { config, source }
+    }
+
+    async fn load_copy(&mut self, copy: usize) -> CopyState {
+        let range = self.copies[copy].clone();
+        let fetched = match map(&mut self.flash, &range) {
+            Ok(mut m) => m.fetch_item::<&[u8]>(&mut self.buf.0, &CONFIG_KEY).await,
+            Err(e) => return Err(Source::Unreadable(e)),
+        };
+        let bytes = match fetched {
+            Ok(Some(bytes)) => bytes,
+            Ok(None) => {
+                return Err(match is_erased(&mut self.flash, &range).await {
+                    Ok(true) => Source::Missing,
+                    Ok(false) => Source::Corrupt(Corruption::NoIntactRecord),
+                    Err(e) => Source::Unreadable(e),
+                })
+            }
+            Err(sequential_storage::Error::Corrupted { .. }) => {
+                return Err(Source::Corrupt(Corruption::Structure))
+            }
+            Err(e) => return Err(Source::Unreadable(store_error(e))),
+        };
+        let (cfg, seq) = record::decode(bytes).map_err(|e| match e {
+            DecodeError::Version { .. } | DecodeError::Schema => Source::Incompatible(e),
+            _ => Source::Corrupt(Corruption::Record(e)),
+        })?;
+        let cfg = ValidatedConfig::new(cfg).map_err(Source::Rejected)?;
+        Ok((cfg, seq))
+    }
+
+    /// Write `cfg` as the newest record to both copies, each read back and compared, the copy
+    /// that does not hold the newest record first. Returns the save's sequence number. An
+    /// interrupted save leaves the previous or the new record in force, never a mix.
+    pub async fn save(&mut self, cfg: &ValidatedConfig) -> Result<u32, StoreError> {
+        let seq = self.seq.wrapping_add(1);
+        let order = [self.first, 1 - self.first];
+        for copy in order {
+            self.save_copy(copy, cfg, seq).await?;
+        }
+        self.seq = seq;
+        Ok(seq)
+    }
+
+    async fn save_copy(
+        &mut self,
+        copy: usize,
+        cfg: &ValidatedConfig,
+        seq: u32,
+    ) -> Result<(), StoreError> {
+        let mut result = self.store(copy, cfg, seq).await;
+        if result == Err(StoreError::Corrupted) {
+            // Damage `sequential-storage` cannot repair: this copy holds nothing readable, the
+            // other copy is untouched, so start this one afresh.
+            self.erase_copy(copy).await?;
+            result = self.store(copy, cfg, seq).await;
+        }
+        result?;
+        match self.load_copy(copy).await {
+            Ok((c, s)) if c == *cfg && s == seq => Ok(()),
+            _ => Err(StoreError::Verify),
+        }
+    }
+
+    async fn store(
+        &mut self,
+        copy: usize,
+        cfg: &ValidatedConfig,
+        seq: u32,
+    ) -> Result<(), StoreError> {
+        let range = self.copies[copy].clone();
+        map(&mut self.flash, &range)?
+            .store_item(&mut self.buf.0, &CONFIG_KEY, &Outgoing(cfg.get(), seq))
+            .await
+            .map_err(store_error)
+    }
+
+    async fn erase_copy(&mut self, copy: usize) -> Result<(), StoreError> {
+        let range = self.copies[copy].clone();
+        map(&mut self.flash, &range)?
+            .erase_all()
+            .await
+            .map_err(store_error)
+    }
+
+    /// Erase both copies (factory reset: the next load reports [`Source::Missing`]).
+    pub async fn erase(&mut self) -> Result<(), StoreError> {
+        self.erase_copy(0).await?;
+        self.erase_copy(1).await?;
+        self.seq = 0;
+        self.first = 0;
+        Ok(())
+    }
+
+    /// Sequence number of the last record loaded or saved (0: none).
+    pub fn seq(&self) -> u32 {
+        self.seq
+    }
+
+    /// The flash, e.g. to inspect the simulation.
+    pub fn flash(&mut self) -> &mut F {
+        &mut self.flash
+    }
+
+    /// Give the flash back.
+    pub fn into_flash(self) -> F {
+        self.flash
+    }
+}

@@ -288,7 +288,7 @@ pub const LAW_PRESETS: [FrictionLaw; 4] = [
 
 /// Every setting. The flash record's layout follows this order (the `stored` ones): changing
 /// it changes the record's schema fingerprint (see [`crate::config::record`]).
-pub static SETTINGS: [Setting; 48] = [
+pub static SETTINGS: [Setting; 49] = [
     setting!("limits.lower", LEN, "the mechanism's height range (see `limits`)",
         "lowest head height the lift drives to", q32 limits.lower),
     setting!("limits.upper", LEN, "the mechanism's height range (see `limits`)",
@@ -339,6 +339,9 @@ pub static SETTINGS: [Setting; 48] = [
     },
     setting!("protect.overcurrent", num(16, &AMPS), "1..60 A",
         "motor current that trips the over-current fault", q32 protection.overcurrent),
+    setting!("protect.current_limit", num(16, &AMPS), "1..60 A",
+        "current the speed loop never asks for (at most protect.overcurrent)",
+        q32 protection.current_limit),
     setting!("protect.stall_duty", num(28, &RATIO), "0.05..1",
         "duty at or above which no encoder motion counts as a stall", q32 protection.stall_duty),
     setting!("protect.stall_ms", num(0, &MILLIS), "20..5000 ms",
@@ -542,6 +545,7 @@ mod tests {
             protection:
                 ProtectionConfig {
                     overcurrent: _,
+                    current_limit: _,
                     stall_duty: _,
                     stall_ms: _,
                     max_motor_speed: _,
@@ -560,8 +564,8 @@ mod tests {
                     supply_uv_per_code: _,
                 },
         } = ControlConfig::DEFAULT;
-        // 47 fields above, one key each, plus the `friction.law` preset selector.
-        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 47);
+        // 48 fields above, one key each, plus the `friction.law` preset selector.
+        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 48);
     }
 
     #[test]

@@ -305,6 +305,8 @@ pub struct Controller {
     hold_position: i32,
     /// Buttons pressed since boot/fault must be released before they count (edge-triggered).
     buttons_armed: bool,
+    /// Ticks since the lift came to rest.
+    rest_ticks: u32,
     /// Consecutive ticks with both motion buttons released (raw), toward arming.
     release_ticks: u32,
     /// The motion was started by a hold-to-run button that is still held.
@@ -413,6 +415,7 @@ impl Controller {
             hold_position: position,
             buttons_armed: false,
             release_ticks: 0,
+            rest_ticks: u32::MAX,
             held_button: 0,
             prev_buttons: 0,
             last_ref_speed: 0,
@@ -601,6 +604,7 @@ impl Controller {
 
     fn enter_rest(&mut self, to: State) {
         self.held_button = 0;
+        self.rest_ticks = 0;
         self.hold_position = self.enc.position();
         self.speed.reset();
         self.profile.reset(self.enc.position());
@@ -738,7 +742,16 @@ impl Controller {
         // 5–6. Motion.
         let bridge = match self.state {
             State::Lifting | State::Lowering => self.drive(),
-            _ => self.rest_bridge(),
+            _ => {
+                // Settling after a stop: the rotor coasts down and the wound coupling unwinds
+                // through the motor; that motion is commanded, so the runaway reference follows
+                // it for SETTLE_MS (a runaway is measured from where the lift settled).
+                self.rest_ticks = self.rest_ticks.saturating_add(1);
+                if self.rest_ticks <= SETTLE_MS * 1000 / self.tick_us {
+                    self.hold_position = self.enc.position();
+                }
+                self.rest_bridge()
+            }
         };
         self.last_duty = match bridge {
             Bridge::Drive(d) => d,
@@ -830,6 +843,9 @@ impl Controller {
                 model_motor_torque: self.estimate.model_motor_torque,
                 supply: self.supply,
                 current_headroom: self.current_headroom,
+                current: self.current,
+                current_limit: self.cfg.protection.current_limit,
+                resistance: self.cfg.estimator.motor.resistance,
             },
         );
         Bridge::Drive(duty)

@@ -5,7 +5,7 @@
 //! | fault | trips when | reaction time |
 //! |---|---|---|
 //! | over-current | one current sample above the limit | the same tick |
-//! | stall | duty ≥ stall duty, no encoder count, and the motor's voltage balance says the shaft is still, for `stall_ms` | `stall_ms` |
+//! | stall | duty ≥ stall duty or current ≥ 90 % of the limit, no encoder count, and the motor's voltage balance says the shaft is still, for `stall_ms` | `stall_ms` |
 //! | encoder lost | no encoder count while the voltage balance says the shaft turns, for `stall_ms` | `stall_ms` |
 //! | encoder implausible | a jump faster than the motor can turn | the same tick |
 //! | under-voltage | supply below the run threshold while moving, for `supply_ms` | `supply_ms` |
@@ -78,6 +78,8 @@ pub struct Limits {
     pub stall_duty: i16,
     /// Ticks.
     pub stall_ticks: u32,
+    /// Current that counts as pushing (90 % of the current limit).
+    pub stall_current: Amperes,
     /// Largest plausible encoder step per tick, counts.
     pub max_counts_per_tick: i32,
     /// Motor speed from the voltage balance above which the shaft must be turning, screw rad/s.
@@ -119,6 +121,7 @@ impl Limits {
             overcurrent: p.overcurrent,
             stall_duty: sat32(i64::from(p.stall_duty.bits()) >> 13).clamp(0, 32767) as i16,
             stall_ticks: ticks(p.stall_ms),
+            stall_current: p.current_limit.scale(Ratio::lit("0.9")),
             max_counts_per_tick: sat32(max_counts + 1).max(1),
             turning_speed: RadiansPerSecond::from_raw(cruise.bits() / 4),
             supply_run_min: p.supply_run_min,
@@ -219,7 +222,10 @@ impl Monitors {
         if count(&mut self.blind, no_count && turning) >= l.stall_ticks {
             return Some(FaultKind::EncoderLost);
         }
-        let pushing = s.duty.unsigned_abs() >= l.stall_duty.unsigned_abs();
+        // Pushing: high duty (Roboteq's rule), or sitting at the current limit (at standstill
+        // the limit caps the duty at R·I/V, far below any useful duty threshold).
+        let pushing = s.duty.unsigned_abs() >= l.stall_duty.unsigned_abs()
+            || s.current.sat_abs() >= l.stall_current;
         if count(&mut self.still, no_count && pushing && !turning) >= l.stall_ticks {
             return Some(FaultKind::Stall);
         }

@@ -1,0 +1,540 @@
+//! The console: a line protocol a person types over the UART (115200 8N1).
+//!
+//! [`LineBuffer`] collects bytes into lines (backspace edits, CR/LF/CRLF end a line, overlong
+//! lines are refused whole), [`parse`] turns a line into a [`Request`], and the `write_*`
+//! functions format replies into any [`core::fmt::Write`] sink (a `heapless::String` on the
+//! board). Nothing here allocates, and no input makes it panic (`tests/console_*.rs` and the
+//! `fuzz/` target check that). docs/console.md is the user's reference.
+//!
+//! The controller maps the motion requests (`up`, `down`, `stop`, `goto`, `fault clear`) onto
+//! its own commands; configuration requests are served with [`crate::config::settings::apply`]
+//! and the writers here.
+
+pub mod value;
+
+use crate::config::settings::{self, Kind, SettingId};
+use crate::config::ValidatedConfig;
+use crate::units::{Amperes, Angle, Metres, NewtonMetres, RadiansPerSecond, Ratio};
+use crate::ConfigError;
+use core::fmt::{self, Write};
+use fixed::types::I16F16;
+pub use value::ValueError;
+
+/// Longest line accepted, bytes (without the line end).
+pub const MAX_LINE: usize = 96;
+
+/// What the user asked for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Request {
+    /// `status`: state, height, speed, current, T_r, stick-slip, fault.
+    Status,
+    /// `get <key>`.
+    Get(SettingId),
+    /// `set <key> <value>`: the value already converted to the field's raw bits; apply it with
+    /// [`crate::config::settings::apply`] (range and geometry checks) and reply with
+    /// [`write_set`].
+    Set(SettingId, i64),
+    /// `save`: store the running configuration in flash.
+    Save,
+    /// `limits`: the limit stops and the mechanism's range.
+    Limits,
+    /// `up`.
+    Up,
+    /// `down`.
+    Down,
+    /// `stop`.
+    Stop,
+    /// `goto <height>`: drive the head to a height.
+    Goto(Metres),
+    /// `fault`: the active or last fault.
+    Fault,
+    /// `fault clear`.
+    FaultClear,
+    /// `help`, `help keys`, `help <key>`.
+    Help(HelpTopic),
+}
+
+/// What `help` explains.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum HelpTopic {
+    /// The commands.
+    Commands,
+    /// Every key with unit and range.
+    Keys,
+    /// One key.
+    Key(SettingId),
+}
+
+/// Why a line was not understood.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ParseError<'a> {
+    /// Not valid UTF-8.
+    NotText,
+    /// Longer than [`MAX_LINE`].
+    TooLong,
+    /// The first word is no command.
+    UnknownCommand(&'a str),
+    /// A command that needs a key got none.
+    MissingKey(&'static str),
+    /// No setting has this key.
+    UnknownKey(&'a str),
+    /// `set <key>` without a value.
+    MissingValue(SettingId),
+    /// The value for a key was not understood.
+    BadValue(SettingId, ValueError),
+    /// `goto` without a height or with a bad one.
+    BadHeight(ValueError),
+    /// Words left over after a complete command.
+    Trailing(&'a str),
+}
+
+/// The unit and range the `goto` height takes.
+const HEIGHT: Kind = Kind::Number {
+    frac: 24,
+    pow10: 3,
+    unit: &settings::MILLIMETRES,
+    none_at_max: false,
+};
+
+/// Split off the first word (ASCII whitespace separated).
+fn word(s: &str) -> (&str, &str) {
+    let s = s.trim_start();
+    match s.find(|c: char| c.is_ascii_whitespace()) {
+        Some(i) => (&s[..i], s[i..].trim_start()),
+        None => (s, ""),
+    }
+}
+
+fn no_more(rest: &str, r: Request) -> Result<Option<Request>, ParseError<'_>> {
+    let rest = rest.trim();
+    if rest.is_empty() {
+        Ok(Some(r))
+    } else {
+        Err(ParseError::Trailing(rest))
+    }
+}
+
+fn key<'a>(cmd: &'static str, rest: &'a str) -> Result<(SettingId, &'a str), ParseError<'a>> {
+    let (k, rest) = word(rest);
+    if k.is_empty() {
+        return Err(ParseError::MissingKey(cmd));
+    }
+    settings::find(k)
+        .map(|id| (id, rest))
+        .ok_or(ParseError::UnknownKey(k))
+}
+
+/// Parse one line (without its line end). `Ok(None)`: an empty line or a `#` comment.
+/// Commands, keys, units and choices are case-insensitive.
+pub fn parse(line: &[u8]) -> Result<Option<Request>, ParseError<'_>> {
+    if line.len() > MAX_LINE {
+        return Err(ParseError::TooLong);
+    }
+    let line = core::str::from_utf8(line).map_err(|_| ParseError::NotText)?;
+    let line = line.trim();
+    if line.is_empty() || line.starts_with('#') {
+        return Ok(None);
+    }
+    let (cmd, rest) = word(line);
+    let is = |name: &str| cmd.eq_ignore_ascii_case(name);
+    if is("status") {
+        no_more(rest, Request::Status)
+    } else if is("get") {
+        let (id, rest) = key("get", rest)?;
+        no_more(rest, Request::Get(id))
+    } else if is("set") {
+        let (id, rest) = key("set", rest)?;
+        if rest.trim().is_empty() {
+            return Err(ParseError::MissingValue(id));
+        }
+        let raw =
+            value::parse(&id.setting().kind, rest).map_err(|e| ParseError::BadValue(id, e))?;
+        Ok(Some(Request::Set(id, raw)))
+    } else if is("save") {
+        no_more(rest, Request::Save)
+    } else if is("limits") {
+        no_more(rest, Request::Limits)
+    } else if is("up") {
+        no_more(rest, Request::Up)
+    } else if is("down") {
+        no_more(rest, Request::Down)
+    } else if is("stop") {
+        no_more(rest, Request::Stop)
+    } else if is("goto") {
+        let raw = value::parse(&HEIGHT, rest).map_err(ParseError::BadHeight)?;
+        let bits = i32::try_from(raw).map_err(|_| ParseError::BadHeight(ValueError::TooLarge))?;
+        Ok(Some(Request::Goto(Metres::from_bits(bits))))
+    } else if is("fault") {
+        let (sub, rest) = word(rest);
+        if sub.is_empty() {
+            Ok(Some(Request::Fault))
+        } else if sub.eq_ignore_ascii_case("clear") {
+            no_more(rest, Request::FaultClear)
+        } else {
+            Err(ParseError::Trailing(sub))
+        }
+    } else if is("help") || cmd == "?" {
+        let (topic, rest) = word(rest);
+        if topic.is_empty() {
+            Ok(Some(Request::Help(HelpTopic::Commands)))
+        } else if topic.eq_ignore_ascii_case("keys") {
+            no_more(rest, Request::Help(HelpTopic::Keys))
+        } else {
+            let id = settings::find(topic).ok_or(ParseError::UnknownKey(topic))?;
+            no_more(rest, Request::Help(HelpTopic::Key(id)))
+        }
+    } else {
+        Err(ParseError::UnknownCommand(cmd))
+    }
+}
+
+/// `unit` and the alternatives a key takes, for messages: "mm (or m, cm, um)".
+fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {
+    match kind {
+        Kind::Choice(names) => {
+            for (i, n) in names.iter().enumerate() {
+                if i > 0 {
+                    out.write_str(if i + 1 == names.len() { " or " } else { ", " })?;
+                }
+                out.write_str(n)?;
+            }
+            Ok(())
+        }
+        Kind::Number {
+            unit, none_at_max, ..
+        } => {
+            out.write_str(unit.what)?;
+            if !unit.display.is_empty() {
+                write!(out, " in {}", unit.display)?;
+            }
+            // The ASCII spellings other than the display unit, once each.
+            let mut n = 0;
+            for (s, _) in unit.accepts {
+                if s.eq_ignore_ascii_case(unit.display) || !s.is_ascii() || s.contains('*') {
+                    continue;
+                }
+                out.write_str(if n == 0 { " (or " } else { ", " })?;
+                out.write_str(s)?;
+                n += 1;
+            }
+            if n > 0 {
+                out.write_char(')')?;
+            }
+            if *none_at_max {
+                out.write_str(", or none")?;
+            }
+            Ok(())
+        }
+    }
+}
+
+/// The reply to a line that was not understood.
+pub fn write_parse_error(out: &mut dyn Write, e: &ParseError<'_>) -> fmt::Result {
+    match e {
+        ParseError::NotText => out.write_str("error: line is not text (UTF-8); type `help`"),
+        ParseError::TooLong => write!(
+            out,
+            "error: line longer than {MAX_LINE} characters, ignored; type `help`"
+        ),
+        ParseError::UnknownCommand(c) => write!(
+            out,
+            "error: unknown command '{}'; type `help` for the commands",
+            Clip(c)
+        ),
+        ParseError::MissingKey(cmd) => write!(
+            out,
+            "error: `{cmd}` needs a key, e.g. `{cmd} limits.upper`; `help keys` lists them"
+        ),
+        ParseError::UnknownKey(k) => write!(
+            out,
+            "error: unknown key '{}'; `help keys` lists them",
+            Clip(k)
+        ),
+        ParseError::MissingValue(id) => {
+            write!(out, "error: `set {}` needs a value: ", id.key())?;
+            write_expected(out, *id)
+        }
+        ParseError::BadValue(id, v) => {
+            write!(out, "error: bad value for {}: {v}; ", id.key())?;
+            write_expected(out, *id)
+        }
+        ParseError::BadHeight(v) => write!(
+            out,
+            "error: bad height for goto: {v}; expected a length in mm (or m, cm), e.g. `goto 300mm`"
+        ),
+        ParseError::Trailing(t) => write!(
+            out,
+            "error: unexpected '{}'; type `help` for the commands",
+            Clip(t)
+        ),
+    }
+}
+
+/// "expected a length in mm (or m, cm, um), range …".
+fn write_expected(out: &mut dyn Write, id: SettingId) -> fmt::Result {
+    let s = id.setting();
+    out.write_str("expected ")?;
+    write_unit(out, &s.kind)?;
+    write!(out, ", range {}", s.range)
+}
+
+/// At most 24 characters of user text in a message (the rest as `…`).
+struct Clip<'a>(&'a str);
+
+impl fmt::Display for Clip<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.0.char_indices().nth(24) {
+            Some((i, _)) => write!(f, "{}...", &self.0[..i]),
+            None => f.write_str(self.0),
+        }
+    }
+}
+
+/// `key = value` for `get`.
+pub fn write_get(out: &mut dyn Write, cfg: &ValidatedConfig, id: SettingId) -> fmt::Result {
+    let s = id.setting();
+    write!(out, "{} = ", s.key)?;
+    value::format(out, &s.kind, s.get(cfg.get()))
+}
+
+/// The reply to `set`: the new value, or why it was refused (naming the field and its range).
+/// `result` is what [`crate::config::settings::apply`] returned; `running` is the configuration
+/// in force after it (for the mechanism's range in limit messages).
+pub fn write_set(
+    out: &mut dyn Write,
+    id: SettingId,
+    result: &Result<ValidatedConfig, ConfigError>,
+    running: &ValidatedConfig,
+) -> fmt::Result {
+    match result {
+        Ok(cfg) => {
+            out.write_str("ok: ")?;
+            write_get(out, cfg, id)?;
+            out.write_str(" (not saved; `save` stores it)")
+        }
+        Err(e) => write_refused(out, id, e, running),
+    }
+}
+
+/// Why a change was refused: "error: set limits.upper refused: limits.upper out of range
+/// (allowed …); mechanism 133.5..416.4 mm".
+pub fn write_refused(
+    out: &mut dyn Write,
+    id: SettingId,
+    e: &ConfigError,
+    running: &ValidatedConfig,
+) -> fmt::Result {
+    write!(out, "error: set {} refused: {e}", id.key())?;
+    let field = match e {
+        ConfigError::OutOfRange { field, .. } | ConfigError::Conflict { field, .. } => *field,
+    };
+    if field.starts_with("limits.") {
+        out.write_str("; ")?;
+        write_mechanism(out, running)?;
+    }
+    Ok(())
+}
+
+/// Head height at an arm angle of the configured geometry.
+fn height_at(cfg: &ValidatedConfig, deg: I16F16) -> Metres {
+    let g = &cfg.get().estimator.geometry;
+    let (_, sin) = Angle::from_degrees(deg).cos_sin();
+    g.h0.sat_add(crate::units::qmul::<Metres, Ratio, Metres>(g.length, sin))
+}
+
+fn write_mm(out: &mut dyn Write, m: Metres) -> fmt::Result {
+    // 0.1 mm is the resolution a person reads heights in.
+    let tenths = (i64::from(m.to_bits()) * 10_000 + (1 << 23)) >> 24;
+    write!(out, "{}.{}", tenths / 10, (tenths % 10).abs())
+}
+
+/// "mechanism 133.5..416.4 mm" (α₀ … α_max of the geometry).
+fn write_mechanism(out: &mut dyn Write, cfg: &ValidatedConfig) -> fmt::Result {
+    let g = &cfg.get().estimator.geometry;
+    out.write_str("mechanism ")?;
+    write_mm(out, height_at(cfg, g.alpha0_deg))?;
+    out.write_str("..")?;
+    write_mm(out, height_at(cfg, g.alpha_max_deg))?;
+    out.write_str(" mm")
+}
+
+/// The reply to `limits`.
+pub fn write_limits(out: &mut dyn Write, cfg: &ValidatedConfig) -> fmt::Result {
+    let l = &cfg.get().limits;
+    out.write_str("limits.lower = ")?;
+    write_mm(out, l.lower)?;
+    out.write_str(" mm, limits.upper = ")?;
+    write_mm(out, l.upper)?;
+    out.write_str(" mm; ")?;
+    write_mechanism(out, cfg)
+}
+
+/// The reply to `help <key>`.
+pub fn write_key_help(out: &mut dyn Write, id: SettingId) -> fmt::Result {
+    let s = id.setting();
+    write!(out, "{}: {}; ", s.key, s.about)?;
+    write_expected(out, id)
+}
+
+/// The reply to `help`.
+pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
+    match topic {
+        HelpTopic::Commands => out.write_str(
+            "commands (case-insensitive):\r\n\
+             \x20 status              state, height, speed, current, T_r, stick-slip, fault\r\n\
+             \x20 up | down | stop    move (hold-to-run unless motion.buttons = latched)\r\n\
+             \x20 goto <height>       drive the head to a height, e.g. goto 300mm\r\n\
+             \x20 limits              limit stops and the mechanism's range\r\n\
+             \x20 get <key>           show a setting\r\n\
+             \x20 set <key> <value>   change a setting (validated; e.g. set limits.upper 400mm)\r\n\
+             \x20 save                store the settings in flash\r\n\
+             \x20 fault | fault clear show or clear the fault\r\n\
+             \x20 help keys | help <key>",
+        ),
+        HelpTopic::Keys => {
+            for (i, id) in settings::all().enumerate() {
+                if i > 0 {
+                    out.write_str("\r\n")?;
+                }
+                let s = id.setting();
+                write!(out, "  {} [", s.key)?;
+                match &s.kind {
+                    Kind::Choice(_) => write_unit(out, &s.kind)?,
+                    Kind::Number { unit, .. } => out.write_str(if unit.display.is_empty() {
+                        "-"
+                    } else {
+                        unit.display
+                    })?,
+                }
+                write!(out, "] {}", s.range)?;
+            }
+            Ok(())
+        }
+        HelpTopic::Key(id) => write_key_help(out, id),
+    }
+}
+
+/// What `status` shows; the controller fills it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StatusView {
+    /// Supervisor state, e.g. `idle`, `lifting`, `lowering`, `fault`.
+    pub state: &'static str,
+    /// Head height.
+    pub height: Metres,
+    /// Screw speed θ̇ (+ lifting).
+    pub screw_speed: RadiansPerSecond,
+    /// Motor current.
+    pub current: Amperes,
+    /// Estimated friction torque T_r.
+    pub friction_torque: NewtonMetres,
+    /// Stick-slip detected.
+    pub stick_slip: bool,
+    /// The active fault's name, if any.
+    pub fault: Option<&'static str>,
+}
+
+/// Fixed-point value with `dec` decimals (rounded), for status lines.
+fn write_fixed(out: &mut dyn Write, bits: i32, frac: u32, dec: u32) -> fmt::Result {
+    let scale = 10i64.pow(dec);
+    let v = i64::from(bits) * scale;
+    let half = 1i64 << (frac - 1);
+    let q = if v >= 0 {
+        (v + half) >> frac
+    } else {
+        -((-v + half) >> frac)
+    };
+    if q < 0 {
+        out.write_char('-')?;
+    }
+    let m = q.unsigned_abs();
+    let s = scale.unsigned_abs();
+    if dec == 0 {
+        write!(out, "{m}")
+    } else {
+        write!(out, "{}.{:0w$}", m / s, m % s, w = dec as usize)
+    }
+}
+
+/// The reply to `status`: one line, `key=value` pairs a person and a script can read.
+pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
+    write!(out, "state={} height=", s.state)?;
+    write_mm(out, s.height)?;
+    out.write_str("mm speed=")?;
+    write_fixed(out, s.screw_speed.to_bits(), 16, 2)?;
+    out.write_str("rad/s current=")?;
+    write_fixed(out, s.current.to_bits(), 16, 2)?;
+    out.write_str("A T_r=")?;
+    write_fixed(out, s.friction_torque.to_bits(), 16, 3)?;
+    write!(
+        out,
+        "Nm stick_slip={} fault={}",
+        if s.stick_slip { "yes" } else { "no" },
+        s.fault.unwrap_or("none")
+    )
+}
+
+/// Collects UART bytes into lines. Backspace/DEL remove the last byte, CR, LF or CRLF end a
+/// line, a line longer than [`MAX_LINE`] is dropped whole and reported as [`Feed::Overflow`]
+/// once its end arrives.
+#[derive(Clone, Debug, Default)]
+pub struct LineBuffer {
+    buf: heapless::Vec<u8, MAX_LINE>,
+    overflow: bool,
+    last_cr: bool,
+    /// A line was handed out: clear before the next byte.
+    done: bool,
+}
+
+/// What one byte did to the line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Feed<'a> {
+    /// The line goes on.
+    Pending,
+    /// A complete line (without its end).
+    Line(&'a [u8]),
+    /// A line that was too long ended.
+    Overflow,
+}
+
+impl LineBuffer {
+    /// An empty buffer.
+    pub const fn new() -> Self {
+        LineBuffer {
+            buf: heapless::Vec::new(),
+            overflow: false,
+            last_cr: false,
+            done: false,
+        }
+    }
+
+    /// Feed one byte.
+    pub fn feed(&mut self, b: u8) -> Feed<'_> {
+        if core::mem::replace(&mut self.done, false) {
+            self.buf.clear();
+        }
+        let after_cr = core::mem::replace(&mut self.last_cr, b == b'\r');
+        match b {
+            b'\n' if after_cr => Feed::Pending,
+            b'\r' | b'\n' => {
+                self.done = true;
+                if core::mem::replace(&mut self.overflow, false) {
+                    Feed::Overflow
+                } else {
+                    Feed::Line(&self.buf)
+                }
+            }
+            0x08 | 0x7F => {
+                self.buf.pop();
+                Feed::Pending
+            }
+            _ => {
+                if self.buf.push(b).is_err() {
+                    self.overflow = true;
+                }
+                Feed::Pending
+            }
+        }
+    }
+}

@@ -74,18 +74,19 @@ async fn control(mut board: Board) {
             warn!("core withheld the watchdog feed at {} us", now.0);
         }
 
+        // State changes and faults (with their snapshot) go to the defmt log.
+        match outputs.event {
+            Some(liftfw::control::Event::Fault(f)) => defmt::error!("FAULT {}", f),
+            Some(e) => info!("{}", e),
+            None => {}
+        }
         if outputs.bridge != last_bridge {
             info!("bridge {} -> {}", last_bridge, outputs.bridge);
             last_bridge = outputs.bridge;
         }
         ticks = ticks.wrapping_add(1);
         if ticks % STATUS_EVERY_TICKS == 0 {
-            info!(
-                "t={} us {} position={} counts",
-                now.0,
-                inputs,
-                controller.position_counts()
-            );
+            info!("t={} us {}", now.0, controller.status());
         }
     }
 }

@@ -6,10 +6,14 @@
 //!   drive profile, the motor/bridge/battery and the board's sensors.
 //! - [`sim`]: a run — plant + driver (paper profile, the liftfw core, or open-loop duty) —
 //!   with its ground-truth [`trace`] and summary.
+//! - [`paper`]: seed 000's 18-case matrix and its reproduction report; [`plots`]: its figures.
+//! - [`study`]: the step-size convergence study.
 #![warn(missing_docs)]
 
+pub mod paper;
 pub mod physics;
 pub mod plant;
+pub mod plots;
 pub mod sim;
 pub mod solver;
 pub mod study;

@@ -1,9 +1,14 @@
 //! `host-sim`: run the lift's digital twin from the command line.
 
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use host_sim::paper::{self, CaseResult, MatrixConfig, Steady};
 use host_sim::physics::Lubricant;
-use host_sim::plant::SpeedProfile;
+use host_sim::plant::{SpeedProfile, StructureDamping};
 use host_sim::sim::{Driver, OpenLoopDuty, Sim, SimConfig};
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant as WallClock;
 
@@ -11,7 +16,15 @@ use std::time::Instant as WallClock;
 #[command(
     name = "host-sim",
     version,
-    about = "Digital twin of a 12 V screw-jack car scissor lift (seed 000 model)"
+    about = "Digital twin of a 12 V screw-jack car scissor lift (the screw-nut model of seed 000)",
+    long_about = "Digital twin of a 12 V screw-jack car scissor lift: the screw-nut model of \
+Woźniak et al. (seed 000) with stick/slip, in float64, driven by the paper's speed profile or by \
+a motor.\n\nStart here:\n  host-sim run                      one lift run (dry thread, lifting 1000 kg from 15°)\n  \
+host-sim run --lubricant ptfe     the same with PTFE spray\n  host-sim run --config lift.toml   a \
+scenario from a TOML file (flags override it)\n  host-sim paper                    the paper's 18 runs: \
+CSV, plots, summary, docs/paper-reproduction.md\n  host-sim convergence --all         the step-size study \
+of docs/plant.md\n\nWithout a subcommand, `host-sim` is `host-sim run`.",
+    after_help = "Units: angles in degrees, speeds in rad/s at the screw, masses in kg, times in s."
 )]
 struct Cli {
     #[command(subcommand)]
@@ -22,14 +35,21 @@ struct Cli {
 enum Command {
     /// Simulate one lift run and print a summary (the default).
     Run(RunArgs),
+    /// Run seed 000's 18-case matrix in parallel: CSV, PNG plots, summary.md and
+    /// docs/paper-reproduction.md.
+    Paper(PaperArgs),
     /// Step-size convergence study of the mean friction torque over 0.999–1 s.
     Convergence(ConvergenceArgs),
 }
 
-#[derive(Clone, Copy, Debug, ValueEnum)]
+#[derive(Clone, Copy, Debug, ValueEnum, Deserialize, PartialEq)]
+#[serde(rename_all = "lowercase")]
 enum Lube {
+    /// Dry/boundary friction (Eq 13).
     Dry,
+    /// PTFE dry spray (Eq 14).
     Ptfe,
+    /// Lithium grease (Eq 11, our reading).
     Lithium,
 }
 
@@ -43,86 +63,233 @@ impl From<Lube> for Lubricant {
     }
 }
 
-#[derive(Clone, Copy, Debug, ValueEnum, PartialEq)]
+#[derive(Clone, Copy, Debug, ValueEnum, Deserialize, PartialEq)]
+#[serde(rename_all = "lowercase")]
 enum Direction {
+    /// Lift the load.
     Up,
+    /// Lower it.
     Down,
 }
 
-#[derive(Clone, Copy, Debug, ValueEnum, PartialEq)]
+impl Direction {
+    fn sign(self) -> f64 {
+        match self {
+            Direction::Up => 1.0,
+            Direction::Down => -1.0,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum, Deserialize, PartialEq)]
+#[serde(rename_all = "lowercase")]
 enum Mode {
-    /// θ_i prescribed by the paper's Fig. 2 speed profile.
+    /// θ_i prescribed by the paper's Fig. 2 speed profile (no motor).
     Paper,
     /// The liftfw core in the loop (motor, bridge, sensors simulated).
     Closed,
-    /// Fixed bridge duty with a soft start (tests the motor path).
+    /// Fixed bridge duty with a soft start (exercises the motor path).
     Duty,
 }
 
-#[derive(clap::Args, Debug)]
-struct RunArgs {
-    /// Thread lubrication.
-    #[arg(long, value_enum, default_value_t = Lube::Dry)]
+/// The case flags shared by `run` and `convergence`.
+#[derive(Args, Debug, Clone, Default)]
+struct CaseArgs {
+    /// Thread lubrication [default: dry].
+    #[arg(long, value_enum)]
+    lubricant: Option<Lube>,
+    /// Arm angle at the start, degrees (15 = fully down) [default: 15].
+    #[arg(long)]
+    start_deg: Option<f64>,
+    /// Direction of travel [default: up].
+    #[arg(long, value_enum)]
+    direction: Option<Direction>,
+    /// Pin friction coefficient μ_b (0.3 steel pins, 0 ideal) [default: 0.3].
+    #[arg(long)]
+    pin_friction: Option<f64>,
+}
+
+/// A scenario: the defaults, overridden by a TOML file, overridden by flags. Field names are
+/// the flags' names with `_` for `-`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+struct Scenario {
     lubricant: Lube,
-    /// Arm angle at the start, degrees.
-    #[arg(long, default_value_t = 15.0)]
     start_deg: f64,
-    /// Direction of travel.
-    #[arg(long, value_enum, default_value_t = Direction::Up)]
     direction: Direction,
-    /// Lifted mass, kg.
-    #[arg(long, default_value_t = 1000.0)]
-    load_kg: f64,
-    /// Pin friction coefficient μ_b.
-    #[arg(long, default_value_t = 0.3)]
     pin_friction: f64,
-    /// Simulated time, s.
-    #[arg(long, default_value_t = 5.0)]
+    load_kg: f64,
     duration: f64,
-    /// Constant structure damping c_x, kg/s (default: Table 1's c_x(α); the paper's text
-    /// value 1e6 makes the thread slide steadily).
+    cx: Option<f64>,
+    mode: Mode,
+    cruise: f64,
+    duty: f64,
+    seed: u64,
+    noise: f64,
+    dt: f64,
+    control_hz: f64,
+    record_hz: f64,
+    csv: Option<PathBuf>,
+}
+
+impl Default for Scenario {
+    fn default() -> Self {
+        Self {
+            lubricant: Lube::Dry,
+            start_deg: 15.0,
+            direction: Direction::Up,
+            pin_friction: 0.3,
+            load_kg: 1000.0,
+            duration: 5.0,
+            cx: None,
+            mode: Mode::Paper,
+            cruise: host_sim::plant::profile::PAPER_CRUISE,
+            duty: 1.0,
+            seed: 0,
+            noise: 1.0,
+            dt: host_sim::sim::DEFAULT_DT,
+            control_hz: 1000.0,
+            record_hz: 10_000.0,
+            csv: None,
+        }
+    }
+}
+
+#[derive(Args, Debug, Default)]
+#[command(
+    after_help = "TOML scenario file (every key optional; flags override it):\n\n  \
+lubricant = \"ptfe\"      # dry | ptfe | lithium\n  start_deg = 45.0\n  direction = \"down\"      # up | down\n  \
+pin_friction = 0.3\n  load_kg = 800.0\n  duration = 2.0\n  cx = 1e6                # constant structure damping, kg/s\n  \
+mode = \"paper\"          # paper | duty | closed\n  cruise = 15.0\n  duty = 0.8\n  seed = 7\n  noise = 1.0\n  \
+dt = 2e-6\n  control_hz = 1000.0\n  record_hz = 10000.0\n  csv = \"trace.csv\""
+)]
+struct RunArgs {
+    /// Read the scenario from a TOML file first (see below); flags given as well win.
+    #[arg(long, value_name = "FILE.toml")]
+    config: Option<PathBuf>,
+    #[command(flatten)]
+    case: CaseArgs,
+    /// Lifted mass, kg [default: 1000].
+    #[arg(long)]
+    load_kg: Option<f64>,
+    /// Simulated time, s [default: 5].
+    #[arg(long)]
+    duration: Option<f64>,
+    /// Constant structure damping c_x, kg/s [default: Table 1's c_x(α)]. The paper's text value
+    /// 1e6 makes the thread slide steadily.
     #[arg(long)]
     cx: Option<f64>,
-    /// Driving mode.
-    #[arg(long, value_enum, default_value_t = Mode::Paper)]
-    mode: Mode,
-    /// Paper mode: cruise screw speed, rad/s.
-    #[arg(long, default_value_t = 15.0)]
+    /// Driving mode [default: paper].
+    #[arg(long, value_enum)]
+    mode: Option<Mode>,
+    /// Paper mode: cruise screw speed, rad/s [default: 15].
+    #[arg(long)]
+    cruise: Option<f64>,
+    /// Duty mode: bridge duty magnitude, 0–1 [default: 1].
+    #[arg(long)]
+    duty: Option<f64>,
+    /// Seed of the sensor noise [default: 0].
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Sensor noise scale: 0 noiseless, 1 the modelled ADC noise [default: 1].
+    #[arg(long)]
+    noise: Option<f64>,
+    /// Base integration step, s [default: 2e-6, the converged step].
+    #[arg(long)]
+    dt: Option<f64>,
+    /// Control rate of the core, Hz [default: 1000].
+    #[arg(long)]
+    control_hz: Option<f64>,
+    /// Trace sampling rate for --csv, Hz [default: 10000].
+    #[arg(long)]
+    record_hz: Option<f64>,
+    /// Write the ground-truth trace as CSV.
+    #[arg(long, value_name = "PATH")]
+    csv: Option<PathBuf>,
+}
+
+impl RunArgs {
+    /// Defaults ← TOML file ← flags.
+    fn scenario(&self) -> Result<Scenario, String> {
+        let mut s = match &self.config {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .map_err(|e| format!("{}: {e}", path.display()))?;
+                toml::from_str::<Scenario>(&text).map_err(|e| format!("{}: {e}", path.display()))?
+            }
+            None => Scenario::default(),
+        };
+        macro_rules! take {
+            ($($src:expr => $dst:ident),* $(,)?) => { $(if let Some(v) = $src.clone() { s.$dst = v; })* };
+        }
+        take!(
+            self.case.lubricant => lubricant,
+            self.case.start_deg => start_deg,
+            self.case.direction => direction,
+            self.case.pin_friction => pin_friction,
+            self.load_kg => load_kg,
+            self.duration => duration,
+            self.mode => mode,
+            self.cruise => cruise,
+            self.duty => duty,
+            self.seed => seed,
+            self.noise => noise,
+            self.dt => dt,
+            self.control_hz => control_hz,
+            self.record_hz => record_hz,
+        );
+        if self.cx.is_some() {
+            s.cx = self.cx;
+        }
+        if self.csv.is_some() {
+            s.csv.clone_from(&self.csv);
+        }
+        Ok(s)
+    }
+}
+
+#[derive(Args, Debug)]
+struct PaperArgs {
+    /// Output directory for CSVs, PNGs and summary.md.
+    #[arg(long, default_value = "target/paper")]
+    out: PathBuf,
+    /// Where to write the generated reproduction report [default: the repository's
+    /// docs/paper-reproduction.md]. A docs/ballscrew-reproduction.md beside it is included.
+    #[arg(long, value_name = "PATH")]
+    doc: Option<PathBuf>,
+    /// Do not write the reproduction report.
+    #[arg(long)]
+    no_doc: bool,
+    /// Skip the PNG plots.
+    #[arg(long)]
+    no_plots: bool,
+    /// Skip the steady-sliding companion runs (constant c_x = 1e6, lifting, 1 s).
+    #[arg(long)]
+    no_steady: bool,
+    /// Parallel jobs [default: one per core].
+    #[arg(long)]
+    jobs: Option<usize>,
+    /// Cruise screw speed |ω_c|, rad/s.
+    #[arg(long, default_value_t = host_sim::plant::profile::PAPER_CRUISE)]
     cruise: f64,
-    /// Duty mode: bridge duty magnitude, 0–1.
-    #[arg(long, default_value_t = 1.0)]
-    duty: f64,
-    /// Seed of the sensor noise.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
     /// Base integration step, s.
     #[arg(long, default_value_t = host_sim::sim::DEFAULT_DT)]
     dt: f64,
-    /// Control rate of the core, Hz.
-    #[arg(long, default_value_t = 1000.0)]
-    control_hz: f64,
-    /// Trace sampling rate, Hz.
-    #[arg(long, default_value_t = 10_000.0)]
-    record_hz: f64,
-    /// Write the ground-truth trace as CSV.
+    /// Simulated time per run, s.
+    #[arg(long, default_value_t = 5.0)]
+    duration: f64,
+    /// Constant structure damping c_x for the main matrix, kg/s [default: Table 1's c_x(α)].
     #[arg(long)]
-    csv: Option<std::path::PathBuf>,
+    cx: Option<f64>,
+    /// Sampling rate of the per-run CSVs, Hz (the 0.999–1 s window is written at every step).
+    #[arg(long, default_value_t = 1000.0)]
+    csv_hz: f64,
 }
 
-#[derive(clap::Args, Debug)]
+#[derive(Args, Debug)]
 struct ConvergenceArgs {
-    /// Thread lubrication.
-    #[arg(long, value_enum, default_value_t = Lube::Dry)]
-    lubricant: Lube,
-    /// Arm angle at the start, degrees.
-    #[arg(long, default_value_t = 15.0)]
-    start_deg: f64,
-    /// Direction of travel.
-    #[arg(long, value_enum, default_value_t = Direction::Up)]
-    direction: Direction,
-    /// Pin friction coefficient μ_b.
-    #[arg(long, default_value_t = 0.3)]
-    pin_friction: f64,
+    #[command(flatten)]
+    case: CaseArgs,
     /// Largest step tried, s; each next one is half.
     #[arg(long, default_value_t = 8e-6)]
     dt_max: f64,
@@ -134,56 +301,46 @@ struct ConvergenceArgs {
     all: bool,
 }
 
-impl ConvergenceArgs {
-    fn default_args() -> Self {
-        match Cli::parse_from(["host-sim", "convergence"]).command {
-            Some(Command::Convergence(a)) => a,
-            _ => unreachable!("the convergence subcommand parses to itself"),
-        }
-    }
-}
-
 fn run(a: &RunArgs) -> Result<(), Box<dyn std::error::Error>> {
+    let sc = a.scenario()?;
     let mut cfg = SimConfig::paper(
-        Lubricant::from(a.lubricant).law(),
-        a.pin_friction,
-        a.start_deg,
+        Lubricant::from(sc.lubricant).law(),
+        sc.pin_friction,
+        sc.start_deg,
     );
-    cfg.plant.load = a.load_kg;
-    if let Some(cx) = a.cx {
-        cfg.plant.damping = host_sim::plant::StructureDamping::Constant(cx);
+    cfg.plant.load = sc.load_kg;
+    if let Some(cx) = sc.cx {
+        cfg.plant.damping = StructureDamping::Constant(cx);
     }
-    cfg.duration = a.duration;
-    cfg.dt = a.dt;
-    cfg.seed = a.seed;
-    cfg.control_rate = a.control_hz;
-    cfg.record_rate = if a.csv.is_some() { a.record_hz } else { 0.0 };
-    let sign = if a.direction == Direction::Up {
-        1.0
-    } else {
-        -1.0
-    };
-    let driver = match a.mode {
-        Mode::Paper => Driver::Paper(SpeedProfile::paper(sign * a.cruise.abs())),
+    cfg.duration = sc.duration;
+    cfg.dt = sc.dt;
+    cfg.seed = sc.seed;
+    cfg.sensors.current_noise *= sc.noise;
+    cfg.sensors.supply_noise *= sc.noise;
+    cfg.control_rate = sc.control_hz;
+    cfg.record_rate = if sc.csv.is_some() { sc.record_hz } else { 0.0 };
+    let sign = sc.direction.sign();
+    let driver = match sc.mode {
+        Mode::Paper => Driver::Paper(SpeedProfile::paper(sign * sc.cruise.abs())),
         Mode::Closed => Driver::Core(Box::new(
             liftfw::control::Controller::new(&liftfw::control::config::ControlConfig::DEFAULT, 0)
                 .map_err(|e| format!("{e:?}"))?,
         )),
         Mode::Duty => Driver::OpenLoop(OpenLoopDuty {
-            duty: sign * a.duty.abs(),
+            duty: sign * sc.duty.abs(),
             ramp: 0.2,
         }),
     };
     println!(
         "host-sim run: {:?} mode, {} thread, {:?} from α = {}°, load {} kg, μ_b = {}, {} s at dt = {:.1e} s",
-        a.mode,
-        Lubricant::from(a.lubricant).name(),
-        a.direction,
-        a.start_deg,
-        a.load_kg,
-        a.pin_friction,
-        a.duration,
-        a.dt
+        sc.mode,
+        Lubricant::from(sc.lubricant).name(),
+        sc.direction,
+        sc.start_deg,
+        sc.load_kg,
+        sc.pin_friction,
+        sc.duration,
+        sc.dt
     );
     let wall = WallClock::now();
     let mut sim = Sim::new(cfg, driver)?;
@@ -191,11 +348,11 @@ fn run(a: &RunArgs) -> Result<(), Box<dyn std::error::Error>> {
     let secs = wall.elapsed().as_secs_f64();
     println!("{summary}");
     println!(
-        "wall time   {:.2} s ({:.2} s per simulated second)",
+        "wall time   {:.2} s ({:.3} s per simulated second)",
         secs,
         secs / summary.duration
     );
-    if let Some(path) = &a.csv {
+    if let Some(path) = &sc.csv {
         let f = std::io::BufWriter::new(std::fs::File::create(path)?);
         sim.trace.write_csv(f)?;
         println!(
@@ -207,12 +364,175 @@ fn run(a: &RunArgs) -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
-fn convergence(a: &ConvergenceArgs) {
-    let sign = if a.direction == Direction::Up {
-        1.0
-    } else {
-        -1.0
+/// The repository's docs/paper-reproduction.md (host-sim sits one level below the root).
+fn default_doc() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join("docs")
+        .join("paper-reproduction.md")
+}
+
+/// One job of the paper command: a case of the main matrix (with files) or a companion run.
+struct Job {
+    case: paper::Case,
+    steady: bool,
+}
+
+fn paper_cmd(a: &PaperArgs) -> Result<(), Box<dyn std::error::Error>> {
+    let wall = WallClock::now();
+    let m = MatrixConfig {
+        cruise: a.cruise,
+        duration: a.duration,
+        dt: a.dt,
+        damping: a
+            .cx
+            .map_or(StructureDamping::Table1, StructureDamping::Constant),
+        ..MatrixConfig::default()
     };
+    let steady_cx = 1e6;
+    let ms = MatrixConfig {
+        duration: m.duration.min(1.0),
+        damping: StructureDamping::Constant(steady_cx),
+        record_rate: 2000.0,
+        ..m
+    };
+    std::fs::create_dir_all(&a.out)?;
+    let plots = !a.no_plots;
+    if plots {
+        match host_sim::plots::init_font() {
+            Ok(p) => println!("font        {}", p.display()),
+            Err(e) => return Err(e.into()),
+        }
+    }
+    let mut jobs: Vec<Job> = paper::matrix()
+        .into_iter()
+        .map(|case| Job {
+            case,
+            steady: false,
+        })
+        .collect();
+    if !a.no_steady {
+        // Lifting only: lowering under c_x = 1e6 turns the damping negative (docs/plant.md).
+        jobs.extend(
+            paper::matrix()
+                .into_iter()
+                .filter(|c| c.lifting)
+                .map(|case| Job { case, steady: true }),
+        );
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.jobs.unwrap_or(0))
+        .build()?;
+    let pb = ProgressBar::new(jobs.len() as u64);
+    pb.set_style(
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} runs  {msg}",
+        )?
+        .progress_chars("=> "),
+    );
+    let csv_every = (m.record_rate / a.csv_hz.max(1e-9)).round().max(1.0) as usize;
+    let out: Vec<Result<(CaseResult, bool, f64), String>> = pool.install(|| {
+        jobs.par_iter()
+            .map(|job| {
+                let t0 = WallClock::now();
+                let cfg = if job.steady { &ms } else { &m };
+                let (r, trace) = paper::run_case(job.case, cfg);
+                if !job.steady {
+                    let stem = job.case.slug();
+                    let csv = paper::csv_trace(&trace, csv_every, m.zoom);
+                    let path = a.out.join(format!("{stem}.csv"));
+                    let f = std::fs::File::create(&path)
+                        .map_err(|e| format!("{}: {e}", path.display()))?;
+                    csv.write_csv(std::io::BufWriter::new(f))
+                        .map_err(|e| format!("{}: {e}", path.display()))?;
+                    drop(trace);
+                    if plots {
+                        host_sim::plots::case_plot(&a.out.join(format!("{stem}.png")), &r)?;
+                    }
+                }
+                let secs = t0.elapsed().as_secs_f64();
+                pb.set_message(format!(
+                    "{}{}",
+                    job.case.slug(),
+                    if job.steady { " (steady)" } else { "" }
+                ));
+                pb.inc(1);
+                Ok((r, job.steady, secs))
+            })
+            .collect()
+    });
+    pb.finish_and_clear();
+    let mut main = Vec::new();
+    let mut steady = Vec::new();
+    let mut run_secs = Vec::new();
+    for o in out {
+        let (r, is_steady, secs) = o?;
+        if is_steady {
+            steady.push(r);
+        } else {
+            run_secs.push((r.case.slug(), secs));
+            main.push(r);
+        }
+    }
+    if plots {
+        for l in Lubricant::ALL {
+            let rs: Vec<&CaseResult> = main.iter().filter(|r| r.case.lubricant == l).collect();
+            let fig = rs.first().map_or(13, |r| r.case.figure());
+            let path = a.out.join(format!("fig{fig}_{}.png", l.name()));
+            host_sim::plots::figure(
+                &path,
+                &format!(
+                    "{} thread: friction torque T and θ − θi (layout of seed 000 Fig. {fig})",
+                    l.name()
+                ),
+                &rs,
+            )?;
+        }
+    }
+    let steady = (!a.no_steady).then_some(Steady {
+        c_x: steady_cx,
+        results: steady,
+    });
+    let total = wall.elapsed().as_secs_f64();
+    let mut summary = paper::summary_markdown(&main, &m);
+    summary.push_str(&format!(
+        "\nWall time: {total:.2} s for {} runs on {} threads (per run: {}).\n",
+        jobs.len(),
+        pool.current_num_threads(),
+        run_secs
+            .iter()
+            .map(|(s, t)| format!("{s} {t:.2} s"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    ));
+    std::fs::write(a.out.join("summary.md"), &summary)?;
+    println!("{}", paper::matrix_table(&main));
+    if !a.no_doc {
+        let doc = a.doc.clone().unwrap_or_else(default_doc);
+        let ball = doc.with_file_name("ballscrew-reproduction.md");
+        let ball = std::fs::read_to_string(&ball).ok();
+        let text = paper::reproduction_markdown(&main, steady.as_ref(), &m, ball.as_deref());
+        std::fs::write(&doc, text)?;
+        println!("report      {}", doc.display());
+    }
+    println!(
+        "output      {} (CSV{}, summary.md)",
+        a.out.display(),
+        if plots { ", PNG" } else { "" }
+    );
+    println!(
+        "wall time   {total:.2} s for {} runs ({} of the matrix + {} steady companions) on {} threads",
+        jobs.len(),
+        main.len(),
+        jobs.len() - main.len(),
+        pool.current_num_threads()
+    );
+    Ok(())
+}
+
+fn convergence(a: &ConvergenceArgs) {
+    let c = &a.case;
+    let sign = c.direction.unwrap_or(Direction::Up).sign();
     let cases: Vec<(Lubricant, f64, f64, f64)> = if a.all {
         let mut v: Vec<_> = [
             (0.3, 15.0, 1.0),
@@ -229,56 +549,47 @@ fn convergence(a: &ConvergenceArgs) {
         v.push((Lubricant::Lithium, 0.3, 15.0, 1.0));
         v
     } else {
-        vec![(a.lubricant.into(), a.pin_friction, a.start_deg, sign)]
+        vec![(
+            c.lubricant.unwrap_or(Lube::Dry).into(),
+            c.pin_friction.unwrap_or(0.3),
+            c.start_deg.unwrap_or(15.0),
+            sign,
+        )]
     };
-    // Two cases at a time: the studies are independent.
-    for chunk in cases.chunks(2) {
-        let out: Vec<String> = std::thread::scope(|s| {
-            let handles: Vec<_> = chunk
-                .iter()
-                .map(|&(lube, mu, deg, sg)| {
-                    s.spawn(move || {
-                        let st = host_sim::study::convergence(
-                            lube.law(),
-                            mu,
-                            deg,
-                            sg * 15.0,
-                            a.dt_max,
-                            a.levels,
-                        );
-                        let dir = if sg > 0.0 { "lifting" } else { "lowering" };
-                        format!(
-                            "{} thread, μ_b = {mu}, {dir} from {deg}°:\n{st}",
-                            lube.name()
-                        )
-                    })
-                })
-                .collect();
-            handles
-                .into_iter()
-                .map(|h| h.join().unwrap_or_else(|_| "study panicked".into()))
-                .collect()
-        });
-        for o in out {
-            println!("{o}");
-        }
+    let out: Vec<String> = cases
+        .par_iter()
+        .map(|&(lube, mu, deg, sg)| {
+            let st =
+                host_sim::study::convergence(lube.law(), mu, deg, sg * 15.0, a.dt_max, a.levels);
+            let dir = if sg > 0.0 { "lifting" } else { "lowering" };
+            format!(
+                "{} thread, μ_b = {mu}, {dir} from {deg}°:\n{st}",
+                lube.name()
+            )
+        })
+        .collect();
+    for o in out {
+        println!("{o}");
     }
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     // A bare `host-sim` is `host-sim run` with the defaults.
-    let cmd = cli
-        .command
-        .or_else(|| Cli::parse_from(["host-sim", "run"]).command);
-    match cmd.unwrap_or(Command::Convergence(ConvergenceArgs::default_args())) {
-        Command::Run(a) => {
-            if let Err(e) = run(&a) {
-                eprintln!("error: {e}");
-                return ExitCode::FAILURE;
-            }
+    let cmd = cli.command.unwrap_or(Command::Run(RunArgs::default()));
+    let res = match cmd {
+        Command::Run(a) => run(&a),
+        Command::Paper(a) => paper_cmd(&a),
+        Command::Convergence(a) => {
+            convergence(&a);
+            Ok(())
         }
-        Command::Convergence(a) => convergence(&a),
+    };
+    match res {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
     }
-    ExitCode::SUCCESS
 }

@@ -146,6 +146,8 @@ pub struct SimConfig {
     pub duration: f64,
     /// Trace sampling rate, Hz (0: no trace).
     pub record_rate: f64,
+    /// A time window (s) in which every base step is recorded as well (zoomed plots), if any.
+    pub dense_window: Option<(f64, f64)>,
     /// Control-tick rate of the core (closed loop), Hz.
     pub control_rate: f64,
     /// Motor, gearbox, bridge, battery.
@@ -174,6 +176,7 @@ impl SimConfig {
             dt: DEFAULT_DT,
             duration: 5.0,
             record_rate: 10_000.0,
+            dense_window: None,
             control_rate: 1000.0,
             drive: DriveParams::default(),
             sensors: SensorParams::with_limits(
@@ -676,7 +679,11 @@ impl Sim {
             if !self.driver.is_paper() && n % per_tick == 0 {
                 self.tick(t);
             }
-            if per_record.is_some_and(|k| n % k == 0) {
+            let dense = self
+                .cfg
+                .dense_window
+                .is_some_and(|(a, b)| t >= a - 0.5 * dt && t <= b + 0.5 * dt);
+            if dense || per_record.is_some_and(|k| n % k == 0) {
                 let r = self.record(t);
                 self.trace.records.push(r);
             }

@@ -190,8 +190,7 @@ pub fn run(s: &Scenario, mut hook: Hook) -> Run {
     let trace = std::mem::take(&mut sim.trace);
     drop(sim);
     let (controller, events, ticks) = Arc::try_unwrap(shared)
-        .ok()
-        .expect("driver dropped")
+        .unwrap_or_else(|_| panic!("the sim still holds the driver"))
         .into_inner()
         .expect("not poisoned");
     Run {

@@ -401,7 +401,7 @@ pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
                 let s = id.setting();
                 write!(out, "  {} [", s.key)?;
                 match &s.kind {
-                    Kind::Choice(_) => write_unit(out, &s.kind)?,
+                    Kind::Choice(_) => out.write_str("choice")?,
                     Kind::Number { unit, .. } => out.write_str(if unit.display.is_empty() {
                         "-"
                     } else {

@@ -22,7 +22,7 @@ Woźniak et al. (seed 000) with stick/slip, in float64, driven by the paper's sp
 a motor.\n\nStart here:\n  host-sim run                      one lift run (dry thread, lifting 1000 kg from 15°)\n  \
 host-sim run --lubricant ptfe     the same with PTFE spray\n  host-sim run --config lift.toml   a \
 scenario from a TOML file (flags override it)\n  host-sim paper                    the paper's 18 runs: \
-CSV, plots, summary, docs/paper-reproduction.md\n  host-sim convergence --all         the step-size study \
+CSV, plots, summary, docs/paper-reproduction.md\n  host-sim convergence --all        the step-size study \
 of docs/plant.md\n\nWithout a subcommand, `host-sim` is `host-sim run`.",
     after_help = "Units: angles in degrees, speeds in rad/s at the screw, masses in kg, times in s."
 )]
@@ -348,7 +348,7 @@ fn run(a: &RunArgs) -> Result<(), Box<dyn std::error::Error>> {
     let secs = wall.elapsed().as_secs_f64();
     println!("{summary}");
     println!(
-        "wall time   {:.2} s ({:.3} s per simulated second)",
+        "wall time   {:.4} s ({:.4} s per simulated second)",
         secs,
         secs / summary.duration
     );

@@ -56,3 +56,19 @@ impl core::fmt::Display for ConfigError {
         }
     }
 }
+
+/// `Ok` if `lo ≤ v ≤ hi`, else [`ConfigError::OutOfRange`] naming `field` and `range`: the one
+/// range check every configuration type validates with.
+pub(crate) fn check_range<T: PartialOrd>(
+    v: T,
+    lo: T,
+    hi: T,
+    field: &'static str,
+    range: &'static str,
+) -> Result<(), ConfigError> {
+    if v >= lo && v <= hi {
+        Ok(())
+    } else {
+        Err(ConfigError::OutOfRange { field, range })
+    }
+}

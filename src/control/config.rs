@@ -8,6 +8,7 @@
 use crate::estimator::EstimatorConfig;
 use crate::model::geometry::Geometry;
 use crate::units::{Amperes, Kilograms, Metres, RadiansPerSecond, Ratio, Volts};
+use crate::check_range as range;
 use crate::ConfigError;
 
 /// Shape of the speed ramp.
@@ -341,19 +342,6 @@ impl ControlConfig {
     }
 }
 
-fn range<T: PartialOrd>(
-    v: T,
-    lo: T,
-    hi: T,
-    field: &'static str,
-    range: &'static str,
-) -> Result<(), ConfigError> {
-    if v >= lo && v <= hi {
-        Ok(())
-    } else {
-        Err(ConfigError::OutOfRange { field, range })
-    }
-}
 
 #[cfg(test)]
 mod tests {

@@ -9,6 +9,7 @@
 use crate::math::{recip_q30, sqrt_q30};
 use crate::model::Scale;
 use crate::units::{qmul, sat32, Angle, Kilograms, KilogramsPerSecond, Metres, Newtons, Ratio, Q};
+use crate::check_range as check;
 use crate::ConfigError;
 use fixed::types::I16F16;
 
@@ -68,19 +69,6 @@ impl DriveConfig {
     };
 }
 
-fn check<T: PartialOrd>(
-    v: T,
-    lo: T,
-    hi: T,
-    field: &'static str,
-    range: &'static str,
-) -> Result<(), ConfigError> {
-    if v >= lo && v <= hi {
-        Ok(())
-    } else {
-        Err(ConfigError::OutOfRange { field, range })
-    }
-}
 
 /// Validated geometry with its per-tick constants.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -5,10 +5,10 @@
 //! (or [`ControlConfig::validate`]), before a single tick runs with it; the hot path never
 //! re-checks. Every refusal names the setting's console key and its range.
 
+use crate::check_range as range;
 use crate::estimator::EstimatorConfig;
 use crate::model::geometry::Geometry;
 use crate::units::{Amperes, Kilograms, Metres, RadiansPerSecond, Ratio, Volts};
-use crate::check_range as range;
 use crate::ConfigError;
 
 /// Shape of the speed ramp.
@@ -341,7 +341,6 @@ impl ControlConfig {
         self.limits.validate(geometry)
     }
 }
-
 
 #[cfg(test)]
 mod tests {

@@ -6,10 +6,10 @@
 //! control tick the coupling's twist is ignored for position (θ ≈ θ_i: 160 N·m/rad gives
 //! ≤ 0.05 mm of nut travel at 50 N·m).
 
+use crate::check_range as check;
 use crate::math::{recip_q30, sqrt_q30};
 use crate::model::Scale;
 use crate::units::{qmul, sat32, Angle, Kilograms, KilogramsPerSecond, Metres, Newtons, Ratio, Q};
-use crate::check_range as check;
 use crate::ConfigError;
 use fixed::types::I16F16;
 
@@ -68,7 +68,6 @@ impl DriveConfig {
         lead_angle_deg: I16F16::lit("3.47"),
     };
 }
-
 
 /// Validated geometry with its per-tick constants.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -184,19 +184,22 @@ impl Estimator {
             .law
             .compile(cfg.drive.pitch_radius, screw.cos_lambda())?;
         let m = &cfg.motor;
-        if !(m.torque_constant >= Ratio::lit("0.001") && m.torque_constant <= Ratio::ONE) {
+        if !(m.torque_constant >= const { Ratio::lit("0.001") } && m.torque_constant <= Ratio::ONE)
+        {
             return Err(ConfigError::OutOfRange {
                 field: "motor.kt",
                 range: "0.001..1 Nm/A",
             });
         }
-        if !(m.gear_efficiency >= Ratio::lit("0.1") && m.gear_efficiency <= Ratio::ONE) {
+        if !(m.gear_efficiency >= const { Ratio::lit("0.1") } && m.gear_efficiency <= Ratio::ONE) {
             return Err(ConfigError::OutOfRange {
                 field: "motor.gear_efficiency",
                 range: "0.1..1",
             });
         }
-        if !(m.resistance >= Ratio::lit("0.001") && m.resistance <= Ratio::lit("4")) {
+        if !(m.resistance >= const { Ratio::lit("0.001") }
+            && m.resistance <= const { Ratio::lit("4") })
+        {
             return Err(ConfigError::OutOfRange {
                 field: "motor.resistance",
                 range: "0.001..4 ohm",
@@ -216,7 +219,7 @@ impl Estimator {
             });
         }
         if !(cfg.rest_speed >= RadiansPerSecond::ZERO
-            && cfg.rest_speed <= RadiansPerSecond::lit("50"))
+            && cfg.rest_speed <= const { RadiansPerSecond::lit("50") })
         {
             return Err(ConfigError::OutOfRange {
                 field: "control.rest_speed",

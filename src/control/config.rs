@@ -211,16 +211,16 @@ impl ControlConfig {
     pub fn validate(&self, geometry: &Geometry) -> Result<(), ConfigError> {
         range(
             self.rated_load,
-            Kilograms::lit("10"),
-            Kilograms::lit("5000"),
+            const { Kilograms::lit("10") },
+            const { Kilograms::lit("5000") },
             "load.rated",
             "10..5000 kg",
         )?;
         let m = &self.motion;
         range(
             m.cruise_speed,
-            RadiansPerSecond::lit("0.2"),
-            RadiansPerSecond::lit("20"),
+            const { RadiansPerSecond::lit("0.2") },
+            const { RadiansPerSecond::lit("20") },
             "motion.cruise_speed",
             "0.2..20 rad/s",
         )?;
@@ -228,15 +228,15 @@ impl ControlConfig {
         let p = &self.protection;
         range(
             p.overcurrent,
-            Amperes::lit("1"),
-            Amperes::lit("60"),
+            const { Amperes::lit("1") },
+            const { Amperes::lit("60") },
             "protect.overcurrent",
             "1..60 A",
         )?;
         range(
             p.current_limit,
-            Amperes::lit("1"),
-            Amperes::lit("60"),
+            const { Amperes::lit("1") },
+            const { Amperes::lit("60") },
             "protect.current_limit",
             "1..60 A",
         )?;
@@ -248,7 +248,7 @@ impl ControlConfig {
         }
         range(
             p.stall_duty,
-            Ratio::lit("0.05"),
+            const { Ratio::lit("0.05") },
             Ratio::ONE,
             "protect.stall_duty",
             "0.05..1",
@@ -256,29 +256,29 @@ impl ControlConfig {
         range(p.stall_ms, 20, 5000, "protect.stall_ms", "20..5000 ms")?;
         range(
             p.max_motor_speed,
-            RadiansPerSecond::lit("10"),
-            RadiansPerSecond::lit("5000"),
+            const { RadiansPerSecond::lit("10") },
+            const { RadiansPerSecond::lit("5000") },
             "protect.max_motor_speed",
             "10..5000 rad/s",
         )?;
         range(
             p.supply_start_min,
-            Volts::lit("8"),
-            Volts::lit("16"),
+            const { Volts::lit("8") },
+            const { Volts::lit("16") },
             "protect.supply_start_min",
             "8..16 V",
         )?;
         range(
             p.supply_run_min,
-            Volts::lit("6"),
-            Volts::lit("16"),
+            const { Volts::lit("6") },
+            const { Volts::lit("16") },
             "protect.supply_run_min",
             "6..16 V",
         )?;
         range(
             p.supply_max,
-            Volts::lit("12"),
-            Volts::lit("20"),
+            const { Volts::lit("12") },
+            const { Volts::lit("20") },
             "protect.supply_max",
             "12..20 V",
         )?;
@@ -297,8 +297,8 @@ impl ControlConfig {
         range(p.supply_ms, 1, 1000, "protect.supply_ms", "1..1000 ms")?;
         range(
             p.overload_margin,
-            Ratio::lit("0.05"),
-            Ratio::lit("2"),
+            const { Ratio::lit("0.05") },
+            const { Ratio::lit("2") },
             "protect.overload_margin",
             "0.05..2",
         )?;
@@ -311,8 +311,8 @@ impl ControlConfig {
         )?;
         range(
             p.runaway_travel,
-            Metres::lit("0.00001"),
-            Metres::lit("0.01"),
+            const { Metres::lit("0.00001") },
+            const { Metres::lit("0.01") },
             "protect.runaway_travel",
             "0.01..10 mm",
         )?;

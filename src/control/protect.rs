@@ -121,7 +121,7 @@ impl Limits {
             overcurrent: p.overcurrent,
             stall_duty: sat32(i64::from(p.stall_duty.bits()) >> 13).clamp(0, 32767) as i16,
             stall_ticks: ticks(p.stall_ms),
-            stall_current: p.current_limit.scale(Ratio::lit("0.9")),
+            stall_current: p.current_limit.scale(const { Ratio::lit("0.9") }),
             max_counts_per_tick: sat32(max_counts + 1).max(1),
             turning_speed: RadiansPerSecond::from_raw(cruise.bits() / 4),
             supply_run_min: p.supply_run_min,
@@ -210,8 +210,8 @@ impl Monitors {
             let limit = s
                 .reference
                 .sat_abs()
-                .sat_add(s.reference.sat_abs().scale(Ratio::lit("0.5")))
-                .sat_add(s.cruise.scale(Ratio::lit("0.25")));
+                .sat_add(s.reference.sat_abs().scale(const { Ratio::lit("0.5") }))
+                .sat_add(s.cruise.scale(const { Ratio::lit("0.25") }));
             s.moving && s.lowering && s.speed.sat_neg() > limit
         };
         if count(&mut self.fast_lowering, too_fast) >= l.runaway_ticks {

@@ -84,7 +84,7 @@ impl FrictionLaw {
 
     /// Validate and compile for a screw of pitch radius `r_m` and lead angle cosine `cos_lambda`.
     pub fn compile(&self, r_m: Metres, cos_lambda: Ratio) -> Result<CompiledLaw, ConfigError> {
-        let in_range = |v: I32F32, lo: &str, hi: &str| v >= I32F32::lit(lo) && v <= I32F32::lit(hi);
+        let in_range = |v: I32F32, lo: I32F32, hi: I32F32| v >= lo && v <= hi;
         if !(self.base >= Ratio::ZERO && self.base <= Ratio::ONE) {
             return Err(ConfigError::OutOfRange {
                 field: "friction.base",
@@ -97,13 +97,17 @@ impl FrictionLaw {
                 range: "-1..1",
             });
         }
-        if !in_range(self.rate, "0", "1000000") {
+        if !in_range(self.rate, I32F32::ZERO, const { I32F32::lit("1000000") }) {
             return Err(ConfigError::OutOfRange {
                 field: "friction.rate",
                 range: "0..1e6",
             });
         }
-        if !in_range(self.slope, "-1000", "1000") {
+        if !in_range(
+            self.slope,
+            const { I32F32::lit("-1000") },
+            const { I32F32::lit("1000") },
+        ) {
             return Err(ConfigError::OutOfRange {
                 field: "friction.slope",
                 range: "-1000..1000",

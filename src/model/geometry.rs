@@ -116,29 +116,29 @@ impl Geometry {
     pub fn new(cfg: GeometryConfig, drive: DriveConfig) -> Result<Geometry, ConfigError> {
         check(
             cfg.length,
-            Metres::lit("0.05"),
-            Metres::lit("2"),
+            const { Metres::lit("0.05") },
+            const { Metres::lit("2") },
             "geometry.length",
             "0.05..2 m",
         )?;
         check(
             cfg.alpha0_deg,
-            I16F16::lit("12"),
-            I16F16::lit("60"),
+            const { I16F16::lit("12") },
+            const { I16F16::lit("60") },
             "geometry.alpha0",
             "12..60 deg",
         )?;
         check(
             cfg.alpha_max_deg,
-            cfg.alpha0_deg.saturating_add(I16F16::lit("5")),
-            I16F16::lit("89"),
+            cfg.alpha0_deg.saturating_add(const { I16F16::lit("5") }),
+            const { I16F16::lit("89") },
             "geometry.alpha_max",
             "alpha0+5..89 deg",
         )?;
         check(
             cfg.h0,
             Metres::ZERO,
-            Metres::lit("1"),
+            const { Metres::lit("1") },
             "geometry.h0",
             "0..1 m",
         )?;
@@ -159,29 +159,30 @@ impl Geometry {
         check(
             drive.gear_ratio,
             I16F16::ONE,
-            I16F16::lit("1000"),
+            const { I16F16::lit("1000") },
             "drive.gear_ratio",
             "1..1000",
         )?;
         check(
             drive.pitch_radius,
-            Metres::lit("0.001"),
-            Metres::lit("0.05"),
+            const { Metres::lit("0.001") },
+            const { Metres::lit("0.05") },
             "drive.pitch_radius",
             "1..50 mm",
         )?;
         check(
             drive.lead_angle_deg,
-            I16F16::lit("0.5"),
-            I16F16::lit("20"),
+            const { I16F16::lit("0.5") },
+            const { I16F16::lit("20") },
             "drive.lead_angle",
             "0.5..20 deg",
         )?;
 
         let alpha0 = Angle::from_degrees(cfg.alpha0_deg);
         let (cos_a0, _) = alpha0.cos_sin();
-        let (cos_hi, _) = Angle::from_degrees(cfg.alpha0_deg - I16F16::lit("5")).cos_sin();
-        let (cos_lo, _) = Angle::from_degrees(I16F16::lit("89.5")).cos_sin();
+        let (cos_hi, _) =
+            Angle::from_degrees(cfg.alpha0_deg - const { I16F16::lit("5") }).cos_sin();
+        let (cos_lo, _) = Angle::from_degrees(const { I16F16::lit("89.5") }).cos_sin();
         let inv_len_q24 = ((1i64 << 48) / i64::from(cfg.length.bits())) as i32;
 
         // Nut travel per count = r_m·tanλ·2π / (counts_per_rev·gear_ratio).

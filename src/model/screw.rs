@@ -92,26 +92,26 @@ impl ScrewModel {
             return oor("mech.damping", "0..1e6 uNms/rad");
         }
         if !(mech.support_torque >= NewtonMetres::ZERO
-            && mech.support_torque <= NewtonMetres::lit("10"))
+            && mech.support_torque <= const { NewtonMetres::lit("10") })
         {
             return oor("mech.support_torque", "0..10 Nm");
         }
-        if !(mech.nut_mass >= Kilograms::ZERO && mech.nut_mass <= Kilograms::lit("5")) {
+        if !(mech.nut_mass >= Kilograms::ZERO && mech.nut_mass <= const { Kilograms::lit("5") }) {
             return oor("mech.nut_mass", "0..5 kg");
         }
-        if !(mech.coupling_stiffness >= NewtonMetres::lit("1")
-            && mech.coupling_stiffness <= NewtonMetres::lit("10000"))
+        if !(mech.coupling_stiffness >= const { NewtonMetres::lit("1") }
+            && mech.coupling_stiffness <= const { NewtonMetres::lit("10000") })
         {
             return oor("mech.coupling_stiffness", "1..10000 Nm/rad");
         }
-        if !(drive.pitch_radius >= Metres::lit("0.001")
-            && drive.pitch_radius <= Metres::lit("0.05"))
+        if !(drive.pitch_radius >= const { Metres::lit("0.001") }
+            && drive.pitch_radius <= const { Metres::lit("0.05") })
         {
             return oor("drive.pitch_radius", "1..50 mm");
         }
         let lambda = Angle::from_degrees(drive.lead_angle_deg);
-        if !(lambda >= Angle::from_degrees(fixed::types::I16F16::lit("0.5"))
-            && lambda <= Angle::from_degrees(fixed::types::I16F16::lit("20")))
+        if !(lambda >= Angle::from_degrees(const { fixed::types::I16F16::lit("0.5") })
+            && lambda <= Angle::from_degrees(const { fixed::types::I16F16::lit("20") }))
         {
             return oor("drive.lead_angle", "0.5..20 deg");
         }

@@ -21,8 +21,7 @@ fn goto(lub: Lubricant, load: f64, start_deg: f64, dh: f64, seed: u64) -> (f64, 
     let cot = 1.0 / start_deg.to_radians().tan();
     s.duration = dh.abs() * 1e3 / (3.0 * 0.3 * cot.min(3.0)) + 1.2;
     let target = height_at(start_deg) + dh;
-    s.control.limits.lower = Metres::from_f64(0.134);
-    s.control.limits.upper = Metres::from_f64(0.414);
+    s.wide_stops();
     let r = run(
         &s,
         command_at(0.02, Command::GoTo(Metres::from_f64(target))),
@@ -217,10 +216,11 @@ fn up_stops_at_the_upper_limit_stop() {
     // Upper stop 10 mm above the start: `up` ends there, not at the mechanism's end.
     let mut s = Scenario::new(Lubricant::Ptfe, 1000.0, 15.0, 4.0);
     let h0 = height_at(15.0);
-    s.control.limits.lower = Metres::from_f64(h0 + 0.0001);
-    s.control.limits.upper = Metres::from_f64(h0 + 0.0101);
+    s.control.limits.switch_lower = Metres::from_f64(h0 + 0.00005);
+    s.control.limits.lower = Metres::from_f64(h0 + 0.0006);
+    s.control.limits.upper = Metres::from_f64(h0 + 0.0107);
     let r = run(&s, command_at(0.02, Command::Up));
-    let err = (r.final_height() - (h0 + 0.0101)) * 1e3;
+    let err = (r.final_height() - (h0 + 0.0107)) * 1e3;
     assert!(err.abs() < 0.5, "{err} mm");
     assert_eq!(r.controller.state(), State::Holding);
 }

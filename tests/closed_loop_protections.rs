@@ -38,8 +38,7 @@ fn inject_into(
     at: f64,
     mut f: impl FnMut(&mut Tick<'_>) + Send + 'static,
 ) -> Run {
-    s.control.limits.lower = liftfw::units::Metres::from_f64(0.134);
-    s.control.limits.upper = liftfw::units::Metres::from_f64(0.414);
+    s.wide_stops();
     let mut sent = false;
     run(
         &s,
@@ -200,7 +199,7 @@ fn rated_load_does_not_trip_overload() {
 fn uncommanded_motion_while_holding_trips_runaway() {
     // The lift stops at 0.6 s; then the encoder reports the screw creeping down.
     let mut s = Scenario::new(Lubricant::Ptfe, 500.0, 45.0, 1.5);
-    s.control.limits.lower = liftfw::units::Metres::from_f64(0.134);
+    s.wide_stops();
     let mut drift = 0u16;
     let mut step = 0;
     let r = run(

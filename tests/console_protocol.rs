@@ -210,7 +210,7 @@ fn accepted_set_shows_the_new_value_and_get_reads_it() {
     );
     assert_eq!(
         reply(|s| console::write_limits(s, &new)),
-        "limits.lower = 145.0 mm, limits.upper = 400.0 mm; mechanism 133.5..416.4 mm"
+        "limits.lower = 145.0 mm, limits.upper = 400.0 mm, limits.switch_lower = 140.3 mm; mechanism 133.5..416.4 mm"
     );
 }
 

@@ -288,11 +288,13 @@ pub const LAW_PRESETS: [FrictionLaw; 4] = [
 
 /// Every setting. The flash record's layout follows this order (the `stored` ones): changing
 /// it changes the record's schema fingerprint (see [`crate::config::record`]).
-pub static SETTINGS: [Setting; 49] = [
+pub static SETTINGS: [Setting; 50] = [
     setting!("limits.lower", LEN, "the mechanism's height range (see `limits`)",
         "lowest head height the lift drives to", q32 limits.lower),
     setting!("limits.upper", LEN, "the mechanism's height range (see `limits`)",
         "highest head height the lift drives to", q32 limits.upper),
+    setting!("limits.switch_lower", LEN, "the mechanism's height range, at least 0.5 mm below limits.lower",
+        "head height where the lower limit switch closes (the homing reference)", q32 limits.switch_lower),
     setting!("load.rated", num(12, &KILOGRAMS), "10..5000 kg",
         "rated load of the lift", q32 rated_load),
     setting!("motion.cruise_speed", num(16, &RAD_PER_S), "0.2..20 rad/s",
@@ -541,7 +543,12 @@ mod tests {
                     ramp_shape: _,
                     buttons: _,
                 },
-            limits: LimitStops { lower: _, upper: _ },
+            limits:
+                LimitStops {
+                    lower: _,
+                    upper: _,
+                    switch_lower: _,
+                },
             protection:
                 ProtectionConfig {
                     overcurrent: _,
@@ -564,8 +571,8 @@ mod tests {
                     supply_uv_per_code: _,
                 },
         } = ControlConfig::DEFAULT;
-        // 48 fields above, one key each, plus the `friction.law` preset selector.
-        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 48);
+        // 49 fields above, one key each, plus the `friction.law` preset selector.
+        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 49);
     }
 
     #[test]

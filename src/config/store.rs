@@ -25,6 +25,87 @@ use sequential_storage::map::{MapConfig, MapStorage, SerializationError, Value};
 /// The map key of the configuration record (other keys are free for later records).
 pub const CONFIG_KEY: u8 = 1;
 
+/// The map key of the position record (where the lift was parked, or that it was moving).
+pub const POSITION_KEY: u8 = 2;
+
+/// Position record: magic, sequence, kind, counts, geometry stamp, CRC-32.
+const POSITION_LEN: usize = 4 + 4 + 1 + 4 + 4 + 4;
+const POSITION_MAGIC: [u8; 4] = *b"LFPS";
+
+/// What the lift's position was when the power went.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Parked {
+    /// At rest at this encoder position (counts).
+    At(i32),
+    /// A motion had started and had not been recorded as finished: the position is unknown.
+    Moving,
+}
+
+/// A position record as stored: the parked state, its sequence number, and the stamp of the
+/// geometry it was counted in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct PositionRecord {
+    parked: Parked,
+    seq: u32,
+    stamp: u32,
+}
+
+impl PositionRecord {
+    fn encode(&self) -> [u8; POSITION_LEN] {
+        let mut b = [0u8; POSITION_LEN];
+        b[..4].copy_from_slice(&POSITION_MAGIC);
+        b[4..8].copy_from_slice(&self.seq.to_le_bytes());
+        let (kind, counts) = match self.parked {
+            Parked::At(c) => (0u8, c),
+            Parked::Moving => (1u8, 0),
+        };
+        b[8] = kind;
+        b[9..13].copy_from_slice(&counts.to_le_bytes());
+        b[13..17].copy_from_slice(&self.stamp.to_le_bytes());
+        let crc = record::crc32(&b[..17]);
+        b[17..21].copy_from_slice(&crc.to_le_bytes());
+        b
+    }
+
+    fn decode(b: &[u8]) -> Option<PositionRecord> {
+        let word = |i: usize| -> Option<[u8; 4]> { b.get(i..i + 4)?.try_into().ok() };
+        if b.len() != POSITION_LEN || word(0)? != POSITION_MAGIC {
+            return None;
+        }
+        if u32::from_le_bytes(word(17)?) != record::crc32(b.get(..17)?) {
+            return None;
+        }
+        let parked = match b.get(8)? {
+            0 => Parked::At(i32::from_le_bytes(word(9)?)),
+            1 => Parked::Moving,
+            _ => return None,
+        };
+        Some(PositionRecord {
+            parked,
+            seq: u32::from_le_bytes(word(4)?),
+            stamp: u32::from_le_bytes(word(13)?),
+        })
+    }
+}
+
+/// The stamp of everything that gives encoder counts their meaning (geometry and drive
+/// settings): a stored position counted under another stamp is not used.
+pub fn geometry_stamp(cfg: &ControlConfig) -> u32 {
+    let mut bytes = [0u8; 8 * 12];
+    let mut n = 0;
+    for id in crate::config::settings::all() {
+        let key = id.key();
+        if key.starts_with("geometry.") || key.starts_with("drive.") {
+            if let Some(dst) = bytes.get_mut(n..n + 8) {
+                dst.copy_from_slice(&id.setting().get(cfg).to_le_bytes());
+                n += 8;
+            }
+        }
+    }
+    record::crc32(bytes.get(..n).unwrap_or(&[]))
+}
+
 /// Work buffer: key + record, rounded up to the 8-byte program unit of the G4.
 const BUF_LEN: usize = (1 + MAX_RECORD_LEN).div_ceil(8) * 8;
 
@@ -255,6 +336,8 @@ pub struct ConfigStore<F: NorFlash> {
     seq: u32,
     /// The copy to write first on the next save: one that does not hold the newest record.
     first: usize,
+    /// Sequence number of the newest position record (0: none).
+    pos_seq: u32,
 }
 
 /// An uncached map over one copy's range: rebuilt per operation at no cost.
@@ -285,6 +368,7 @@ impl<F: NorFlash> ConfigStore<F> {
             buf: Buf([0; BUF_LEN]),
             seq: 0,
             first: 0,
+            pos_seq: 0,
         })
     }
 
@@ -405,6 +489,54 @@ impl<F: NorFlash> ConfigStore<F> {
             .erase_all()
             .await
             .map_err(store_error)
+    }
+
+    /// Where the lift was parked when the power went, if that is known: the newest intact
+    /// position record of either copy, if it says "at rest" and was counted with `stamp`
+    /// ([`geometry_stamp`] of the configuration in force). `None` (homing needed) when no
+    /// record exists, the newest says a motion was under way, the geometry changed since, or
+    /// the flash cannot be read.
+    pub async fn load_position(&mut self, stamp: u32) -> Option<i32> {
+        let mut best: Option<PositionRecord> = None;
+        for copy in 0..2 {
+            let range = self.copies[copy].clone();
+            let Ok(mut m) = map(&mut self.flash, &range) else {
+                continue;
+            };
+            if let Ok(Some(bytes)) = m.fetch_item::<&[u8]>(&mut self.buf.0, &POSITION_KEY).await {
+                if let Some(r) = PositionRecord::decode(bytes) {
+                    if best.is_none_or(|b| newer(r.seq, b.seq)) {
+                        best = Some(r);
+                    }
+                }
+            }
+        }
+        let best = best?;
+        self.pos_seq = best.seq;
+        match best.parked {
+            Parked::At(counts) if best.stamp == stamp => Some(counts),
+            _ => None,
+        }
+    }
+
+    /// Record the lift's position state in both copies, one after the other (a cut leaves the
+    /// previous or the new record). Write [`Parked::Moving`] as a motion starts and
+    /// [`Parked::At`] once the lift has settled.
+    pub async fn save_position(&mut self, parked: Parked, stamp: u32) -> Result<(), StoreError> {
+        let rec = PositionRecord {
+            parked,
+            seq: self.pos_seq.wrapping_add(1),
+            stamp,
+        };
+        for copy in 0..2 {
+            let range = self.copies[copy].clone();
+            map(&mut self.flash, &range)?
+                .store_item(&mut self.buf.0, &POSITION_KEY, &rec.encode().as_slice())
+                .await
+                .map_err(store_error)?;
+        }
+        self.pos_seq = rec.seq;
+        Ok(())
     }
 
     /// Erase both copies (factory reset: the next load reports [`Source::Missing`]).

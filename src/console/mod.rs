@@ -367,6 +367,8 @@ pub fn write_limits(out: &mut dyn Write, cfg: &ValidatedConfig) -> fmt::Result {
     write_mm(out, l.lower)?;
     out.write_str(" mm, limits.upper = ")?;
     write_mm(out, l.upper)?;
+    out.write_str(" mm, limits.switch_lower = ")?;
+    write_mm(out, l.switch_lower)?;
     out.write_str(" mm; ")?;
     write_mechanism(out, cfg)
 }

@@ -67,6 +67,11 @@ pub struct LimitStops {
     pub lower: Metres,
     /// Highest head height the lift drives to.
     pub upper: Metres,
+    /// Head height at which the lower limit switch closes, measured when the lift is
+    /// installed: the reference the lift homes on when its position was lost (power cut while
+    /// moving, or no stored position). It must lie below `lower`: the switch is the backstop
+    /// under the soft stop.
+    pub switch_lower: Metres,
 }
 
 impl LimitStops {
@@ -75,7 +80,12 @@ impl LimitStops {
     pub const DEFAULT: LimitStops = LimitStops {
         lower: Metres::lit("0.145"),
         upper: Metres::lit("0.410"),
+        switch_lower: Metres::lit("0.1403"),
     };
+
+    /// Smallest gap between the lower limit switch and the lower stop: the halt planner's
+    /// tolerance (±0.5 mm; worst measured 0.09 mm in host-sim) must not reach the switch.
+    pub const SWITCH_GAP: Metres = Metres::lit("0.0005");
 
     /// Smallest gap between the two stops.
     pub const MIN_GAP: Metres = Metres::lit("0.010");
@@ -98,6 +108,18 @@ impl LimitStops {
             return Err(ConfigError::Conflict {
                 field: "limits.lower",
                 reason: "must be at least 10 mm below limits.upper",
+            });
+        }
+        if geometry.counts_for_height(self.switch_lower).is_none() {
+            return Err(ConfigError::OutOfRange {
+                field: "limits.switch_lower",
+                range: "the mechanism's height range (see `limits`)",
+            });
+        }
+        if self.switch_lower.sat_add(Self::SWITCH_GAP) > self.lower {
+            return Err(ConfigError::Conflict {
+                field: "limits.switch_lower",
+                reason: "must be at least 0.5 mm below limits.lower (the switch is the backstop under the soft stop)",
             });
         }
         Ok(())

@@ -163,6 +163,9 @@ pub enum Refusal {
     Moving,
     /// No fault to clear.
     NoFault,
+    /// The position is unknown (power was lost while moving, or none was stored): only a
+    /// homing run down to the lower limit switch is allowed.
+    NotHomed,
 }
 
 impl Refusal {
@@ -175,6 +178,9 @@ impl Refusal {
             Refusal::OutsideLimits => "refused: target outside the limit stops",
             Refusal::Moving => "refused: moving the other way, stop first",
             Refusal::NoFault => "no fault latched",
+            Refusal::NotHomed => {
+                "refused: position unknown; hold DOWN (or `down`) to home on the lower limit switch"
+            }
         }
     }
 }
@@ -228,6 +234,11 @@ pub enum Event {
     Fault(Fault),
     /// A limit switch stopped the lift before the soft limit (switch inside the soft range).
     SwitchStop,
+    /// A homing run reached the lower limit switch: the position is known again.
+    Homed {
+        /// The encoder position the switch height maps to, counts.
+        position: i32,
+    },
 }
 
 /// A snapshot for the console's `status` line and telemetry.
@@ -252,6 +263,8 @@ pub struct Status {
     pub fault: Option<FaultKind>,
     /// Encoder position, counts.
     pub position: i32,
+    /// The position is known (false: homing on the lower limit switch is required).
+    pub homed: bool,
 }
 
 /// Ticks after the reference arrives during which the loop may settle before the bridge coasts.
@@ -283,6 +296,10 @@ pub struct Controller {
     /// Limit stops in encoder counts.
     lower_counts: i32,
     upper_counts: i32,
+    /// Where the lower limit switch closes, counts (the homing reference).
+    switch_counts: i32,
+    /// The position is known; false until a homing run reaches the lower switch.
+    homed: bool,
     /// counts → screw rad (Q16).
     rad_per_count: Scale,
     /// Q16 counts/tick → screw rad/s (Q16).
@@ -348,6 +365,13 @@ impl Controller {
                     field: "limits.upper",
                     range: "the mechanism's height range",
                 })?;
+        let switch_counts =
+            geometry
+                .counts_for_height(cfg.limits.switch_lower)
+                .ok_or(ConfigError::OutOfRange {
+                    field: "limits.switch_lower",
+                    range: "the mechanism's height range",
+                })?;
         let tick_us = cfg.estimator.tick_us;
         let tick_hz = i128::from(1_000_000 / tick_us);
         let rad_per_count = geometry.screw_rad_per_count(); // counts → Q16 rad
@@ -397,6 +421,8 @@ impl Controller {
             monitors: Monitors::default(),
             lower_counts,
             upper_counts,
+            switch_counts,
+            homed: true,
             rad_per_count,
             speed_scale,
             twist_scale,
@@ -433,6 +459,34 @@ impl Controller {
             ),
             pending_event: None,
         })
+    }
+
+    /// Validate `cfg` and start at rest with the position unknown (power was lost while the
+    /// lift moved, or no position was stored): every motion is refused with
+    /// [`Refusal::NotHomed`] except lowering, which runs until the lower limit switch closes
+    /// and then sets the position to [`LimitStops::switch_lower`](config::LimitStops). The soft
+    /// lower stop is not enforced on that run (the switch is the stop); stall, over-current and
+    /// the other protections are.
+    pub fn new_unhomed(cfg: &ControlConfig) -> Result<Controller, ConfigError> {
+        let mut c = Controller::new(cfg, 0)?;
+        // Until homed, assume the lowest position: the model's load (and feed-forward) is then
+        // the largest the lift can see.
+        c.set_position(c.switch_counts);
+        c.homed = false;
+        Ok(c)
+    }
+
+    /// The position is known (a homing run is not needed).
+    pub fn homed(&self) -> bool {
+        self.homed
+    }
+
+    fn set_position(&mut self, position: i32) {
+        self.enc.rebase(position);
+        self.est.reset(position);
+        self.hold_position = position;
+        self.profile.reset(position);
+        self.last_ref_counts = position;
     }
 
     /// The configuration in force.
@@ -492,6 +546,7 @@ impl Controller {
             stick_slip: false,
             fault: self.fault.map(|f| f.kind),
             position: self.enc.position(),
+            homed: self.homed,
         }
     }
 
@@ -521,6 +576,18 @@ impl Controller {
                     self.profile.stop();
                 }
                 Ok(())
+            }
+            // Homing from a closed lower switch: creep up until it opens (at most to where the
+            // lower stop would be).
+            Command::Up if !self.homed && self.switches.is_active(Switches::LIMIT_LOWER) => {
+                let span = self.lower_counts.saturating_sub(self.switch_counts);
+                self.start(self.enc.position().saturating_add(span), true)
+            }
+            Command::Up | Command::GoTo(_) if !self.homed => Err(Refusal::NotHomed),
+            // Homing: aim one full stroke below the stop; the lower switch ends the run.
+            Command::Down if !self.homed => {
+                let stroke = self.upper_counts.saturating_sub(self.switch_counts);
+                self.start(self.enc.position().saturating_sub(stroke), false)
             }
             Command::Up => self.start(self.upper_counts, false),
             Command::Down => self.start(self.lower_counts, false),
@@ -723,7 +790,18 @@ impl Controller {
             } else {
                 (Switches::LIMIT_LOWER, self.lower_counts)
             };
-            if self.switches.is_active(switch) {
+            let lower_closed = self.switches.is_active(Switches::LIMIT_LOWER);
+            if !self.homed && (dir < 0) == lower_closed {
+                // Homing run: the lower switch closed (lowering) or opened (creeping up from
+                // it) at its configured height. That height is the screw's, so the encoder is
+                // set ahead of it by the coupling twist of the moment.
+                self.homed = true;
+                let twist = self.twist_scale.apply32(self.torque_lp.bits());
+                let at = self.switch_counts;
+                self.set_position(at.saturating_add(twist));
+                self.enter_rest(State::Holding);
+                self.pending_event = Some(Event::Homed { position: at });
+            } else if self.switches.is_active(switch) {
                 // The soft limit should have caught it if the lift is already at or past it.
                 let past =
                     (self.screw_position() - stop) * i32::from(dir) >= -self.limits.runaway_counts;

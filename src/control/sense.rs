@@ -76,6 +76,12 @@ impl EncoderTracker {
     pub fn position(&self) -> i32 {
         self.position
     }
+
+    /// Declare the current position to be `position` counts (homing); the next sample's
+    /// delta is measured from the last counter value as before.
+    pub fn rebase(&mut self, position: i32) {
+        self.position = position;
+    }
 }
 
 /// Switch debouncing: a level counts once it has been stable for `ticks` consecutive ticks.

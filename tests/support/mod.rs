@@ -40,6 +40,8 @@ pub struct Scenario {
     pub dt: f64,
     /// Battery open-circuit voltage, V.
     pub battery: f64,
+    /// Boot with the position unknown ([`Controller::new_unhomed`]) instead of at the start.
+    pub unhomed: bool,
 }
 
 impl Scenario {
@@ -56,7 +58,16 @@ impl Scenario {
             control,
             dt: 4e-6,
             battery: 12.6,
+            unhomed: false,
         }
+    }
+
+    /// Stops at the mechanism's ends (133.5 … 416.4 mm): lower stop 134.1 mm, upper 414 mm,
+    /// the lower switch's reference just above α₀ (133.55 mm), 0.55 mm under the lower stop.
+    pub fn wide_stops(&mut self) {
+        self.control.limits.switch_lower = Metres::from_f64(0.13355);
+        self.control.limits.lower = Metres::from_f64(0.1341);
+        self.control.limits.upper = Metres::from_f64(0.414);
     }
 }
 
@@ -146,7 +157,12 @@ pub fn run(s: &Scenario, mut hook: Hook) -> Run {
     cfg.drive.battery_voltage = s.battery;
     let probe = Controller::new(&s.control, 0).expect("valid control config");
     let start = start_counts(&probe, s.start_deg);
-    let controller = Controller::new(&s.control, start).expect("valid control config");
+    let controller = if s.unhomed {
+        Controller::new_unhomed(&s.control)
+    } else {
+        Controller::new(&s.control, start)
+    }
+    .expect("valid control config");
     let shared = Arc::new(Mutex::new((
         controller,
         Vec::<(f64, Event)>::new(),

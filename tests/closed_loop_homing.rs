@@ -121,3 +121,20 @@ fn a_lift_parked_on_the_lower_switch_homes_by_creeping_up_until_it_opens() {
     let est = r.controller.status().height.to_f64();
     assert!((est - h).abs() < 0.3e-3, "core {est} vs true {h}");
 }
+
+#[test]
+fn a_geometry_change_at_rest_forgets_the_position_and_other_changes_keep_it() {
+    use liftfw::control::{config::ControlConfig, Controller};
+    let cfg = ControlConfig::DEFAULT;
+    let mut c = Controller::new(&cfg, 9_000).unwrap();
+    let mut faster = cfg;
+    faster.motion.ramp_ms = 120;
+    c.reconfigure(&faster).unwrap();
+    assert!(c.homed());
+    assert_eq!(c.position_counts(), 9_000);
+    let mut geared = faster;
+    geared.estimator.drive.gear_ratio = fixed::types::I16F16::from_num(50);
+    c.reconfigure(&geared).unwrap();
+    assert!(!c.homed());
+    assert_eq!(c.command(Command::Up), Err(Refusal::NotHomed));
+}

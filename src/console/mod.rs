@@ -6,10 +6,11 @@
 //! board). Nothing here allocates, and no input makes it panic (`tests/console_*.rs` and the
 //! `fuzz/` target check that). docs/console.md is the user's reference.
 //!
-//! The controller maps the motion requests (`up`, `down`, `stop`, `goto`, `fault clear`) onto
-//! its own commands; configuration requests are served with [`crate::config::settings::apply`]
-//! and the writers here.
+//! [`service`] puts it together: one complete line in, the request executed against the running
+//! controller and configuration, the reply out (and `save` handed back to the caller, whose
+//! flash store is async).
 
+pub mod service;
 pub mod value;
 
 use crate::config::settings::{self, Kind, SettingId};
@@ -53,6 +54,8 @@ pub enum Request {
     FaultClear,
     /// `help`, `help keys`, `help <key>`.
     Help(HelpTopic),
+    /// `version`: the protocol version, for host tools ([`service::write_version`]).
+    Version,
 }
 
 /// What `help` explains.
@@ -175,6 +178,8 @@ pub fn parse(line: &[u8]) -> Result<Option<Request>, ParseError<'_>> {
         } else {
             Err(ParseError::Trailing(sub))
         }
+    } else if is("version") {
+        no_more(rest, Request::Version)
     } else if is("help") || cmd == "?" {
         let (topic, rest) = word(rest);
         if topic.is_empty() {
@@ -393,6 +398,7 @@ pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
              \x20 set <key> <value>   change a setting (validated; e.g. set limits.upper 400mm)\r\n\
              \x20 save                store the settings in flash\r\n\
              \x20 fault | fault clear show or clear the fault\r\n\
+             \x20 version             protocol version (for host tools such as liftctl)\r\n\
              \x20 help keys | help <key>",
         ),
         HelpTopic::Keys => {

@@ -166,6 +166,10 @@ pub enum Refusal {
     /// The position is unknown (power was lost while moving, or none was stored): only a
     /// homing run down to the lower limit switch is allowed.
     NotHomed,
+    /// A configuration change while the lift moves (or its screw still turns).
+    InMotion,
+    /// A configuration the controller cannot run with (pass it through validation first).
+    BadConfig,
 }
 
 impl Refusal {
@@ -181,6 +185,10 @@ impl Refusal {
             Refusal::NotHomed => {
                 "refused: position unknown; hold DOWN (or `down`) to home on the lower limit switch"
             }
+            Refusal::InMotion => {
+                "refused: the lift is moving; `stop` and let it come to rest first"
+            }
+            Refusal::BadConfig => "refused: configuration not valid for the controller",
         }
     }
 }
@@ -548,6 +556,51 @@ impl Controller {
             position: self.enc.position(),
             homed: self.homed,
         }
+    }
+
+    /// Replace the configuration while the lift is at rest (Idle, Holding or Fault, screw
+    /// slower than `control.rest_speed`): the position, the state, a latched fault and the
+    /// latest measurements are kept, everything derived from the configuration is rebuilt, and
+    /// the next tick runs with it. Refused while moving ([`Refusal::InMotion`]), so a motion
+    /// never sees a half-applied change; refused whole if [`Controller::new`] refuses `cfg`.
+    pub fn reconfigure(&mut self, cfg: &ControlConfig) -> Result<(), Refusal> {
+        let turning = self.estimate.screw_speed.sat_abs() > self.cfg.estimator.rest_speed;
+        if matches!(self.state, State::Lifting | State::Lowering) || turning {
+            return Err(Refusal::InMotion);
+        }
+        let mut next = Controller::new(cfg, self.enc.position()).map_err(|_| Refusal::BadConfig)?;
+        if cfg.estimator == self.cfg.estimator {
+            // Same model and filter: keep the speed estimate running.
+            next.est = self.est.clone();
+        }
+        if next.tick_us == self.tick_us {
+            next.debounce = self.debounce;
+        }
+        next.enc = self.enc;
+        next.state = self.state;
+        next.fault = self.fault;
+        next.hold_position = self.hold_position;
+        next.rest_ticks = self.rest_ticks;
+        next.last_tick = self.last_tick;
+        next.current = self.current;
+        next.supply = self.supply;
+        next.switches = self.switches;
+        next.estimate = self.estimate;
+        next.buttons_armed = self.buttons_armed;
+        next.release_ticks = self.release_ticks;
+        next.prev_buttons = self.prev_buttons;
+        next.pending_event = self.pending_event;
+        // Counts mean another height under another geometry or drive: the position is then
+        // unknown until the lift is homed again.
+        let same_counts = cfg.estimator.geometry == self.cfg.estimator.geometry
+            && cfg.estimator.drive == self.cfg.estimator.drive;
+        next.homed = self.homed && same_counts;
+        if !next.homed {
+            let at = next.switch_counts;
+            next.set_position(at);
+        }
+        *self = next;
+        Ok(())
     }
 
     /// Report that the previous run ended in a watchdog reset: latches a fault so that the lift

@@ -1,0 +1,294 @@
+//! The console service: one complete line in, the request executed against the running lift
+//! and configuration, the reply out.
+//!
+//! [`handle`] parses a line with [`parse`], runs it against a [`Lift`] (the [`Controller`], or
+//! whatever the firmware wraps it in) and the running [`ValidatedConfig`], and writes the reply
+//! with the `write_*` functions of [`crate::console`] into any [`core::fmt::Write`]. It is
+//! `no_std`, allocates nothing and never panics.
+//!
+//! Rules it keeps:
+//! - `set` replaces the running configuration only when the whole changed copy validates
+//!   ([`settings::apply`]) *and* the lift accepted it ([`Lift::reconfigure`]: at rest only).
+//!   While the lift moves it is refused and nothing changes, so a motion never sees a
+//!   half-applied change.
+//! - `save` cannot finish here (the flash store is async): [`handle`] returns [`Action::Save`],
+//!   the caller runs [`crate::config::store::ConfigStore::save`] on the running configuration
+//!   and reports its result with [`write_saved`].
+//! - `version` names the protocol ([`PROTOCOL_VERSION`]) so a host tool can refuse a board that
+//!   speaks another one, and the settings schema so it knows whether its own registry matches.
+
+use super::{
+    parse, write_fixed, write_get, write_help, write_limits, write_mm, write_parse_error,
+    write_refused, write_status, Feed, ParseError, Request, StatusView,
+};
+use crate::config::store::StoreError;
+use crate::config::{record, settings, ValidatedConfig};
+use crate::control::config::ControlConfig;
+use crate::control::{Command, Controller, Fault, Refusal, Status};
+use core::fmt::{self, Write};
+
+/// The console protocol version `version` reports. Bump it when a reply a host tool parses
+/// changes its form (not for new commands or keys).
+pub const PROTOCOL_VERSION: u32 = 1;
+
+/// The start of the `version` reply; the version number follows it directly.
+pub const VERSION_PREFIX: &str = "liftfw console v";
+
+/// What the service needs from the lift. [`Controller`] implements it; firmware that keeps the
+/// controller in another task implements it on a handle that locks it for each call (each call
+/// is short and none formats text).
+pub trait Lift {
+    /// A motion request ([`Controller::command`]).
+    fn command(&mut self, cmd: Command) -> Result<(), Refusal>;
+    /// A snapshot for `status`.
+    fn status(&self) -> Status;
+    /// The latched fault, if any.
+    fn fault(&self) -> Option<Fault>;
+    /// Run with `cfg` from the next tick on; refused while moving
+    /// ([`Controller::reconfigure`]).
+    fn reconfigure(&mut self, cfg: &ControlConfig) -> Result<(), Refusal>;
+}
+
+impl Lift for Controller {
+    fn command(&mut self, cmd: Command) -> Result<(), Refusal> {
+        Controller::command(self, cmd)
+    }
+
+    fn status(&self) -> Status {
+        Controller::status(self)
+    }
+
+    fn fault(&self) -> Option<Fault> {
+        Controller::fault(self).copied()
+    }
+
+    fn reconfigure(&mut self, cfg: &ControlConfig) -> Result<(), Refusal> {
+        Controller::reconfigure(self, cfg)
+    }
+}
+
+/// What the caller must do after [`handle`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Action {
+    /// Nothing: the reply is complete.
+    None,
+    /// The running configuration changed (not saved); the reply is complete. Lets the caller
+    /// log it or share the new configuration with other tasks.
+    Reconfigured,
+    /// `save`: store the running configuration (`ConfigStore::save`) and reply with
+    /// [`write_saved`]. Nothing was written for this line yet.
+    Save,
+}
+
+/// The result of one line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Outcome {
+    /// What is left for the caller.
+    pub action: Action,
+    /// Whether the reply fit the sink (`Err`: it was cut short; the request was executed all
+    /// the same).
+    pub reply: fmt::Result,
+}
+
+impl Outcome {
+    fn done(reply: fmt::Result) -> Outcome {
+        Outcome {
+            action: Action::None,
+            reply,
+        }
+    }
+}
+
+/// The `status` view of a controller status.
+pub fn status_view(s: &Status) -> StatusView {
+    StatusView {
+        state: s.state.name(),
+        height: s.height,
+        screw_speed: s.screw_speed,
+        current: s.current,
+        friction_torque: s.friction_torque,
+        stick_slip: s.stick_slip,
+        fault: s.fault.map(|f| f.name()),
+    }
+}
+
+/// Handle what [`super::LineBuffer::feed`] returned: a line is [`handle`]d, an overlong line
+/// gets its error, a pending one nothing.
+pub fn handle_feed<L: Lift + ?Sized>(
+    feed: Feed<'_>,
+    lift: &mut L,
+    running: &mut ValidatedConfig,
+    out: &mut dyn Write,
+) -> Outcome {
+    match feed {
+        Feed::Pending => Outcome::done(Ok(())),
+        Feed::Overflow => Outcome::done(write_parse_error(out, &ParseError::TooLong)),
+        Feed::Line(line) => handle(line, lift, running, out),
+    }
+}
+
+/// Parse one complete line (without its end), execute it and write the reply (no line end:
+/// the caller adds CRLF). An empty line or a comment writes nothing.
+pub fn handle<L: Lift + ?Sized>(
+    line: &[u8],
+    lift: &mut L,
+    running: &mut ValidatedConfig,
+    out: &mut dyn Write,
+) -> Outcome {
+    let req = match parse(line) {
+        Ok(Some(r)) => r,
+        Ok(None) => return Outcome::done(Ok(())),
+        Err(e) => return Outcome::done(write_parse_error(out, &e)),
+    };
+    match req {
+        Request::Status => Outcome::done(write_status(out, &status_view(&lift.status()))),
+        Request::Get(id) => Outcome::done(write_get(out, running, id)),
+        Request::Set(id, raw) => set(id, raw, lift, running, out),
+        Request::Save => Outcome {
+            action: Action::Save,
+            reply: Ok(()),
+        },
+        Request::Limits => Outcome::done(write_limits(out, running)),
+        Request::Up => Outcome::done(motion(out, lift, Command::Up)),
+        Request::Down => Outcome::done(motion(out, lift, Command::Down)),
+        Request::Stop => Outcome::done(motion(out, lift, Command::Stop)),
+        Request::Goto(h) => Outcome::done(motion(out, lift, Command::GoTo(h))),
+        Request::Fault => Outcome::done(write_fault(out, lift.fault().as_ref())),
+        Request::FaultClear => Outcome::done(match lift.command(Command::ClearFault) {
+            Ok(()) => out.write_str("ok: fault cleared"),
+            Err(Refusal::NoFault) => out.write_str("ok: no fault latched"),
+            Err(r) => write!(out, "error: fault clear {r}"),
+        }),
+        Request::Help(topic) => Outcome::done(write_help(out, topic)),
+        Request::Version => Outcome::done(write_version(out)),
+    }
+}
+
+fn set<L: Lift + ?Sized>(
+    id: settings::SettingId,
+    raw: i64,
+    lift: &mut L,
+    running: &mut ValidatedConfig,
+    out: &mut dyn Write,
+) -> Outcome {
+    let next = match settings::apply(running, id, raw) {
+        Ok(next) => next,
+        Err(e) => return Outcome::done(write_refused(out, id, &e, running)),
+    };
+    if next == *running {
+        // Nothing changes: no need to disturb the controller (and fine while moving).
+        return Outcome::done(write_set_ok(out, &next, id));
+    }
+    match lift.reconfigure(next.get()) {
+        Ok(()) => {
+            *running = next;
+            Outcome {
+                action: Action::Reconfigured,
+                reply: write_set_ok(out, running, id),
+            }
+        }
+        Err(r) => Outcome::done(write!(out, "error: set {} {r}; nothing changed", id.key())),
+    }
+}
+
+fn write_set_ok(
+    out: &mut dyn Write,
+    cfg: &ValidatedConfig,
+    id: settings::SettingId,
+) -> fmt::Result {
+    out.write_str("ok: ")?;
+    write_get(out, cfg, id)?;
+    out.write_str(" (not saved; `save` stores it)")
+}
+
+fn motion<L: Lift + ?Sized>(out: &mut dyn Write, lift: &mut L, cmd: Command) -> fmt::Result {
+    let word = match cmd {
+        Command::Up => "up",
+        Command::Down => "down",
+        Command::Stop => "stop",
+        Command::GoTo(_) => "goto",
+        Command::ClearFault => "fault clear",
+    };
+    match lift.command(cmd) {
+        Ok(()) => {
+            out.write_str("ok: ")?;
+            match cmd {
+                Command::Up => out.write_str("lifting to limits.upper"),
+                Command::Down => out.write_str("lowering to limits.lower"),
+                Command::GoTo(h) => {
+                    out.write_str("going to ")?;
+                    write_mm(out, h)?;
+                    out.write_str(" mm")
+                }
+                Command::Stop | Command::ClearFault => out.write_str(word),
+            }
+        }
+        Err(r) => write!(out, "error: {word} {r}"),
+    }
+}
+
+/// The reply to `version`: `liftfw console v1 firmware=0.1.0 schema=1a2b3c4d` (the schema is
+/// the flash record's fingerprint of the settings list, [`record::schema`]).
+pub fn write_version(out: &mut dyn Write) -> fmt::Result {
+    write!(
+        out,
+        "{VERSION_PREFIX}{PROTOCOL_VERSION} firmware={} schema={:08x}",
+        env!("CARGO_PKG_VERSION"),
+        record::schema()
+    )
+}
+
+/// The reply to `fault`, `key=value` like `status`: `fault=none`, or the fault and the state
+/// of the lift when it tripped: `fault=over-current t=12.345s state=lifting height=212.4mm
+/// speed=3.00rad/s current=61.20A supply=12.31V duty=85.0% torque=1.234Nm model_torque=1.100Nm`.
+pub fn write_fault(out: &mut dyn Write, fault: Option<&Fault>) -> fmt::Result {
+    let Some(f) = fault else {
+        return out.write_str("fault=none");
+    };
+    // The fault's name may contain spaces; `-` keeps the line `key=value`.
+    out.write_str("fault=")?;
+    for c in f.kind.name().chars() {
+        out.write_char(if c == ' ' { '-' } else { c })?;
+    }
+    let ms = f.at.0 / 1000;
+    write!(
+        out,
+        " t={}.{:03}s state={} height=",
+        ms / 1000,
+        ms % 1000,
+        f.state.name()
+    )?;
+    write_mm(out, f.height)?;
+    out.write_str("mm speed=")?;
+    write_fixed(out, f.screw_speed.to_bits(), 16, 2)?;
+    out.write_str("rad/s current=")?;
+    write_fixed(out, f.current.to_bits(), 16, 2)?;
+    out.write_str("A supply=")?;
+    write_fixed(out, f.supply.to_bits(), 16, 2)?;
+    // Duty Q15 → per mille, rounded (|duty| ≤ 32768, so no overflow in i32).
+    let permille = (i32::from(f.duty) * 1000 + if f.duty < 0 { -16384 } else { 16384 }) / 32768;
+    out.write_str("V duty=")?;
+    if permille < 0 {
+        out.write_char('-')?;
+    }
+    let p = permille.unsigned_abs();
+    write!(out, "{}.{}% torque=", p / 10, p % 10)?;
+    write_fixed(out, f.measured_torque.to_bits(), 16, 3)?;
+    out.write_str("Nm model_torque=")?;
+    write_fixed(out, f.model_torque.to_bits(), 16, 3)?;
+    out.write_str("Nm")
+}
+
+/// The reply to `save`, once the caller has run `ConfigStore::save`: `ok: saved as
+/// configuration #7`, or why it failed and what the flash holds.
+pub fn write_saved(out: &mut dyn Write, result: Result<u32, StoreError>) -> fmt::Result {
+    match result {
+        Ok(seq) => write!(out, "ok: saved as configuration #{seq}"),
+        Err(e) => write!(
+            out,
+            "error: save failed ({e}); flash holds the previous configuration or this one, \
+             never a mix; the running settings are unchanged"
+        ),
+    }
+}

@@ -29,7 +29,7 @@
 pub mod bridge;
 pub mod sensors;
 
-use embassy_stm32::peripherals::{PA2, PA3, USART2};
+use embassy_stm32::peripherals::{FLASH, PA2, PA3, USART2};
 use embassy_stm32::time::Hertz;
 use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{Peri, Peripherals};
@@ -88,14 +88,18 @@ pub struct Board {
     pub bridge: HBridge,
     /// Encoder, ADC channels and switch inputs.
     pub sensors: Sensors,
-    /// The independent watchdog, already running.
+    /// The independent watchdog, configured; the control task starts it.
     pub watchdog: Watchdog,
 }
 
+/// Flash range of the configuration store, as offsets from the start of flash: the last four
+/// 2 KiB pages of the G431's 128 KiB (memory.x gives the program the 120 KiB below it).
+pub const STORE_RANGE: core::ops::Range<u32> = 0x1E000..0x20000;
+
 impl Board {
     /// Claims the board's peripherals. The bridge comes up coasting (both enables low)
-    /// before anything else runs, and the watchdog is started last.
-    pub fn new(p: Peripherals) -> (Self, ConsolePins) {
+    /// before anything else runs. The flash goes to the configuration store.
+    pub fn new(p: Peripherals) -> (Self, ConsolePins, Peri<'static, FLASH>) {
         let bridge = HBridge::new(p.TIM1, p.PA8, p.PA9, p.PB12, p.PB13);
         let sensors = Sensors::new(sensors::SensorPeripherals {
             encoder_timer: p.TIM4,
@@ -112,7 +116,7 @@ impl Board {
             button_down: p.PB15,
             button_stop: p.PB5,
         });
-        let watchdog = Watchdog::start(p.IWDG);
+        let watchdog = Watchdog::new(p.IWDG);
         let console = ConsolePins {
             usart: p.USART2,
             tx: p.PA2,
@@ -125,6 +129,7 @@ impl Board {
                 watchdog,
             },
             console,
+            p.FLASH,
         )
     }
 }
@@ -135,15 +140,29 @@ pub struct Watchdog {
 }
 
 impl Watchdog {
-    fn start(iwdg: Peri<'static, embassy_stm32::peripherals::IWDG>) -> Self {
+    fn new(iwdg: Peri<'static, embassy_stm32::peripherals::IWDG>) -> Self {
         // Freeze the IWDG while a debugger halts the core, so a breakpoint does not reset
         // the chip. No effect without a debugger attached.
         embassy_stm32::pac::DBGMCU
             .apb1lfzr()
             .modify(|w| w.set_iwdg(true));
-        let mut iwdg = IndependentWatchdog::new(iwdg, WATCHDOG_TIMEOUT_US);
-        iwdg.unleash();
-        Self { iwdg }
+        Self {
+            iwdg: IndependentWatchdog::new(iwdg, WATCHDOG_TIMEOUT_US),
+        }
+    }
+
+    /// Start it (it cannot be stopped again): the control task does so right before its first
+    /// tick, after the configuration was loaded from flash.
+    pub fn start(&mut self) {
+        self.iwdg.unleash();
+    }
+
+    /// True when the last reset came from the IWDG; clears the reset flags.
+    pub fn caused_last_reset() -> bool {
+        let rcc = embassy_stm32::pac::RCC;
+        let by_iwdg = rcc.csr().read().iwdgrstf();
+        rcc.csr().modify(|w| w.set_rmvf(true));
+        by_iwdg
     }
 
     /// Reloads the counter. Once started the IWDG cannot be stopped: not feeding it for

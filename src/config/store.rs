@@ -150,7 +150,11 @@ impl core::fmt::Display for StoreError {
             StoreError::BadRange => {
                 f.write_str("store range is not an even number (at least 4) of whole pages")
             }
-            StoreError::Flash(k) => write!(f, "flash driver error ({k:?})"),
+            StoreError::Flash(k) => f.write_str(match k {
+                FlashErrorKind::NotAligned => "flash driver error (not aligned)",
+                FlashErrorKind::OutOfBounds => "flash driver error (out of bounds)",
+                FlashErrorKind::Other => "flash driver error",
+            }),
             StoreError::Full => f.write_str("store is full"),
             StoreError::Corrupted => f.write_str("store structure is corrupted"),
             StoreError::Verify => f.write_str("read-back after save differs"),

@@ -20,6 +20,7 @@
 //! millimetre short of it.
 
 pub mod config;
+pub mod park;
 pub mod profile;
 pub mod protect;
 pub mod sense;

@@ -15,7 +15,20 @@ fn height_at(deg: f64) -> f64 {
 
 /// Go to `start + dh` and return (final error, overshoot beyond the target), mm.
 fn goto(lub: Lubricant, load: f64, start_deg: f64, dh: f64, seed: u64) -> (f64, f64) {
+    goto_with(lub, load, start_deg, dh, seed, |_| {})
+}
+
+/// [`goto`] with the scenario adjusted by `adjust` (e.g. another ramp shape).
+fn goto_with(
+    lub: Lubricant,
+    load: f64,
+    start_deg: f64,
+    dh: f64,
+    seed: u64,
+    adjust: impl Fn(&mut Scenario),
+) -> (f64, f64) {
     let mut s = Scenario::new(lub, load, start_deg, 0.0);
+    adjust(&mut s);
     s.seed = seed;
     // Head speed ≈ 0.95 mm/s per rad/s of screw × cot α: allow the move plus 1 s.
     let cot = 1.0 / start_deg.to_radians().tan();
@@ -223,4 +236,21 @@ fn up_stops_at_the_upper_limit_stop() {
     let err = (r.final_height() - (h0 + 0.0107)) * 1e3;
     assert!(err.abs() < 0.5, "{err} mm");
     assert_eq!(r.controller.state(), State::Holding);
+}
+
+#[test]
+fn s_curve_ramp_halts_within_half_a_millimetre_for_every_lubricant_either_way() {
+    use liftfw::control::config::RampShape;
+    let scurve = |s: &mut Scenario| {
+        s.control.motion.ramp_shape = RampShape::SCurve;
+        s.control.motion.ramp_ms = 120;
+    };
+    for lub in [Lubricant::Dry, Lubricant::Ptfe, Lubricant::Lithium] {
+        for (load, start, dh) in [(1000.0, 15.0, 0.006), (1000.0, 45.0, -0.003)] {
+            let (err, over) = goto_with(lub, load, start, dh, 3, scurve);
+            println!("S-curve {lub:?} {load} kg from {start}° by {dh} m: error {err:+.3} mm, overshoot {over:.3} mm");
+            assert!(err.abs() <= 0.5, "{lub:?} {start}: error {err} mm");
+            assert!(over <= 0.5, "{lub:?} {start}: overshoot {over} mm");
+        }
+    }
 }

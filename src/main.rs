@@ -101,6 +101,13 @@ async fn main(spawner: Spawner) {
             (None, ValidatedConfig::factory(), source, None)
         }
     };
+    let ecc = board::STORE_ECC_ERRORS.load(core::sync::atomic::Ordering::Relaxed);
+    if ecc > 0 {
+        warn!(
+            "{} flash ECC error(s) read in the store (torn writes): treated as damaged data",
+            ecc
+        );
+    }
     if source.is_fallback() {
         warn!("configuration: {}", source);
     } else {

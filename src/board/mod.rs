@@ -134,6 +134,33 @@ impl Board {
     }
 }
 
+/// Double-bit ECC errors met while reading the configuration store (counted by the NMI
+/// handler; the firmware logs the count after loading).
+pub static STORE_ECC_ERRORS: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
+
+/// Flash double-bit ECC errors raise an NMI on the G4. A power cut during a flash program can
+/// leave a double word whose ECC does not match: inside the store that is an expected torn
+/// write, so the handler clears the flag and lets the read complete with the bad data, which
+/// the store's CRCs then reject (and `sequential-storage` repairs). Anywhere else it means the
+/// program itself is corrupt: reset.
+#[cortex_m_rt::exception]
+unsafe fn NonMaskableInt() {
+    let eccr = embassy_stm32::pac::FLASH.eccr().read();
+    if eccr.eccd() {
+        // ADDR_ECC: offset of the failing double word from the start of flash.
+        let offset = eccr.addr_ecc();
+        // Clear ECCD (write 1), leaving the other flags alone.
+        embassy_stm32::pac::FLASH
+            .eccr()
+            .modify(|w| w.set_eccd(true));
+        if STORE_RANGE.contains(&offset) {
+            STORE_ECC_ERRORS.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
+            return;
+        }
+    }
+    cortex_m::peripheral::SCB::sys_reset();
+}
+
 /// The IWDG, fed only on the core's say-so ([`liftfw::control::Outputs::feed_watchdog`]).
 pub struct Watchdog {
     iwdg: IndependentWatchdog<'static, embassy_stm32::peripherals::IWDG>,

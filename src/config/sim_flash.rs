@@ -182,7 +182,10 @@ impl<const SIZE: usize> NorFlash for SimFlash<SIZE> {
         if self.dead {
             return Err(SimFlashError::PowerCut);
         }
-        if from % ERASE_SIZE as u32 != 0 || to % ERASE_SIZE as u32 != 0 || from > to {
+        if !from.is_multiple_of(ERASE_SIZE as u32)
+            || !to.is_multiple_of(ERASE_SIZE as u32)
+            || from > to
+        {
             return Err(SimFlashError::NotAligned);
         }
         let r = self.range(from, (to - from) as usize)?;
@@ -205,7 +208,8 @@ impl<const SIZE: usize> NorFlash for SimFlash<SIZE> {
         if self.dead {
             return Err(SimFlashError::PowerCut);
         }
-        if offset as usize % WRITE_SIZE != 0 || bytes.len() % WRITE_SIZE != 0 {
+        if !(offset as usize).is_multiple_of(WRITE_SIZE) || !bytes.len().is_multiple_of(WRITE_SIZE)
+        {
             return Err(SimFlashError::NotAligned);
         }
         let r = self.range(offset, bytes.len())?;

@@ -549,6 +549,11 @@ impl Controller {
         &self.estimate
     }
 
+    /// The stick-slip detector's report of the last tick.
+    pub fn stick_slip_output(&self) -> &crate::detect::stickslip::StickSlipOutput {
+        self.stick_slip.output()
+    }
+
     /// Motor encoder position in counts.
     pub fn position_counts(&self) -> i32 {
         self.enc.position()

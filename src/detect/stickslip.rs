@@ -10,7 +10,9 @@
 //! **How.** The measured torque, projected on the direction of travel (positive resists the
 //! motion), is averaged over 4 ticks; a leaky peak follows its rises and sags by
 //! `threshold/16` per tick, so slow falls (the load changing with the arm angle) never count.
-//! A *slip* is a fall of the average below the peak by at least `drop_threshold`; its size
+//! A *slip* is a fall of the average below the peak by at least `drop_threshold`, or twice
+//! the torque's noise level if that is more (an EWMA of the clipped |second difference|:
+//! a steady wind-up ramp has none, the ADC noise and the speed loop's jitter do); its size
 //! (the largest fall within the next 8 ms) is the amplitude estimate, the coupling-torque
 //! drop per slip in N·m (divide by k for the twist). Slips closer together than
 //! `window_ms` form a chain; a chain of 2 slips (3 where the model says the operating point is
@@ -33,7 +35,7 @@
 
 use crate::check_range as range;
 use crate::model::friction::CompiledLaw;
-use crate::units::{NewtonMetres, RadiansPerSecond, Q};
+use crate::units::{sat32, NewtonMetres, RadiansPerSecond, Q};
 use crate::ConfigError;
 
 /// What the controller does when an episode starts.
@@ -83,7 +85,7 @@ impl StickSlipConfig {
     /// dry at 0.3 rad/s and rated load, cycles every 0.8 s); escape at 1.5 rad/s.
     pub const DEFAULT: StickSlipConfig = StickSlipConfig {
         reaction: Reaction::Warn,
-        drop_threshold: NewtonMetres::lit("0.5"),
+        drop_threshold: NewtonMetres::lit("1.5"),
         window_ms: 2000,
         escape_speed: RadiansPerSecond::lit("1.5"),
     };
@@ -115,12 +117,12 @@ impl StickSlipConfig {
 }
 
 /// Settling after the reference speed last changed before slips count, ms.
-pub const SETTLE_MS: u32 = 30;
+pub const SETTLE_MS: u32 = 50;
 /// A slip's fall is measured over this long after it crossed the threshold; no new slip
 /// starts meanwhile, ms.
 pub const EVENT_MS: u32 = 8;
 /// The flag holds at least this long after the last slip, ms.
-pub const MIN_HOLD_MS: u32 = 100;
+pub const MIN_HOLD_MS: u32 = 250;
 /// Length of the torque mean, ticks (a power of two).
 const MEAN_LEN: usize = 4;
 
@@ -178,8 +180,18 @@ pub struct StickSlipDetector {
     interval: u32,
     chain: u32,
     falling: bool,
+    /// Last two torques (for the second difference) and the noise level: EWMA (1/64) of
+    /// |second difference|, each sample clipped at 4× the level so slips barely move it, Q16.
+    last: [i32; 2],
+    noise: i32,
     out: StickSlipOutput,
 }
+
+/// Weight of the noise EWMA: 2^−NOISE_SHIFT per tick.
+const NOISE_SHIFT: u32 = 6;
+/// The slip threshold is at least this many times the noise level (|second difference| of white
+/// noise averages 1.95 σ; the 4-tick mean has σ/2, so 2× is ≈ 8 σ of the mean).
+const NOISE_GAIN: i32 = 3;
 
 impl StickSlipDetector {
     /// A detector for a validated configuration at a tick of `tick_us` µs (100…10 000).
@@ -206,6 +218,8 @@ impl StickSlipDetector {
             interval: 0,
             chain: 0,
             falling: false,
+            last: [0; 2],
+            noise: 0,
             out: StickSlipOutput::default(),
         }
     }
@@ -222,6 +236,7 @@ impl StickSlipDetector {
         self.sum = 0;
         self.filled = 0;
         self.prev_reference = 0;
+        self.last = [0; 2];
         self.steady = 0;
         self.in_event = 0;
         self.since_slip = u32::MAX;
@@ -249,6 +264,18 @@ impl StickSlipDetector {
         self.sum += i64::from(p) - i64::from(self.ring[self.head]);
         self.ring[self.head] = p;
         self.head = (self.head + 1) % MEAN_LEN;
+        // Noise level from the second difference (a steady ramp — the coupling winding up while
+        // stuck — has none); the first samples of a motion only fill the history.
+        if self.filled >= 2 {
+            let d2 = i64::from(p) - 2 * i64::from(self.last[0]) + i64::from(self.last[1]);
+            let cap = 4 * i64::from(self.noise).max(i64::from(self.threshold) / 4);
+            let d2 = d2.abs().min(cap);
+            self.noise = sat32(
+                i64::from(self.noise)
+                    + ((d2 - i64::from(self.noise) + (1 << (NOISE_SHIFT - 1))) >> NOISE_SHIFT),
+            );
+        }
+        self.last = [p, self.last[0]];
         self.filled = (self.filled + 1).min(MEAN_LEN);
         let mean = (self.sum / MEAN_LEN as i64) as i32; // |sum| ≤ 4·2^31: exact in i32 after /4
         self.since_slip = self.since_slip.saturating_add(1);
@@ -278,14 +305,14 @@ impl StickSlipDetector {
                     self.out.amplitude = NewtonMetres::from_raw(self.event_drop);
                     self.peak = mean;
                 }
-            } else if drop >= self.threshold {
+            } else if drop >= self.threshold.max(self.noise.saturating_mul(NOISE_GAIN)) {
                 self.slip();
             }
         }
         if self.out.active {
             let hold = self
                 .interval
-                .saturating_mul(3)
+                .saturating_mul(4)
                 .clamp(self.min_hold_ticks, self.window_ticks);
             if self.since_slip > hold {
                 self.out.active = false;
@@ -363,6 +390,8 @@ mod tests {
         active: bool,
         amplitude: f64,
         episodes: u32,
+        last: [f64; 2],
+        noise: f64,
     }
 
     impl Twin {
@@ -392,6 +421,8 @@ mod tests {
                 active: false,
                 amplitude: 0.0,
                 episodes: 0,
+                last: [0.0; 2],
+                noise: 0.0,
             }
         }
 
@@ -400,12 +431,19 @@ mod tests {
                 *self = Twin {
                     amplitude: self.amplitude,
                     episodes: self.episodes,
+                    noise: self.noise,
                     ..Twin::new(self.thr, self.window, self.falling)
                 };
                 return (false, false);
             }
             self.ring[self.head] = torque;
             self.head = (self.head + 1) % 4;
+            if self.filled >= 2 {
+                let d2 = (torque - 2.0 * self.last[0] + self.last[1]).abs();
+                let d2 = d2.min(4.0 * self.noise.max(self.thr / 4.0));
+                self.noise += (d2 - self.noise) / 64.0;
+            }
+            self.last = [torque, self.last[0]];
             self.filled = (self.filled + 1).min(4);
             let mean = self.ring.iter().sum::<f64>() / 4.0;
             self.since = self.since.saturating_add(1);
@@ -430,7 +468,7 @@ mod tests {
                         self.amplitude = self.event_drop;
                         self.peak = mean;
                     }
-                } else if drop >= self.thr {
+                } else if drop >= self.thr.max(3.0 * self.noise) {
                     slip = true;
                     self.in_event = 1;
                     self.event_drop = drop;
@@ -450,7 +488,7 @@ mod tests {
                 }
             }
             if self.active {
-                let hold = (self.interval * 3).clamp(self.min_hold, self.window);
+                let hold = (self.interval * 4).clamp(self.min_hold, self.window);
                 if self.since > hold {
                     self.active = false;
                     self.chain = 0;
@@ -623,11 +661,15 @@ mod tests {
                 let o = d.step(&x, &l);
                 let (slip, active) = twin.step(driving, 3.0, tq.to_f64());
                 // The Q16 mean truncates by < 1 LSB: skip cases that land that close to ties.
-                let near_tie = (twin.peak - twin.ring.iter().sum::<f64>() / 4.0 - twin.thr).abs() < 4.0 / 65536.0;
+                // The noise EWMA rounds (≤ ½ LSB per tick, ≤ 32 LSB in steady state, plus the
+                // clipping of its input): skip cases within that of the threshold.
+                let thr = twin.thr.max(3.0 * twin.noise);
+                let near_tie = (twin.peak - twin.ring.iter().sum::<f64>() / 4.0 - thr).abs() < 80.0 / 65536.0;
                 if near_tie { return Ok(()); }
                 prop_assert_eq!(o.slip, slip, "tick {}", ms);
                 prop_assert_eq!(o.active, active, "tick {}", ms);
                 prop_assert!((o.amplitude.to_f64() - twin.amplitude).abs() <= 4.0 / 65536.0);
+                prop_assert!((f64::from(d.noise) / 65536.0 - twin.noise).abs() <= 70.0 / 65536.0, "noise {} vs {}", f64::from(d.noise) / 65536.0, twin.noise);
                 prop_assert_eq!(o.episodes, twin.episodes);
             }
         }

@@ -272,9 +272,7 @@ fn status_line_is_readable() {
 
 #[test]
 fn stick_slip_warning_names_the_episode_and_the_drop() {
-    let s = reply(|s| {
-        console::write_stick_slip_warning(s, 2, NewtonMetres::lit("12.5"), true)
-    });
+    let s = reply(|s| console::write_stick_slip_warning(s, 2, NewtonMetres::lit("12.5"), true));
     assert_eq!(
         s,
         "warning: stick-slip (episode 2, torque drop 12.50 Nm per slip), cruise changed to \

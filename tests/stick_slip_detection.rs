@@ -34,7 +34,11 @@ fn truth_labels_dry_lifting_at_rated_load_as_stick_slip_and_ptfe_as_smooth() {
     let set = quick_set();
     let dry = score::run(&set[0], &sc);
     assert_eq!(dry.labels.episodes.len(), 1);
-    assert!(dry.labels.episodes[0].drop > 30.0, "{:?}", dry.labels.episodes);
+    assert!(
+        dry.labels.episodes[0].drop > 30.0,
+        "{:?}",
+        dry.labels.episodes
+    );
     let ptfe = score::run(&set[3], &sc);
     assert!(ptfe.labels.episodes.is_empty() && ptfe.labels.micro.is_empty());
 }

@@ -663,10 +663,8 @@ fn stickslip(a: &StickslipArgs) -> Result<(), Box<dyn std::error::Error>> {
     );
     if a.mitigation {
         let set = score::mitigation_set();
-        let jobs: Vec<(score::Scenario, bool)> = set
-            .iter()
-            .flat_map(|s| [(*s, false), (*s, true)])
-            .collect();
+        let jobs: Vec<(score::Scenario, bool)> =
+            set.iter().flat_map(|s| [(*s, false), (*s, true)]).collect();
         let runs: Vec<score::RunResult> = pool.install(|| {
             jobs.par_iter()
                 .map(|(s, speed)| {

@@ -272,7 +272,11 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
     }
     let shared = Arc::new(Mutex::new((controller, Log::default(), 0u8)));
     let inner = Arc::clone(&shared);
-    let cmd = if s.lifting { Command::Up } else { Command::Down };
+    let cmd = if s.lifting {
+        Command::Up
+    } else {
+        Command::Down
+    };
     let driver = Driver::Custom(Box::new(move |t: f64, inputs: &Inputs| {
         let mut g = inner.lock().unwrap_or_else(|p| p.into_inner());
         let (c, log, sent) = &mut *g;
@@ -291,9 +295,6 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
         let st = c.status();
         log.flagged_ticks += usize::from(st.stick_slip);
         log.slips += usize::from(c.stick_slip_output().slip);
-        if c.stick_slip_output().slip && std::env::var_os("SS_DEBUG").is_some() {
-            eprintln!("slip t={t:.4} amp={:.3} T={:.3}", c.stick_slip_output().amplitude.to_f64(), c.estimate().measured_screw_torque.to_f64());
-        }
         out.bridge
     }));
     let mut sim = match Sim::new(cfg, driver) {
@@ -582,9 +583,7 @@ impl Mitigation {
             })
             .filter(|c| c.breakaway >= t)
             .collect();
-        let span = cs
-            .last()
-            .map_or(0.0, |c| c.stuck - cs[0].breakaway.max(t));
+        let span = cs.last().map_or(0.0, |c| c.stuck - cs[0].breakaway.max(t));
         (span, cs.len())
     }
 }

@@ -153,7 +153,11 @@ pub fn label(phases: &[PhaseChange], k: f64, window: (f64, f64), p: &TruthParams
     let all: Vec<&Cycle> = cycles.iter().collect();
     let micro = chain(&all, p)
         .into_iter()
-        .filter(|m| !episodes.iter().any(|e| e.start <= m.end && m.start <= e.end))
+        .filter(|m| {
+            !episodes
+                .iter()
+                .any(|e| e.start <= m.end && m.start <= e.end)
+        })
         .collect();
     Labels {
         cycles,

@@ -467,7 +467,8 @@ pub static SETTINGS: [Setting; 54] = [
         key: "stickslip.reaction",
         kind: Kind::Choice(&["log", "warn", "speed"]),
         range: "log, warn or speed",
-        about: "on stick-slip: log it, also warn on the console, or also change to the escape speed",
+        about:
+            "on stick-slip: log it, also warn on the console, or also change to the escape speed",
         stored: true,
         get: |c| match c.stick_slip.reaction {
             Reaction::Log => 0,

@@ -251,7 +251,8 @@ pub enum Event {
     },
     /// A stick-slip episode started (`crate::detect::stickslip`).
     StickSlip {
-        /// Coupling-torque drop of the slip that confirmed it.
+        /// Coupling-torque drop of the last completed slip (a slip's fall is measured over
+        /// 8 ms, so the confirming slip's own is not complete yet).
         amplitude: NewtonMetres,
         /// Episode number since boot.
         episode: u32,

@@ -17,10 +17,10 @@
 //! drop per slip in N·m (divide by k for the twist). Slips closer together than
 //! `window_ms` form a chain; a chain of 2 slips (3 where the model says the operating point is
 //! on a rising branch of μ(θ̇)) raises the flag and counts an episode. The flag falls when
-//! no slip came for three of the last slip intervals (at least 100 ms, at most `window_ms`)
+//! no slip came for four of the last slip intervals (at least 250 ms, at most `window_ms`)
 //! or when the motion ends.
 //!
-//! **When.** Only while the bridge drives a motion at a steady reference speed, from 30 ms
+//! **When.** Only while the bridge drives a motion at a steady reference speed, from 50 ms
 //! after the reference stopped changing: a speed ramp moves the motor current by the rotor's
 //! inertia torque (≈ 9 N·m at the screw for the default 60 ms ramp to 3 rad/s), and the
 //! braking at the end of a move drops it to zero; neither is a slip.
@@ -80,9 +80,10 @@ pub struct StickSlipConfig {
 }
 
 impl StickSlipConfig {
-    /// Warn; 0.5 N·m (≈ 8 current-sense codes, 5× the torque noise of the 4-tick mean at
-    /// the modelled ADC noise); a 2 s chain window (the slowest stick-slip seen in host-sim,
-    /// dry at 0.3 rad/s and rated load, cycles every 0.8 s); escape at 1.5 rad/s.
+    /// Warn; 1.5 N·m (above the 1–2 N·m torque ripple the speed loop makes at
+    /// encoder-limited speeds, docs/stick-slip.md); a 2 s chain window (the slowest
+    /// stick-slip seen in host-sim, dry at 0.3 rad/s and rated load, cycles every 0.8 s);
+    /// escape at 1.5 rad/s.
     pub const DEFAULT: StickSlipConfig = StickSlipConfig {
         reaction: Reaction::Warn,
         drop_threshold: NewtonMetres::lit("1.5"),
@@ -351,7 +352,8 @@ impl StickSlipDetector {
 /// Two evaluations of the law, once per steady motion.
 pub fn falling_branch(law: &CompiledLaw, reference: RadiansPerSecond) -> bool {
     let v = reference.sat_abs();
-    let dv = RadiansPerSecond::from_raw((v.to_bits() / 4).max(RadiansPerSecond::lit("0.05").bits()));
+    let dv =
+        RadiansPerSecond::from_raw((v.to_bits() / 4).max(RadiansPerSecond::lit("0.05").bits()));
     law.mu(v.sat_add(dv)) < law.mu(v)
 }
 

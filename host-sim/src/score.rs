@@ -238,7 +238,10 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
     let mut control = ControlConfig::DEFAULT;
     control.estimator.law = core_law(s.core_law);
     control.motion.cruise_speed = RadiansPerSecond::from_f64(s.cruise);
-    control.limits.lower = Metres::from_f64(0.134);
+    // Stops near the mechanism's ends, as tests/support does (the lower switch's reference
+    // just above α₀, 0.55 mm under the lower stop).
+    control.limits.switch_lower = Metres::from_f64(0.13355);
+    control.limits.lower = Metres::from_f64(0.1341);
     control.limits.upper = Metres::from_f64(0.414);
     control.stick_slip.reaction = s.reaction;
     control.stick_slip.escape_speed = RadiansPerSecond::from_f64(sc.escape_speed);

@@ -12,6 +12,7 @@
 //! - [`math`]: integer kernels (e^(−y), √, 1/x) with proven error bounds.
 //! - [`model`]: the fixed-point screw-nut model of seed 000 (geometry, friction laws, contact).
 //! - [`estimator`]: the real-time friction-torque estimator built on the model.
+//! - [`detect`]: detectors on board-visible signals and the model's state (stick-slip).
 //! - [`control`]: the per-tick entry point shared by the board and host-sim.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
@@ -21,6 +22,7 @@
 pub mod config;
 pub mod console;
 pub mod control;
+pub mod detect;
 pub mod estimator;
 pub mod math;
 pub mod model;

@@ -201,6 +201,15 @@ async fn control(mut board: Board, mut park: ParkLog) {
         // State changes and faults (with their snapshot) go to the defmt log.
         match outputs.event {
             Some(liftfw::control::Event::Fault(f)) => error!("FAULT {}", f),
+            // Reactions `warn` and `speed` (stickslip.reaction): a warning, not an info line.
+            Some(
+                e @ liftfw::control::Event::StickSlip {
+                    reaction:
+                        liftfw::detect::stickslip::Reaction::Warn
+                        | liftfw::detect::stickslip::Reaction::ChangeSpeed,
+                    ..
+                },
+            ) => warn!("{}", e),
             Some(e) => info!("{}", e),
             None => {}
         }

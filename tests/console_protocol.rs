@@ -245,22 +245,39 @@ fn status_line_is_readable() {
         current: Amperes::lit("12.345"),
         friction_torque: NewtonMetres::lit("0.8512"),
         stick_slip: false,
+        stick_slip_amplitude: NewtonMetres::ZERO,
+        stick_slip_episodes: 0,
         fault: None,
     };
     assert_eq!(
         reply(|s| console::write_status(s, &v)),
         "state=lifting height=212.4mm speed=3.00rad/s current=12.35A T_r=0.851Nm \
-         stick_slip=no fault=none"
+         stick_slip=no ss_amp=0.00Nm ss_episodes=0 fault=none"
     );
     let v = StatusView {
         screw_speed: RadiansPerSecond::lit("-2.5"),
         stick_slip: true,
+        stick_slip_amplitude: NewtonMetres::lit("31.256"),
+        stick_slip_episodes: 3,
         fault: Some("overcurrent"),
         ..v
     };
     let s = reply(|s| console::write_status(s, &v));
     assert!(s.contains("speed=-2.50rad/s"), "{s}");
-    assert!(s.ends_with("stick_slip=yes fault=overcurrent"), "{s}");
+    assert!(
+        s.ends_with("stick_slip=yes ss_amp=31.26Nm ss_episodes=3 fault=overcurrent"),
+        "{s}"
+    );
+}
+
+#[test]
+fn stick_slip_warning_names_the_episode_and_the_drop() {
+    let s = reply(|s| console::write_stick_slip_warning(s, 2, NewtonMetres::lit("12.5"), true));
+    assert_eq!(
+        s,
+        "warning: stick-slip (episode 2, torque drop 12.50 Nm per slip), cruise changed to \
+         stickslip.escape_speed"
+    );
 }
 
 #[test]

@@ -8,13 +8,17 @@
 //!   with its ground-truth [`trace`] and summary.
 //! - [`paper`]: seed 000's 18-case matrix and its reproduction report; [`plots`]: its figures.
 //! - [`study`]: the step-size convergence study.
+//! - [`truth`]: stick-slip episodes labelled from the plant's phase log; [`score`]: the core's
+//!   stick-slip detector scored against them (`host-sim stickslip`).
 #![warn(missing_docs)]
 
 pub mod paper;
 pub mod physics;
 pub mod plant;
 pub mod plots;
+pub mod score;
 pub mod sim;
 pub mod solver;
 pub mod study;
 pub mod trace;
+pub mod truth;

@@ -334,6 +334,7 @@ pub fn csv_trace(trace: &Trace, every: usize, zoom: (f64, f64)) -> Trace {
             .filter(|(i, r)| i % every.max(1) == 0 || (r.t >= zoom.0 && r.t <= zoom.1))
             .map(|(_, r)| *r)
             .collect(),
+        phases: trace.phases.clone(),
     }
 }
 

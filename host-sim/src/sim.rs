@@ -22,7 +22,7 @@ use crate::plant::{
     SpeedProfile,
 };
 use crate::solver::{bracket_root, rk23_step, OdeState};
-use crate::trace::{Energy, Record, Trace};
+use crate::trace::{Energy, PhaseChange, Record, Trace};
 use liftfw::control::{Bridge, Controller, Inputs};
 use liftfw::units::Instant;
 use std::fmt;
@@ -531,6 +531,14 @@ impl Sim {
                     let th = self.state.theta;
                     self.stuck_loads = (th, self.kernel.loads(th));
                 }
+                if self.phase != old {
+                    let (theta_i, _) = self.input(t0, &self.state);
+                    self.trace.phases.push(PhaseChange {
+                        t: t0,
+                        phase: self.phase,
+                        twist: self.state.theta - theta_i,
+                    });
+                }
                 if self.phase == Phase::Stick && old != Phase::Stick {
                     self.sticks += 1;
                     for w in &mut self.windows {
@@ -674,6 +682,13 @@ impl Sim {
             None
         };
         let start = self.record(0.0);
+        if self.trace.phases.is_empty() {
+            self.trace.phases.push(PhaseChange {
+                t: 0.0,
+                phase: self.phase,
+                twist: start.twist,
+            });
+        }
         for n in 0..n_steps {
             let t = n as f64 * dt;
             if !self.driver.is_paper() && n % per_tick == 0 {

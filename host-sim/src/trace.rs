@@ -106,11 +106,26 @@ impl Energy {
     }
 }
 
+/// A change of the contact's stick/slip phase, located by the solver's event search (to
+/// 10⁻⁶ of a step): the ground truth the stick-slip labels are built from (`crate::truth`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PhaseChange {
+    /// Time of the event, s.
+    pub t: f64,
+    /// The phase entered.
+    pub phase: Phase,
+    /// Coupling twist θ − θ_i at the event, rad.
+    pub twist: f64,
+}
+
 /// The recorded samples of a run.
 #[derive(Clone, Debug, Default)]
 pub struct Trace {
     /// Samples in time order.
     pub records: Vec<Record>,
+    /// Every phase change of the run in time order, the initial phase at t = 0 first
+    /// (recorded whatever the sampling rate).
+    pub phases: Vec<PhaseChange>,
 }
 
 fn flank_label(f: Flank) -> &'static str {

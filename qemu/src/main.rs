@@ -273,6 +273,27 @@ fn count_instructions() {
         s.report();
     }
 
+    // The stick-slip detector step (issue 7) on a stick-slip sawtooth of the measured torque:
+    // 25 → 75 N·m over 50 ticks, then a 3-tick fall, at a steady 3 rad/s reference (the
+    // branch test of μ(θ̇) runs once, 50 ms into the steady motion, and is in the max).
+    let mut det = liftfw::detect::stickslip::StickSlipDetector::new(
+        &liftfw::detect::stickslip::StickSlipConfig::DEFAULT,
+        cfg.tick_us,
+    );
+    let mut s_det = Stats::new("stickslip.step fixed");
+    for k in 0..N {
+        let ph = (k % 53) as i32;
+        let torque = if ph < 50 { 25 + ph } else { 75 - 16 * (ph - 49) };
+        let x = liftfw::detect::stickslip::DetectorInputs {
+            driving: true,
+            direction: 1,
+            reference: RadiansPerSecond::from_bits(3 << 16),
+            measured_torque: liftfw::units::NewtonMetres::from_bits(torque << 16),
+        };
+        s_det.push(ticks(&x, |x| det.step(x, &law)), overhead);
+    }
+    s_det.report();
+
     println!(
         "ICOUNT-GOAL estimator.step fixed median {} (goal <= 400: {}), f32 median {} ({})",
         fixed_median,

@@ -10,6 +10,7 @@
 
 use crate::config::ValidatedConfig;
 use crate::control::config::{ButtonMode, ControlConfig, RampShape};
+use crate::detect::stickslip::Reaction;
 use crate::model::friction::{FrictionLaw, LawVariable};
 use crate::units::{Amperes, Kilograms, Metres, NewtonMetres, RadiansPerSecond, Ratio, Volts};
 use crate::ConfigError;
@@ -288,7 +289,7 @@ pub const LAW_PRESETS: [FrictionLaw; 4] = [
 
 /// Every setting. The flash record's layout follows this order (the `stored` ones): changing
 /// it changes the record's schema fingerprint (see [`crate::config::record`]).
-pub static SETTINGS: [Setting; 50] = [
+pub static SETTINGS: [Setting; 54] = [
     setting!("limits.lower", LEN, "the mechanism's height range (see `limits`)",
         "lowest head height the lift drives to", q32 limits.lower),
     setting!("limits.upper", LEN, "the mechanism's height range (see `limits`)",
@@ -462,6 +463,36 @@ pub static SETTINGS: [Setting; 50] = [
         "speed filter bandwidth", int u32, estimator.speed_bandwidth_hz),
     setting!("control.rest_speed", num(16, &RAD_PER_S), "0..50 rad/s",
         "screw speed below which the screw counts as at rest", q32 estimator.rest_speed),
+    Setting {
+        key: "stickslip.reaction",
+        kind: Kind::Choice(&["log", "warn", "speed"]),
+        range: "log, warn or speed",
+        about:
+            "on stick-slip: log it, also warn on the console, or also change to the escape speed",
+        stored: true,
+        get: |c| match c.stick_slip.reaction {
+            Reaction::Log => 0,
+            Reaction::Warn => 1,
+            Reaction::ChangeSpeed => 2,
+        },
+        set: |c, v| {
+            c.stick_slip.reaction = match v {
+                0 => Reaction::Log,
+                1 => Reaction::Warn,
+                2 => Reaction::ChangeSpeed,
+                _ => return false,
+            };
+            true
+        },
+    },
+    setting!("stickslip.drop", num(16, &NEWTON_METRES), "0.2..50 Nm",
+        "smallest fall of the measured screw torque that counts as a slip",
+        q32 stick_slip.drop_threshold),
+    setting!("stickslip.window_ms", num(0, &MILLIS), "100..10000 ms",
+        "slips further apart start a new chain", int u32, stick_slip.window_ms),
+    setting!("stickslip.escape_speed", num(16, &RAD_PER_S), "0.2..20 rad/s",
+        "cruise speed for the rest of a motion after stick-slip (reaction speed)",
+        q32 stick_slip.escape_speed),
 ];
 
 #[cfg(test)]
@@ -487,6 +518,7 @@ mod tests {
     #[test]
     fn registry_covers_every_field() {
         use crate::control::config::{LimitStops, MotionConfig, ProtectionConfig, SensingConfig};
+        use crate::detect::stickslip::StickSlipConfig;
         use crate::estimator::{EstimatorConfig, MotorConfig};
         use crate::model::geometry::{DriveConfig, GeometryConfig};
         use crate::model::screw::MechanicsConfig;
@@ -570,9 +602,16 @@ mod tests {
                     current_ua_per_code: _,
                     supply_uv_per_code: _,
                 },
+            stick_slip:
+                StickSlipConfig {
+                    reaction: _,
+                    drop_threshold: _,
+                    window_ms: _,
+                    escape_speed: _,
+                },
         } = ControlConfig::DEFAULT;
-        // 49 fields above, one key each, plus the `friction.law` preset selector.
-        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 49);
+        // 53 fields above, one key each, plus the `friction.law` preset selector.
+        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 53);
     }
 
     #[test]

@@ -390,7 +390,7 @@ pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
     match topic {
         HelpTopic::Commands => out.write_str(
             "commands (case-insensitive):\r\n\
-             \x20 status              state, height, speed, current, T_r, stick-slip, fault\r\n\
+             \x20 status              state, height, speed, current, T_r, stick-slip (flag, last drop, episodes), fault\r\n\
              \x20 up | down | stop    move (hold-to-run unless motion.buttons = latched)\r\n\
              \x20 goto <height>       drive the head to a height, e.g. goto 300mm\r\n\
              \x20 limits              limit stops and the mechanism's range\r\n\
@@ -437,8 +437,12 @@ pub struct StatusView {
     pub current: Amperes,
     /// Estimated friction torque T_r.
     pub friction_torque: NewtonMetres,
-    /// Stick-slip detected.
+    /// Stick-slip episode under way.
     pub stick_slip: bool,
+    /// Coupling-torque drop of the last detected slip.
+    pub stick_slip_amplitude: NewtonMetres,
+    /// Stick-slip episodes since boot.
+    pub stick_slip_episodes: u32,
     /// The active fault's name, if any.
     pub fault: Option<&'static str>,
 }
@@ -477,10 +481,32 @@ pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
     write_fixed(out, s.friction_torque.to_bits(), 16, 3)?;
     write!(
         out,
-        "Nm stick_slip={} fault={}",
-        if s.stick_slip { "yes" } else { "no" },
+        "Nm stick_slip={} ss_amp=",
+        if s.stick_slip { "yes" } else { "no" }
+    )?;
+    write_fixed(out, s.stick_slip_amplitude.to_bits(), 16, 2)?;
+    write!(
+        out,
+        "Nm ss_episodes={} fault={}",
+        s.stick_slip_episodes,
         s.fault.unwrap_or("none")
     )
+}
+
+/// The console warning of the stick-slip reactions `warn` and `speed`, one line.
+pub fn write_stick_slip_warning(
+    out: &mut dyn Write,
+    episode: u32,
+    amplitude: NewtonMetres,
+    speed_changed: bool,
+) -> fmt::Result {
+    write!(out, "warning: stick-slip (episode {episode}, torque drop ")?;
+    write_fixed(out, amplitude.to_bits(), 16, 2)?;
+    out.write_str(" Nm per slip)")?;
+    if speed_changed {
+        out.write_str(", cruise changed to stickslip.escape_speed")?;
+    }
+    Ok(())
 }
 
 /// Collects UART bytes into lines. Backspace/DEL remove the last byte, CR, LF or CRLF end a

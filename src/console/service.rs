@@ -109,6 +109,8 @@ pub fn status_view(s: &Status) -> StatusView {
         current: s.current,
         friction_torque: s.friction_torque,
         stick_slip: s.stick_slip,
+        stick_slip_amplitude: s.stick_slip_amplitude,
+        stick_slip_episodes: s.stick_slip_episodes,
         fault: s.fault.map(|f| f.name()),
     }
 }

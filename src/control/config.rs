@@ -6,6 +6,7 @@
 //! re-checks. Every refusal names the setting's console key and its range.
 
 use crate::check_range as range;
+use crate::detect::stickslip::StickSlipConfig;
 use crate::estimator::EstimatorConfig;
 use crate::model::geometry::Geometry;
 use crate::units::{Amperes, Kilograms, Metres, RadiansPerSecond, Ratio, Volts};
@@ -215,6 +216,8 @@ pub struct ControlConfig {
     pub protection: ProtectionConfig,
     /// ADC scalings.
     pub sensing: SensingConfig,
+    /// Stick-slip detector and its reaction.
+    pub stick_slip: StickSlipConfig,
 }
 
 impl ControlConfig {
@@ -226,6 +229,7 @@ impl ControlConfig {
         limits: LimitStops::DEFAULT,
         protection: ProtectionConfig::DEFAULT,
         sensing: SensingConfig::DEFAULT,
+        stick_slip: StickSlipConfig::DEFAULT,
     };
 
     /// Check every range that does not need the compiled geometry, then the limit stops
@@ -360,6 +364,7 @@ impl ControlConfig {
             "sense.supply_uv_per_code",
             "1..100000 uV",
         )?;
+        self.stick_slip.validate()?;
         self.limits.validate(geometry)
     }
 }

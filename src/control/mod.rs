@@ -26,6 +26,7 @@ pub mod protect;
 pub mod sense;
 pub mod speed;
 
+use crate::detect::stickslip::{DetectorInputs, Reaction, StickSlipDetector};
 use crate::estimator::{Estimate, Estimator, Measurements};
 use crate::model::Scale;
 use crate::units::{
@@ -248,6 +249,16 @@ pub enum Event {
         /// The encoder position the switch height maps to, counts.
         position: i32,
     },
+    /// A stick-slip episode started (`crate::detect::stickslip`).
+    StickSlip {
+        /// Coupling-torque drop of the last completed slip (a slip's fall is measured over
+        /// 8 ms, so the confirming slip's own is not complete yet).
+        amplitude: NewtonMetres,
+        /// Episode number since boot.
+        episode: u32,
+        /// The configured reaction (`Warn` and `ChangeSpeed` ask for a console warning).
+        reaction: Reaction,
+    },
 }
 
 /// A snapshot for the console's `status` line and telemetry.
@@ -266,8 +277,12 @@ pub struct Status {
     pub supply: Volts,
     /// Estimated thread friction torque T_r.
     pub friction_torque: NewtonMetres,
-    /// Stick-slip detected (the detector lands with issue #7; false until then).
+    /// A stick-slip episode is under way (`crate::detect::stickslip`).
     pub stick_slip: bool,
+    /// Coupling-torque drop of the last detected slip.
+    pub stick_slip_amplitude: NewtonMetres,
+    /// Stick-slip episodes since boot.
+    pub stick_slip_episodes: u32,
     /// The latched fault, if any.
     pub fault: Option<FaultKind>,
     /// Encoder position, counts.
@@ -351,6 +366,11 @@ pub struct Controller {
     /// Highest screw speed at which shorting the motor keeps the current within [`BRAKE_AMPS`].
     brake_speed: RadiansPerSecond,
     pending_event: Option<Event>,
+    /// Stick-slip detector (issue 7) and the cruise speeds it switches between, Q32
+    /// counts/tick: configured, and the escape speed of the `speed` reaction.
+    stick_slip: StickSlipDetector,
+    cruise_q32: i64,
+    escape_q32: i64,
 }
 
 impl Controller {
@@ -393,6 +413,10 @@ impl Controller {
         let twist_scale = Scale::from_ratio(i128::from(counts_per_rad_q16), k << 16);
         // Cruise: rad/s → Q32 counts/tick = ω·counts/rad·T·2^32.
         let cruise_q32 = (i128::from(cfg.motion.cruise_speed.bits())
+            * i128::from(counts_per_rad_q16)
+            * i128::from(tick_us)
+            / 1_000_000) as i64;
+        let escape_q32 = (i128::from(cfg.stick_slip.escape_speed.bits())
             * i128::from(counts_per_rad_q16)
             * i128::from(tick_us)
             / 1_000_000) as i64;
@@ -467,6 +491,9 @@ impl Controller {
                 inv_ke_n,
             ),
             pending_event: None,
+            stick_slip: StickSlipDetector::new(&cfg.stick_slip, tick_us),
+            cruise_q32,
+            escape_q32,
         })
     }
 
@@ -523,6 +550,11 @@ impl Controller {
         &self.estimate
     }
 
+    /// The stick-slip detector's report of the last tick.
+    pub fn stick_slip_output(&self) -> &crate::detect::stickslip::StickSlipOutput {
+        self.stick_slip.output()
+    }
+
     /// Motor encoder position in counts.
     pub fn position_counts(&self) -> i32 {
         self.enc.position()
@@ -552,7 +584,9 @@ impl Controller {
             current: self.current,
             supply: self.supply,
             friction_torque: self.estimate.contact.friction_torque,
-            stick_slip: false,
+            stick_slip: self.stick_slip.output().active,
+            stick_slip_amplitude: self.stick_slip.output().amplitude,
+            stick_slip_episodes: self.stick_slip.output().episodes,
             fault: self.fault.map(|f| f.kind),
             position: self.enc.position(),
             homed: self.homed,
@@ -687,6 +721,7 @@ impl Controller {
         }
         if !moving {
             self.profile.reset(here);
+            self.profile.set_cruise(self.cruise_q32);
             self.speed.reset();
             self.monitors.reset();
             self.motion_ticks = 0;
@@ -885,6 +920,7 @@ impl Controller {
                 self.rest_bridge()
             }
         };
+        self.detect_stick_slip();
         self.last_duty = match bridge {
             Bridge::Drive(d) => d,
             _ => 0,
@@ -894,6 +930,32 @@ impl Controller {
             bridge,
             feed_watchdog: true,
             event: self.pending_event.take(),
+        }
+    }
+
+    /// Stick-slip detector step on this tick's measured torque (the current answers the bridge
+    /// command of the previous tick, so "driving" is that command) and the reaction.
+    fn detect_stick_slip(&mut self) {
+        let moving = matches!(self.state, State::Lifting | State::Lowering);
+        let x = DetectorInputs {
+            driving: moving && matches!(self.last_bridge, Bridge::Drive(_)),
+            direction: if self.state == State::Lowering { -1 } else { 1 },
+            reference: self.reference_speed(),
+            measured_torque: self.estimate.measured_screw_torque,
+        };
+        let out = self.stick_slip.step(&x, self.est.law());
+        if out.onset {
+            let reaction = self.cfg.stick_slip.reaction;
+            if reaction == Reaction::ChangeSpeed {
+                self.profile.set_cruise(self.escape_q32);
+            }
+            if self.pending_event.is_none() {
+                self.pending_event = Some(Event::StickSlip {
+                    amplitude: out.amplitude,
+                    episode: out.episodes,
+                    reaction,
+                });
+            }
         }
     }
 

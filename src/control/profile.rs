@@ -114,6 +114,12 @@ impl Profile {
         self.done = false;
     }
 
+    /// Change the cruise speed (Q32 counts per tick) during a motion: the reference ramps to
+    /// it at the configured acceleration (the stick-slip reaction's escape speed).
+    pub fn set_cruise(&mut self, cruise_q32: i64) {
+        self.cruise = cruise_q32.clamp(1, 64 * ONE);
+    }
+
     /// Restart at rest at `position` counts (after a fault, or when the measured position
     /// disagrees with the reference).
     pub fn reset(&mut self, position: i32) {

@@ -1,0 +1,226 @@
+//! Stick-slip ground truth: episodes labelled from the plant's phase changes.
+//!
+//! The definition (docs/stick-slip.md, "Episode"):
+//! - a **cycle** starts at a breakaway (stick → slip) and ends when the screw sticks again
+//!   (slips may reverse on the way: the back-slip after a violent forward slip is part of the
+//!   cycle). Its **drop** is the coupling-torque change over the slip, k·|Δ(θ − θ_i)|, its
+//!   **period** the time to the next breakaway;
+//! - a cycle is **significant** when its drop is at least [`TruthParams::min_drop`] and its
+//!   period at least [`TruthParams::min_period`]; the others are **micro** stick-slip;
+//! - an **episode** is a chain of at least [`TruthParams::min_cycles`] significant cycles whose
+//!   breakaways are at most [`TruthParams::max_gap`] apart, lasting at least
+//!   [`TruthParams::min_duration`] from its first breakaway to its last return to stick,
+//!   inside the motion window (a breakaway whose slip is still running when the window closes
+//!   is not a cycle: the screw stopping at the end of a move is not a stick);
+//! - the episode **is confirmed** at the breakaway of its `min_cycles`-th cycle: before that
+//!   it is not stick-slip by this definition, so detection latency counts from there.
+
+use crate::plant::Phase;
+use crate::trace::PhaseChange;
+
+/// The thresholds of the definition.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TruthParams {
+    /// Smallest coupling-torque drop of a significant cycle, N·m.
+    pub min_drop: f64,
+    /// Shortest period of a significant cycle, s.
+    pub min_period: f64,
+    /// Largest gap between consecutive breakaways of an episode, s.
+    pub max_gap: f64,
+    /// Fewest significant cycles of an episode.
+    pub min_cycles: usize,
+    /// Shortest episode, s.
+    pub min_duration: f64,
+}
+
+impl Default for TruthParams {
+    /// 0.75 N·m, 5 ms, 2 s, 2 cycles, 10 ms (docs/stick-slip.md gives the reasons).
+    fn default() -> Self {
+        Self {
+            min_drop: 0.75,
+            min_period: 0.005,
+            max_gap: 2.0,
+            min_cycles: 2,
+            min_duration: 0.010,
+        }
+    }
+}
+
+/// One stick-slip cycle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cycle {
+    /// Breakaway time, s.
+    pub breakaway: f64,
+    /// Time the screw stuck again, s.
+    pub stuck: f64,
+    /// Coupling-torque drop over the slip, N·m.
+    pub drop: f64,
+    /// Time to the next breakaway, s (infinite for the last one).
+    pub period: f64,
+}
+
+/// One labelled episode.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Episode {
+    /// First breakaway, s.
+    pub start: f64,
+    /// Breakaway of the `min_cycles`-th cycle: the episode meets the definition, s.
+    pub confirmed: f64,
+    /// Last return to stick, s.
+    pub end: f64,
+    /// Number of cycles.
+    pub cycles: usize,
+    /// Median drop, N·m.
+    pub drop: f64,
+}
+
+/// The labels of a run.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Labels {
+    /// Every cycle in the window.
+    pub cycles: Vec<Cycle>,
+    /// Episodes of significant cycles.
+    pub episodes: Vec<Episode>,
+    /// Chains of micro cycles (drop or period below the thresholds) that would be episodes
+    /// under the same chain rule and overlap no episode: reported, not scored.
+    pub micro: Vec<Episode>,
+}
+
+/// The cycles of a phase log inside `(t0, t1)`, with coupling stiffness `k` (N·m/rad).
+pub fn cycles(phases: &[PhaseChange], k: f64, (t0, t1): (f64, f64)) -> Vec<Cycle> {
+    let mut out: Vec<Cycle> = Vec::new();
+    for (i, w) in phases.windows(2).enumerate() {
+        let (before, at) = (w[0], w[1]);
+        if !(before.phase == Phase::Stick && matches!(at.phase, Phase::Slip(_))) {
+            continue;
+        }
+        if at.t < t0 || at.t > t1 {
+            continue;
+        }
+        let Some(stick) = phases[i + 2..].iter().find(|p| p.phase == Phase::Stick) else {
+            continue;
+        };
+        if stick.t > t1 {
+            continue;
+        }
+        if let Some(prev) = out.last_mut() {
+            prev.period = at.t - prev.breakaway;
+        }
+        out.push(Cycle {
+            breakaway: at.t,
+            stuck: stick.t,
+            drop: k * (at.twist - stick.twist).abs(),
+            period: f64::INFINITY,
+        });
+    }
+    out
+}
+
+fn chain(cs: &[&Cycle], p: &TruthParams) -> Vec<Episode> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < cs.len() {
+        let mut j = i + 1;
+        while j < cs.len() && cs[j].breakaway - cs[j - 1].breakaway <= p.max_gap {
+            j += 1;
+        }
+        let run = &cs[i..j];
+        let (start, end) = (run[0].breakaway, run[run.len() - 1].stuck);
+        if run.len() >= p.min_cycles && end - start >= p.min_duration {
+            let mut drops: Vec<f64> = run.iter().map(|c| c.drop).collect();
+            drops.sort_by(f64::total_cmp);
+            out.push(Episode {
+                start,
+                confirmed: run[p.min_cycles.max(1) - 1].breakaway,
+                end,
+                cycles: run.len(),
+                drop: drops[drops.len() / 2],
+            });
+        }
+        i = j;
+    }
+    out
+}
+
+/// Label a run: its phase log, coupling stiffness `k` and motion window.
+pub fn label(phases: &[PhaseChange], k: f64, window: (f64, f64), p: &TruthParams) -> Labels {
+    let cycles = cycles(phases, k, window);
+    let significant: Vec<&Cycle> = cycles
+        .iter()
+        .filter(|c| c.drop >= p.min_drop && c.period >= p.min_period)
+        .collect();
+    let episodes = chain(&significant, p);
+    let all: Vec<&Cycle> = cycles.iter().collect();
+    let micro = chain(&all, p)
+        .into_iter()
+        .filter(|m| {
+            !episodes
+                .iter()
+                .any(|e| e.start <= m.end && m.start <= e.end)
+        })
+        .collect();
+    Labels {
+        cycles,
+        episodes,
+        micro,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plant::Dir;
+
+    fn ph(t: f64, phase: Phase, twist: f64) -> PhaseChange {
+        PhaseChange { t, phase, twist }
+    }
+
+    /// Stick-slip every 0.1 s from 0.2 s, drop 0.3 rad (48 N·m at k = 160).
+    fn sawtooth(n: usize) -> Vec<PhaseChange> {
+        let mut v = vec![ph(0.0, Phase::Stick, 0.0)];
+        for i in 0..n {
+            let t = 0.2 + 0.1 * i as f64;
+            v.push(ph(t, Phase::Slip(Dir::Up), -0.47));
+            v.push(ph(t + 0.0005, Phase::Slip(Dir::Down), 0.18));
+            v.push(ph(t + 0.001, Phase::Stick, -0.17));
+        }
+        v
+    }
+
+    #[test]
+    fn a_sawtooth_is_one_episode_confirmed_at_its_second_breakaway() {
+        let l = label(&sawtooth(10), 160.0, (0.0, 5.0), &TruthParams::default());
+        assert_eq!(l.cycles.len(), 10);
+        assert_eq!(l.episodes.len(), 1);
+        let e = l.episodes[0];
+        assert!((e.confirmed - 0.3).abs() < 1e-12);
+        assert_eq!(e.cycles, 10);
+        assert!((e.drop - 48.0).abs() < 1e-9);
+        assert!(l.micro.is_empty());
+    }
+
+    #[test]
+    fn one_breakaway_then_smooth_sliding_is_no_episode() {
+        let v = vec![
+            ph(0.0, Phase::Stick, 0.0),
+            ph(0.1, Phase::Slip(Dir::Up), -0.2),
+            ph(2.9, Phase::Stick, -0.05),
+        ];
+        // The stop at 2.9 s lies outside the motion window: no cycle at all.
+        let l = label(&v, 160.0, (0.0, 2.7), &TruthParams::default());
+        assert!(l.cycles.is_empty() && l.episodes.is_empty());
+    }
+
+    #[test]
+    fn small_or_fast_cycles_are_micro_stick_slip() {
+        let mut v = vec![ph(0.0, Phase::Stick, 0.0)];
+        for i in 0..50 {
+            let t = 0.1 + 0.0016 * i as f64;
+            v.push(ph(t, Phase::Slip(Dir::Down), 0.007));
+            v.push(ph(t + 0.0006, Phase::Stick, 0.004));
+        }
+        let l = label(&v, 160.0, (0.0, 5.0), &TruthParams::default());
+        assert!(l.episodes.is_empty());
+        assert_eq!(l.micro.len(), 1);
+    }
+}

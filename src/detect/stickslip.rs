@@ -1,0 +1,679 @@
+//! Stick-slip detector: one step per control tick on board-visible signals only.
+//!
+//! **What it sees.** While the screw sticks and the motor keeps turning (the speed loop holds
+//! the gear output at the reference), the coupling winds up and the torque the motor delivers
+//! rises at k·θ̇_i; when static friction lets go the screw slips in a fraction of a millisecond,
+//! the coupling unwinds and the motor torque falls by about k·Δ(θ − θ_i). The board measures
+//! that torque through the motor current ([`crate::estimator::Estimate::measured_screw_torque`]):
+//! stick-slip is a sawtooth of it, each *slip* a sudden fall. Smooth sliding has a flat torque.
+//!
+//! **How.** The measured torque, projected on the direction of travel (positive resists the
+//! motion), is averaged over 4 ticks; a leaky peak follows its rises and sags by
+//! `threshold/16` per tick, so slow falls (the load changing with the arm angle) never count.
+//! A *slip* is a fall of the average below the peak by at least `drop_threshold`, or twice
+//! the torque's noise level if that is more (an EWMA of the clipped |second difference|:
+//! a steady wind-up ramp has none, the ADC noise and the speed loop's jitter do); its size
+//! (the largest fall within the next 8 ms) is the amplitude estimate, the coupling-torque
+//! drop per slip in N·m (divide by k for the twist). Slips closer together than
+//! `window_ms` form a chain; a chain of 2 slips (3 where the model says the operating point is
+//! on a rising branch of μ(θ̇)) raises the flag and counts an episode. The flag falls when
+//! no slip came for four of the last slip intervals (at least 250 ms, at most `window_ms`)
+//! or when the motion ends.
+//!
+//! **When.** Only while the bridge drives a motion at a steady reference speed, from 50 ms
+//! after the reference stopped changing: a speed ramp moves the motor current by the rotor's
+//! inertia torque (≈ 9 N·m at the screw for the default 60 ms ramp to 3 rad/s), and the
+//! braking at the end of a move drops it to zero; neither is a slip.
+//!
+//! **The model's part.** On the falling branch of μ(θ̇) (dμ/dθ̇ < 0 at the reference speed) the
+//! friction adds negative damping and sliding is unstable: two slips suffice. On a rising
+//! branch the model predicts smooth sliding, so the detector asks for a third slip before it
+//! believes the current (a lubricant that wore off still shows up, one slip later).
+//!
+//! Everything is integer: Q16 N·m, tick counters; no division on the hot path. The float64
+//! twin and the property test that holds this to it are in this module's tests.
+
+use crate::check_range as range;
+use crate::model::friction::CompiledLaw;
+use crate::units::{sat32, NewtonMetres, RadiansPerSecond, Q};
+use crate::ConfigError;
+
+/// What the controller does when an episode starts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Reaction {
+    /// Report the episode in the log (an [`crate::control::Event::StickSlip`]) and the status.
+    Log,
+    /// As `Log`, and the event asks for a warning line on the console.
+    #[default]
+    Warn,
+    /// As `Warn`, and the rest of the motion runs at `escape_speed` to leave the stick-slip
+    /// region (the next motion starts at the configured cruise speed again).
+    ChangeSpeed,
+}
+
+impl Reaction {
+    /// Name for logs and the console.
+    pub fn name(self) -> &'static str {
+        match self {
+            Reaction::Log => "log",
+            Reaction::Warn => "warn",
+            Reaction::ChangeSpeed => "speed",
+        }
+    }
+}
+
+/// The detector's settings (console keys `stickslip.*`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct StickSlipConfig {
+    /// What to do when an episode starts.
+    pub reaction: Reaction,
+    /// Smallest fall of the measured screw torque (4-tick mean) that counts as a slip,
+    /// 0.2…50 N·m.
+    pub drop_threshold: NewtonMetres,
+    /// Slips further apart than this start a new chain, 100…10 000 ms.
+    pub window_ms: u32,
+    /// Cruise screw speed for the rest of a motion once an episode started (reaction
+    /// `speed`), 0.2…20 rad/s.
+    pub escape_speed: RadiansPerSecond,
+}
+
+impl StickSlipConfig {
+    /// Warn; 1.5 N·m (above the 1–2 N·m torque ripple the speed loop makes at
+    /// encoder-limited speeds, docs/stick-slip.md); a 2 s chain window (the slowest
+    /// stick-slip seen in host-sim, dry at 0.3 rad/s and rated load, cycles every 0.8 s);
+    /// escape at 1.5 rad/s.
+    pub const DEFAULT: StickSlipConfig = StickSlipConfig {
+        reaction: Reaction::Warn,
+        drop_threshold: NewtonMetres::lit("1.5"),
+        window_ms: 2000,
+        escape_speed: RadiansPerSecond::lit("1.5"),
+    };
+
+    /// Check the ranges.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        range(
+            self.drop_threshold,
+            NewtonMetres::lit("0.2"),
+            NewtonMetres::lit("50"),
+            "stickslip.drop",
+            "0.2..50 Nm",
+        )?;
+        range(
+            self.window_ms,
+            100,
+            10_000,
+            "stickslip.window_ms",
+            "100..10000 ms",
+        )?;
+        range(
+            self.escape_speed,
+            RadiansPerSecond::lit("0.2"),
+            RadiansPerSecond::lit("20"),
+            "stickslip.escape_speed",
+            "0.2..20 rad/s",
+        )
+    }
+}
+
+/// Settling after the reference speed last changed before slips count, ms.
+pub const SETTLE_MS: u32 = 50;
+/// A slip's fall is measured over this long after it crossed the threshold; no new slip
+/// starts meanwhile, ms.
+pub const EVENT_MS: u32 = 8;
+/// The flag holds at least this long after the last slip, ms.
+pub const MIN_HOLD_MS: u32 = 250;
+/// Length of the torque mean, ticks (a power of two).
+const MEAN_LEN: usize = 4;
+
+/// What the detector needs each tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct DetectorInputs {
+    /// The bridge drives a commanded motion.
+    pub driving: bool,
+    /// Direction of travel: +1 lifting, −1 lowering.
+    pub direction: i8,
+    /// Reference screw speed of this tick.
+    pub reference: RadiansPerSecond,
+    /// Screw torque the motor delivers, from its current.
+    pub measured_torque: NewtonMetres,
+}
+
+/// The detector's report for one tick.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct StickSlipOutput {
+    /// An episode is under way.
+    pub active: bool,
+    /// The episode started this tick.
+    pub onset: bool,
+    /// A slip was detected this tick.
+    pub slip: bool,
+    /// Coupling-torque drop of the last slip (peak-to-trough of the 4-tick mean), N·m.
+    pub amplitude: NewtonMetres,
+    /// Episodes since boot.
+    pub episodes: u32,
+    /// The model puts the operating point on a falling branch of μ(θ̇).
+    pub falling_branch: bool,
+}
+
+/// Configuration (quantised to ticks) and state.
+#[derive(Clone, Debug)]
+pub struct StickSlipDetector {
+    threshold: i32,
+    leak: i32,
+    window_ticks: u32,
+    settle_ticks: u32,
+    event_ticks: u32,
+    min_hold_ticks: u32,
+    // State.
+    ring: [i32; MEAN_LEN],
+    head: usize,
+    sum: i64,
+    filled: usize,
+    prev_reference: i32,
+    steady: u32,
+    peak: i32,
+    in_event: u32,
+    event_drop: i32,
+    since_slip: u32,
+    interval: u32,
+    chain: u32,
+    falling: bool,
+    /// Last two torques (for the second difference) and the noise level: EWMA (1/64) of
+    /// |second difference|, each sample clipped at 4× the level so slips barely move it, Q16.
+    last: [i32; 2],
+    noise: i32,
+    out: StickSlipOutput,
+}
+
+/// Weight of the noise EWMA: 2^−NOISE_SHIFT per tick.
+const NOISE_SHIFT: u32 = 6;
+/// The slip threshold is at least this many times the noise level (|second difference| of white
+/// noise averages 1.95 σ; the 4-tick mean has σ/2, so 2× is ≈ 8 σ of the mean).
+const NOISE_GAIN: i32 = 3;
+
+impl StickSlipDetector {
+    /// A detector for a validated configuration at a tick of `tick_us` µs (100…10 000).
+    pub fn new(cfg: &StickSlipConfig, tick_us: u32) -> StickSlipDetector {
+        let ticks = |ms: u32| (ms.saturating_mul(1000) / tick_us.max(1)).max(1);
+        let threshold = cfg.drop_threshold.to_bits().max(1);
+        StickSlipDetector {
+            threshold,
+            leak: (threshold / 16).max(1),
+            window_ticks: ticks(cfg.window_ms),
+            settle_ticks: ticks(SETTLE_MS),
+            event_ticks: ticks(EVENT_MS),
+            min_hold_ticks: ticks(MIN_HOLD_MS),
+            ring: [0; MEAN_LEN],
+            head: 0,
+            sum: 0,
+            filled: 0,
+            prev_reference: 0,
+            steady: 0,
+            peak: 0,
+            in_event: 0,
+            event_drop: 0,
+            since_slip: u32::MAX,
+            interval: 0,
+            chain: 0,
+            falling: false,
+            last: [0; 2],
+            noise: 0,
+            out: StickSlipOutput::default(),
+        }
+    }
+
+    /// The last report.
+    pub fn output(&self) -> &StickSlipOutput {
+        &self.out
+    }
+
+    /// Forget the motion (keeps the episode counter and the last amplitude).
+    fn idle(&mut self) {
+        self.ring = [0; MEAN_LEN];
+        self.head = 0;
+        self.sum = 0;
+        self.filled = 0;
+        self.prev_reference = 0;
+        self.last = [0; 2];
+        self.steady = 0;
+        self.in_event = 0;
+        self.since_slip = u32::MAX;
+        self.interval = 0;
+        self.chain = 0;
+        self.out.active = false;
+    }
+
+    /// One tick. `law` is the configured friction law (for the branch of μ(θ̇)). Total: no
+    /// panic, no wrap, whatever the inputs.
+    pub fn step(&mut self, x: &DetectorInputs, law: &CompiledLaw) -> StickSlipOutput {
+        self.out.onset = false;
+        self.out.slip = false;
+        if !x.driving || x.direction == 0 {
+            self.idle();
+            return self.out;
+        }
+        // Torque resisting the motion, 4-tick mean.
+        let p = if x.direction < 0 {
+            x.measured_torque.sat_neg()
+        } else {
+            x.measured_torque
+        }
+        .to_bits();
+        self.sum += i64::from(p) - i64::from(self.ring[self.head]);
+        self.ring[self.head] = p;
+        self.head = (self.head + 1) % MEAN_LEN;
+        // Noise level from the second difference (a steady ramp — the coupling winding up while
+        // stuck — has none); the first samples of a motion only fill the history.
+        if self.filled >= 2 {
+            let d2 = i64::from(p) - 2 * i64::from(self.last[0]) + i64::from(self.last[1]);
+            let cap = 4 * i64::from(self.noise).max(i64::from(self.threshold) / 4);
+            let d2 = d2.abs().min(cap);
+            self.noise = sat32(
+                i64::from(self.noise)
+                    + ((d2 - i64::from(self.noise) + (1 << (NOISE_SHIFT - 1))) >> NOISE_SHIFT),
+            );
+        }
+        self.last = [p, self.last[0]];
+        self.filled = (self.filled + 1).min(MEAN_LEN);
+        let mean = (self.sum / MEAN_LEN as i64) as i32; // |sum| ≤ 4·2^31: exact in i32 after /4
+        self.since_slip = self.since_slip.saturating_add(1);
+
+        let reference = x.reference.to_bits();
+        if reference != self.prev_reference || reference == 0 {
+            self.steady = 0;
+        } else {
+            self.steady = self.steady.saturating_add(1);
+        }
+        self.prev_reference = reference;
+        if self.steady < self.settle_ticks || self.filled < MEAN_LEN {
+            self.peak = mean;
+            self.in_event = 0;
+        } else {
+            if self.steady == self.settle_ticks {
+                self.falling = falling_branch(law, x.reference);
+                self.out.falling_branch = self.falling;
+            }
+            self.peak = self.peak.saturating_sub(self.leak).max(mean);
+            let drop = self.peak.saturating_sub(mean);
+            if self.in_event > 0 {
+                self.event_drop = self.event_drop.max(drop);
+                self.in_event += 1;
+                if self.in_event > self.event_ticks {
+                    self.in_event = 0;
+                    self.out.amplitude = NewtonMetres::from_raw(self.event_drop);
+                    self.peak = mean;
+                }
+            } else if drop >= self.threshold.max(self.noise.saturating_mul(NOISE_GAIN)) {
+                self.slip();
+            }
+        }
+        if self.out.active {
+            let hold = self
+                .interval
+                .saturating_mul(4)
+                .clamp(self.min_hold_ticks, self.window_ticks);
+            if self.since_slip > hold {
+                self.out.active = false;
+                self.chain = 0;
+            }
+        }
+        self.out
+    }
+
+    fn slip(&mut self) {
+        self.in_event = 1;
+        self.event_drop = self.peak.saturating_sub(self.ring_mean());
+        self.out.slip = true;
+        if self.since_slip <= self.window_ticks {
+            self.chain = self.chain.saturating_add(1);
+            self.interval = self.since_slip;
+        } else {
+            self.chain = 1;
+            self.interval = 0;
+        }
+        self.since_slip = 0;
+        let need = if self.falling { 2 } else { 3 };
+        if !self.out.active && self.chain >= need {
+            self.out.active = true;
+            self.out.onset = true;
+            self.out.episodes = self.out.episodes.wrapping_add(1);
+        }
+    }
+
+    fn ring_mean(&self) -> i32 {
+        (self.sum / MEAN_LEN as i64) as i32
+    }
+}
+
+/// Whether μ falls with speed at the reference speed: μ(v + Δ) < μ(v), Δ = max(v/4, 0.05 rad/s).
+/// Two evaluations of the law, once per steady motion.
+pub fn falling_branch(law: &CompiledLaw, reference: RadiansPerSecond) -> bool {
+    let v = reference.sat_abs();
+    let dv =
+        RadiansPerSecond::from_raw((v.to_bits() / 4).max(RadiansPerSecond::lit("0.05").bits()));
+    law.mu(v.sat_add(dv)) < law.mu(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::friction::FrictionLaw;
+    use crate::units::{Metres, Ratio};
+    use proptest::prelude::*;
+
+    fn law(l: FrictionLaw) -> CompiledLaw {
+        l.compile(Metres::lit("0.004265"), Ratio::lit("0.998"))
+            .unwrap()
+    }
+
+    /// The float64 twin: the same algorithm on f64 torques in N·m.
+    struct Twin {
+        thr: f64,
+        leak: f64,
+        window: u32,
+        settle: u32,
+        event: u32,
+        min_hold: u32,
+        ring: [f64; 4],
+        head: usize,
+        filled: usize,
+        prev_ref: f64,
+        steady: u32,
+        peak: f64,
+        in_event: u32,
+        event_drop: f64,
+        since: u32,
+        interval: u32,
+        chain: u32,
+        falling: bool,
+        active: bool,
+        amplitude: f64,
+        episodes: u32,
+        last: [f64; 2],
+        noise: f64,
+    }
+
+    impl Twin {
+        fn new(thr: f64, window_ms: u32, falling: bool) -> Twin {
+            // The leak is quantised as the detector quantises it (the configuration is
+            // quantised once; the twin checks the arithmetic, not the quantisation).
+            let leak = f64::from(((thr * 65536.0).round() as i32 / 16).max(1)) / 65536.0;
+            Twin {
+                thr,
+                leak,
+                window: window_ms,
+                settle: SETTLE_MS,
+                event: EVENT_MS,
+                min_hold: MIN_HOLD_MS,
+                ring: [0.0; 4],
+                head: 0,
+                filled: 0,
+                prev_ref: 0.0,
+                steady: 0,
+                peak: 0.0,
+                in_event: 0,
+                event_drop: 0.0,
+                since: u32::MAX,
+                interval: 0,
+                chain: 0,
+                falling,
+                active: false,
+                amplitude: 0.0,
+                episodes: 0,
+                last: [0.0; 2],
+                noise: 0.0,
+            }
+        }
+
+        fn step(&mut self, driving: bool, reference: f64, torque: f64) -> (bool, bool) {
+            if !driving {
+                *self = Twin {
+                    amplitude: self.amplitude,
+                    episodes: self.episodes,
+                    noise: self.noise,
+                    ..Twin::new(self.thr, self.window, self.falling)
+                };
+                return (false, false);
+            }
+            self.ring[self.head] = torque;
+            self.head = (self.head + 1) % 4;
+            if self.filled >= 2 {
+                let d2 = (torque - 2.0 * self.last[0] + self.last[1]).abs();
+                let d2 = d2.min(4.0 * self.noise.max(self.thr / 4.0));
+                self.noise += (d2 - self.noise) / 64.0;
+            }
+            self.last = [torque, self.last[0]];
+            self.filled = (self.filled + 1).min(4);
+            let mean = self.ring.iter().sum::<f64>() / 4.0;
+            self.since = self.since.saturating_add(1);
+            if reference != self.prev_ref || reference == 0.0 {
+                self.steady = 0;
+            } else {
+                self.steady += 1;
+            }
+            self.prev_ref = reference;
+            let mut slip = false;
+            if self.steady < self.settle || self.filled < 4 {
+                self.peak = mean;
+                self.in_event = 0;
+            } else {
+                self.peak = (self.peak - self.leak).max(mean);
+                let drop = self.peak - mean;
+                if self.in_event > 0 {
+                    self.event_drop = self.event_drop.max(drop);
+                    self.in_event += 1;
+                    if self.in_event > self.event {
+                        self.in_event = 0;
+                        self.amplitude = self.event_drop;
+                        self.peak = mean;
+                    }
+                } else if drop >= self.thr.max(3.0 * self.noise) {
+                    slip = true;
+                    self.in_event = 1;
+                    self.event_drop = drop;
+                    if self.since <= self.window {
+                        self.chain += 1;
+                        self.interval = self.since;
+                    } else {
+                        self.chain = 1;
+                        self.interval = 0;
+                    }
+                    self.since = 0;
+                    let need = if self.falling { 2 } else { 3 };
+                    if !self.active && self.chain >= need {
+                        self.active = true;
+                        self.episodes += 1;
+                    }
+                }
+            }
+            if self.active {
+                let hold = (self.interval * 4).clamp(self.min_hold, self.window);
+                if self.since > hold {
+                    self.active = false;
+                    self.chain = 0;
+                }
+            }
+            (slip, self.active)
+        }
+    }
+
+    fn cfg(thr: &str) -> StickSlipConfig {
+        StickSlipConfig {
+            drop_threshold: NewtonMetres::lit(thr),
+            ..StickSlipConfig::DEFAULT
+        }
+    }
+
+    fn drive(t: NewtonMetres, reference: &str) -> DetectorInputs {
+        DetectorInputs {
+            driving: true,
+            direction: 1,
+            reference: RadiansPerSecond::lit(reference),
+            measured_torque: t,
+        }
+    }
+
+    /// A sawtooth: rises `rise` N·m over `period` ms, then falls back within 2 ms.
+    fn sawtooth(ms: u32, period: u32, base: f64, rise: f64) -> f64 {
+        let ph = ms % period;
+        if ph + 2 >= period {
+            base + rise * f64::from(period - ph) / 3.0 / 1.0
+        } else {
+            base + rise * f64::from(ph) / f64::from(period - 2)
+        }
+    }
+
+    #[test]
+    fn default_config_is_valid_and_out_of_range_names_the_key() {
+        StickSlipConfig::DEFAULT.validate().unwrap();
+        let mut c = StickSlipConfig::DEFAULT;
+        c.window_ms = 50;
+        assert_eq!(
+            c.validate(),
+            Err(ConfigError::OutOfRange {
+                field: "stickslip.window_ms",
+                range: "100..10000 ms"
+            })
+        );
+    }
+
+    #[test]
+    fn dry_law_is_falling_and_lubricants_rise_at_cruise() {
+        let v = RadiansPerSecond::lit("3");
+        assert!(falling_branch(&law(FrictionLaw::DRY), v));
+        assert!(!falling_branch(&law(FrictionLaw::PTFE), v));
+        assert!(!falling_branch(&law(FrictionLaw::LITHIUM), v));
+        assert!(!falling_branch(
+            &law(FrictionLaw::LITHIUM),
+            RadiansPerSecond::lit("0.2")
+        ));
+    }
+
+    #[test]
+    fn sawtooth_torque_raises_the_flag_on_the_second_slip_with_dry_friction() {
+        let l = law(FrictionLaw::DRY);
+        let mut d = StickSlipDetector::new(&cfg("0.5"), 1000);
+        let mut onset_at = None;
+        let mut slips = 0;
+        for ms in 0..1000u32 {
+            let t = NewtonMetres::from_f64(sawtooth(ms, 100, 25.0, 50.0));
+            let o = d.step(&drive(t, "3"), &l);
+            slips += u32::from(o.slip);
+            if o.onset {
+                onset_at = Some((ms, slips));
+            }
+        }
+        let (at, n) = onset_at.expect("an episode");
+        assert_eq!(n, 2, "onset at the second slip");
+        assert!((198..=206).contains(&at), "onset at {at} ms");
+        assert_eq!(d.output().episodes, 1);
+        assert!(d.output().active);
+        let a = d.output().amplitude.to_f64();
+        assert!(a > 30.0 && a <= 50.5, "amplitude {a}");
+    }
+
+    #[test]
+    fn flat_noisy_torque_never_alarms() {
+        let l = law(FrictionLaw::DRY);
+        let mut d = StickSlipDetector::new(&cfg("0.5"), 1000);
+        let mut x: u32 = 12345;
+        for ms in 0..20_000 {
+            // ±0.2 N·m uniform noise on 37 N·m, slow drift down (the load falls as α grows).
+            x = x.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            let n = f64::from(x >> 16) / 65536.0 * 0.4 - 0.2;
+            let t = 37.0 - f64::from(ms) * 5e-4 + n;
+            let o = d.step(&drive(NewtonMetres::from_f64(t), "3"), &l);
+            assert!(!o.slip && !o.active);
+        }
+    }
+
+    #[test]
+    fn flag_falls_when_the_motion_ends_and_the_counter_stays() {
+        let l = law(FrictionLaw::DRY);
+        let mut d = StickSlipDetector::new(&cfg("0.5"), 1000);
+        for ms in 0..500u32 {
+            let t = NewtonMetres::from_f64(sawtooth(ms, 50, 20.0, 10.0));
+            d.step(&drive(t, "3"), &l);
+        }
+        assert!(d.output().active);
+        let o = d.step(&DetectorInputs::default(), &l);
+        assert!(!o.active);
+        assert_eq!(o.episodes, 1);
+    }
+
+    #[test]
+    fn rising_branch_needs_a_third_slip() {
+        let l = law(FrictionLaw::PTFE);
+        let mut d = StickSlipDetector::new(&cfg("0.5"), 1000);
+        let mut slips_at_onset = 0;
+        let mut slips = 0;
+        for ms in 0..600u32 {
+            let t = NewtonMetres::from_f64(sawtooth(ms, 100, 25.0, 20.0));
+            let o = d.step(&drive(t, "3"), &l);
+            slips += u32::from(o.slip);
+            if o.onset {
+                slips_at_onset = slips;
+            }
+        }
+        assert_eq!(slips_at_onset, 3);
+    }
+
+    #[test]
+    fn ramping_reference_is_ignored() {
+        let l = law(FrictionLaw::DRY);
+        let mut d = StickSlipDetector::new(&cfg("0.5"), 1000);
+        for ms in 0..400i32 {
+            // The reference changes every tick: a ramp. Torque drops 10 N·m every 50 ms.
+            let t = NewtonMetres::from_f64(30.0 - 10.0 * f64::from(ms % 50 / 49));
+            let x = DetectorInputs {
+                reference: RadiansPerSecond::from_raw(1000 + ms),
+                ..drive(t, "3")
+            };
+            assert!(!d.step(&x, &l).slip);
+        }
+    }
+
+    proptest! {
+        /// The fixed-point detector and its float64 twin agree on every slip and on the flag,
+        /// and the amplitude within 2 LSB of Q16 plus the twin's rounding, on random torque
+        /// sequences kept away from the threshold by ≥ 2 LSB (ties may go either way).
+        #[test]
+        fn detector_matches_its_float_twin(
+            steps in proptest::collection::vec((-60.0f64..60.0, 0u8..8), 1..600),
+            thr in 0.2f64..10.0,
+        ) {
+            let l = law(FrictionLaw::DRY);
+            let thr_q = NewtonMetres::from_f64(thr);
+            let mut c = cfg("1");
+            c.drop_threshold = thr_q;
+            let mut d = StickSlipDetector::new(&c, 1000);
+            let mut twin = Twin::new(thr_q.to_f64(), c.window_ms, true);
+            let mut torque = 10.0;
+            for (ms, (jump, kind)) in steps.into_iter().enumerate() {
+                // Mostly small moves, sometimes a jump; every 200th tick the drive pauses.
+                torque += if kind == 0 { jump } else { jump / 50.0 };
+                torque = torque.clamp(-200.0, 200.0);
+                let driving = ms % 200 != 199;
+                // Quantise first: both see the same torque.
+                let tq = NewtonMetres::from_f64(torque);
+                let x = DetectorInputs { driving, ..drive(tq, "3") };
+                let o = d.step(&x, &l);
+                let (slip, active) = twin.step(driving, 3.0, tq.to_f64());
+                // The Q16 mean truncates by < 1 LSB: skip cases that land that close to ties.
+                // The noise EWMA rounds (≤ ½ LSB per tick, ≤ 32 LSB in steady state, plus the
+                // clipping of its input): skip cases within that of the threshold.
+                let thr = twin.thr.max(3.0 * twin.noise);
+                let near_tie = (twin.peak - twin.ring.iter().sum::<f64>() / 4.0 - thr).abs() < 80.0 / 65536.0;
+                if near_tie { return Ok(()); }
+                prop_assert_eq!(o.slip, slip, "tick {}", ms);
+                prop_assert_eq!(o.active, active, "tick {}", ms);
+                prop_assert!((o.amplitude.to_f64() - twin.amplitude).abs() <= 4.0 / 65536.0);
+                prop_assert!((f64::from(d.noise) / 65536.0 - twin.noise).abs() <= 70.0 / 65536.0, "noise {} vs {}", f64::from(d.noise) / 65536.0, twin.noise);
+                prop_assert_eq!(o.episodes, twin.episodes);
+            }
+        }
+    }
+}

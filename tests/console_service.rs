@@ -399,3 +399,22 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn status_fault_names_are_one_word() {
+    let v = liftfw::console::StatusView {
+        state: "fault",
+        height: Metres::lit("0.2"),
+        screw_speed: Default::default(),
+        current: Default::default(),
+        friction_torque: Default::default(),
+        stick_slip: false,
+        fault: Some(FaultKind::LimitSwitch.name()),
+    };
+    let mut s = String::new();
+    liftfw::console::write_status(&mut s, &v).unwrap();
+    assert!(
+        s.ends_with(" fault=limit-switch-before-soft-limit-missed"),
+        "{s}"
+    );
+}

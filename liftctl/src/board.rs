@@ -48,6 +48,35 @@ pub enum Error {
     Invalid(String),
     /// A local file or argument problem.
     Local(String),
+    /// A change failed part-way (`cause`); `note` says what liftctl did about the ones before.
+    Undone {
+        /// Why it stopped.
+        cause: Box<Error>,
+        /// What became of the earlier changes.
+        note: String,
+    },
+}
+
+impl Error {
+    /// The message for the terminal: the board's (and the firmware's) words unchanged, liftctl's
+    /// own prefixed with `liftctl:`.
+    pub fn report(&self) -> String {
+        match self {
+            Error::Board(m) | Error::Invalid(m) => m.clone(),
+            Error::Undone { cause, note } => format!("{}\nliftctl: {note}", cause.report()),
+            e => format!("liftctl: {e}"),
+        }
+    }
+
+    /// Exit code: 1 refused (by the board or by liftctl's checks), 2 communication, 3 local.
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            Error::Board(_) | Error::Invalid(_) => 1,
+            Error::Local(_) => 3,
+            Error::Undone { cause, .. } => cause.exit_code(),
+            _ => 2,
+        }
+    }
 }
 
 impl fmt::Display for Error {
@@ -79,6 +108,7 @@ impl fmt::Display for Error {
             ),
             Error::Board(m) | Error::Invalid(m) => f.write_str(m),
             Error::Local(m) => f.write_str(m),
+            Error::Undone { cause, note } => write!(f, "{cause}\n{note}"),
         }
     }
 }

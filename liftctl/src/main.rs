@@ -357,16 +357,8 @@ fn main() -> ExitCode {
     match run(&cli, &stop) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            match &e {
-                // The firmware's words, unchanged.
-                Error::Board(m) | Error::Invalid(m) => eprintln!("{m}"),
-                _ => eprintln!("liftctl: {e}"),
-            }
-            ExitCode::from(match e {
-                Error::Board(_) | Error::Invalid(_) => 1,
-                Error::Local(_) => 3,
-                _ => 2,
-            })
+            eprintln!("{}", e.report());
+            ExitCode::from(e.exit_code())
         }
     }
 }

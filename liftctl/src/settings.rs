@@ -168,15 +168,17 @@ pub fn apply(board: &mut Board, changes: &[Change]) -> Result<Vec<String>, Error
                 // The failed one too: a lost reply may hide a change the board made.
                 done.push(c.id);
                 let undo = undo(board, &mirror, &done);
-                return Err(match (e, undo) {
-                    (e, Ok(())) => Error::Local(format!(
-                        "{e}\nnothing changed: the settings changed before it were set back"
-                    )),
-                    (e, Err(u)) => Error::Local(format!(
-                        "{e}\nsetting back the earlier changes failed too ({u}): the board may \
-                         run with some of them; none is saved, so restarting the lift restores \
-                         the saved settings"
-                    )),
+                return Err(Error::Undone {
+                    cause: Box::new(e),
+                    note: match undo {
+                        Ok(()) => "nothing changed: what this command had changed was set back"
+                            .to_string(),
+                        Err(u) => format!(
+                            "setting back what this command had changed failed too ({u}): the \
+                             board may run with some of it; none of it is saved, so restarting \
+                             the lift restores the saved settings"
+                        ),
+                    },
                 });
             }
         }

@@ -288,14 +288,13 @@ fn fake(
     (addr, seen)
 }
 
+/// The lines a fake board received.
+type Seen = Arc<Mutex<Vec<String>>>;
+
 /// A fake backed by the real console service and a controller at rest.
 fn serviced(
     mut drop: impl FnMut(&str) -> bool + Send + 'static,
-) -> (
-    SocketAddr,
-    Arc<Mutex<Vec<String>>>,
-    Arc<Mutex<ValidatedConfig>>,
-) {
+) -> (SocketAddr, Seen, Arc<Mutex<ValidatedConfig>>) {
     let cfg = Arc::new(Mutex::new(ValidatedConfig::factory()));
     let shared = Arc::clone(&cfg);
     let mut c = Controller::new(ValidatedConfig::factory().get(), 40_000).unwrap();

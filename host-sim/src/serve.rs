@@ -203,7 +203,17 @@ impl Board {
                 &mut out,
             ),
         };
-        if o.action == Action::Save {
+        let moving = matches!(
+            self.controller.state(),
+            liftfw::control::State::Lifting | liftfw::control::State::Lowering
+        );
+        if o.action == Action::Save && moving {
+            // As the firmware's console task: no flash writes while the lift moves.
+            out.push_str(
+                "error: save refused while the lift moves (flash writes stall the CPU); `stop` \
+                 first",
+            );
+        } else if o.action == Action::Save {
             let mut r = block_on(self.store.save(&self.running));
             if let (Ok(_), Some(path)) = (r, &self.flash_file) {
                 if let Err(e) = write_flash(path, self.store.flash().bytes()) {

@@ -330,7 +330,8 @@ mod tests {
         let m = Mirror { config: run, texts };
         let t = export_toml(&m, "test");
         let changes = import_toml(&t).unwrap();
-        assert_eq!(changes.len(), 48);
+        let stored = settings::all().filter(|id| id.setting().stored).count();
+        assert_eq!(changes.len(), stored);
         let mut cfg = *run.get();
         for c in &changes {
             assert!(c.id.setting().set(&mut cfg, c.raw));

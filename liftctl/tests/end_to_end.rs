@@ -87,7 +87,7 @@ fn set_limits_save_power_cycle_read_back_and_stop_at_the_new_limit() {
     let limits = ok(a, &["limits"]);
     assert!(
         limits.starts_with(&format!(
-            "limits.lower = 150.0 mm, limits.upper = {upper:.1} mm;"
+            "limits.lower = 150.0 mm, limits.upper = {upper:.1} mm,"
         )),
         "{limits}"
     );

@@ -680,7 +680,7 @@ impl Sim {
         for _ in 0..n {
             let k = self.steps;
             let t = k as f64 * dt;
-            if !self.driver.is_paper() && k % per_tick == 0 {
+            if !self.driver.is_paper() && k.is_multiple_of(per_tick) {
                 self.tick(t);
             }
             self.advance(t, (k + 1) as f64 * dt);

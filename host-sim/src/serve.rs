@@ -86,6 +86,10 @@ pub struct ServeArgs {
     /// Seed of the sensor noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Also serve the console on a pseudo-terminal (Unix), a serial port to any program:
+    /// `liftctl -p /dev/pts/N`, `screen /dev/pts/N`. Its path is printed at the start.
+    #[arg(long)]
+    pub pty: bool,
 }
 
 impl Default for ServeArgs {
@@ -99,6 +103,7 @@ impl Default for ServeArgs {
             lubricant: Lube::Dry,
             dt: 4e-6,
             seed: 1,
+            pty: false,
         }
     }
 }
@@ -250,6 +255,8 @@ pub struct Server {
     sim: Option<JoinHandle<()>>,
     accept: Option<JoinHandle<()>>,
     boot: String,
+    #[cfg(unix)]
+    pty: Option<pty::Pty>,
 }
 
 impl Server {
@@ -326,11 +333,27 @@ impl Server {
                         lock(&acc_streams).push(clone);
                     }
                     let tx = acc_tx.clone();
+                    let _ = stream.set_nodelay(true);
                     let _ = thread::Builder::new()
                         .name("host-sim connection".into())
                         .spawn(move || connection(stream, &tx));
                 }
             })?;
+        #[cfg(unix)]
+        let pty = if args.pty {
+            let (p, master) = pty::Pty::open()?;
+            let tx = tx.clone();
+            thread::Builder::new()
+                .name("host-sim pty".into())
+                .spawn(move || connection(master, &tx))?;
+            Some(p)
+        } else {
+            None
+        };
+        #[cfg(not(unix))]
+        if args.pty {
+            return Err(io::Error::other("--pty needs a Unix system"));
+        }
         Ok(Server {
             addr,
             tx,
@@ -340,7 +363,17 @@ impl Server {
             sim: Some(sim),
             accept: Some(accept),
             boot,
+            #[cfg(unix)]
+            pty,
         })
+    }
+
+    /// The pseudo-terminal's path (`--pty`), e.g. `/dev/pts/3`.
+    pub fn pty_path(&self) -> Option<&Path> {
+        #[cfg(unix)]
+        return self.pty.as_ref().map(|p| p.path.as_path());
+        #[cfg(not(unix))]
+        None
     }
 
     /// The address the console listens on.
@@ -390,6 +423,12 @@ impl Server {
         }
         for h in [self.sim.take(), self.accept.take()].into_iter().flatten() {
             let _ = h.join();
+        }
+        // The pty's reader blocks in read(2): a line sent from the slave side wakes it, and it
+        // ends when it finds the simulation gone.
+        #[cfg(unix)]
+        if let Some(p) = self.pty.take() {
+            p.wake();
         }
     }
 }
@@ -448,8 +487,7 @@ fn run_board(
 }
 
 /// One TCP client: bytes → lines (the core's `LineBuffer`) → the board → reply + CRLF.
-fn connection(mut stream: TcpStream, tx: &Sender<Msg>) {
-    let _ = stream.set_nodelay(true);
+fn connection(mut stream: impl Read + Write, tx: &Sender<Msg>) {
     let mut lb = LineBuffer::new();
     let mut buf = [0u8; 512];
     loop {
@@ -496,6 +534,95 @@ pub fn main(args: &ServeArgs) -> Result<(), Box<dyn std::error::Error>> {
             None => "flash kept in memory only".to_string(),
         }
     );
+    if let Some(p) = server.pty_path() {
+        println!(
+            "host-sim serve: console also on the pseudo-terminal {} (liftctl -p {})",
+            p.display(),
+            p.display()
+        );
+    }
     server.wait();
     Ok(())
+}
+
+/// A pseudo-terminal pair: the board reads and writes the master, programs open the slave's
+/// path as a serial port.
+#[cfg(unix)]
+mod pty {
+    use std::fs::File;
+    use std::io::{self, Write};
+    use std::os::fd::{FromRawFd, OwnedFd};
+    use std::path::PathBuf;
+
+    /// The slave side, kept open so the terminal does not hang up between programs.
+    pub struct Pty {
+        /// `/dev/pts/N`.
+        pub path: PathBuf,
+        slave: File,
+    }
+
+    impl Pty {
+        /// Open a pair in raw mode (no echo, no line editing, no CR/NL translation): the master
+        /// for the board, the slave kept here.
+        pub fn open() -> io::Result<(Pty, File)> {
+            let mut master: libc::c_int = -1;
+            let mut slave: libc::c_int = -1;
+            // SAFETY: openpty writes two descriptors into the given ints; the name, termios and
+            // window-size pointers may be null.
+            let rc = unsafe {
+                libc::openpty(
+                    &mut master,
+                    &mut slave,
+                    std::ptr::null_mut(),
+                    std::ptr::null(),
+                    std::ptr::null(),
+                )
+            };
+            if rc != 0 {
+                return Err(io::Error::last_os_error());
+            }
+            // SAFETY: both descriptors were just opened by openpty and are owned by nobody else.
+            let (master, slave) =
+                unsafe { (OwnedFd::from_raw_fd(master), OwnedFd::from_raw_fd(slave)) };
+            use std::os::fd::AsRawFd;
+            // SAFETY: termios is plain data; tcgetattr fills it, cfmakeraw edits it, tcsetattr
+            // reads it; the descriptor is valid for the calls.
+            unsafe {
+                let mut t: libc::termios = std::mem::zeroed();
+                if libc::tcgetattr(slave.as_raw_fd(), &mut t) != 0 {
+                    return Err(io::Error::last_os_error());
+                }
+                libc::cfmakeraw(&mut t);
+                if libc::tcsetattr(slave.as_raw_fd(), libc::TCSANOW, &t) != 0 {
+                    return Err(io::Error::last_os_error());
+                }
+            }
+            let path = std::fs::read_link(format!("/proc/self/fd/{}", slave.as_raw_fd())).or_else(
+                |_| {
+                    let mut buf = [0 as libc::c_char; 128];
+                    // SAFETY: ttyname_r writes at most buf.len() bytes, NUL-terminated on success.
+                    let rc =
+                        unsafe { libc::ttyname_r(slave.as_raw_fd(), buf.as_mut_ptr(), buf.len()) };
+                    if rc != 0 {
+                        return Err(io::Error::from_raw_os_error(rc));
+                    }
+                    // SAFETY: NUL-terminated by ttyname_r.
+                    let name = unsafe { std::ffi::CStr::from_ptr(buf.as_ptr()) };
+                    Ok(PathBuf::from(name.to_string_lossy().into_owned()))
+                },
+            )?;
+            Ok((
+                Pty {
+                    path,
+                    slave: File::from(slave),
+                },
+                File::from(master),
+            ))
+        }
+
+        /// Send an empty line from the slave side (wakes the master's reader).
+        pub fn wake(mut self) {
+            let _ = self.slave.write_all(b"\n");
+        }
+    }
 }

@@ -29,13 +29,17 @@ struct Run {
 }
 
 fn liftctl(addr: SocketAddr, args: &[&str]) -> Run {
+    liftctl_on(&format!("tcp://{addr}"), args)
+}
+
+fn liftctl_on(port: &str, args: &[&str]) -> Run {
     let Output {
         status,
         stdout,
         stderr,
     } = Command::new(env!("CARGO_BIN_EXE_liftctl"))
         .arg("--port")
-        .arg(format!("tcp://{addr}"))
+        .arg(port)
         .args(args)
         .env_remove("LIFTCTL_PORT")
         .output()
@@ -409,4 +413,38 @@ fn a_lost_reply_in_the_middle_of_a_change_is_undone() {
         seen.iter().any(|l| l == "set limits.upper 410 mm"),
         "{seen:?}"
     );
+}
+
+/// The serial-port path of liftctl (the `serialport` crate), against the simulated board's
+/// pseudo-terminal.
+#[cfg(unix)]
+#[test]
+fn over_a_serial_port_the_pseudo_terminal() {
+    let server = Server::start(&ServeArgs {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        speed: 0.0,
+        pty: true,
+        ..ServeArgs::default()
+    })
+    .unwrap();
+    let port = server.pty_path().unwrap().to_str().unwrap().to_string();
+    let run = |args: &[&str]| {
+        let r = liftctl_on(&port, args);
+        assert_eq!(
+            r.code, 0,
+            "liftctl {args:?}\nstdout: {}\nstderr: {}",
+            r.out, r.err
+        );
+        r.out
+    };
+    assert!(run(&["version"]).starts_with("liftfw console v1 "));
+    let out = run(&["limits", "set", "--lower", "160mm", "--save"]);
+    assert!(out.contains("ok: limits.lower = 160 mm"), "{out}");
+    assert!(out.contains("ok: saved as configuration #1"), "{out}");
+    server.power_cycle().unwrap();
+    assert_eq!(
+        run(&["config", "get", "limits.lower"]),
+        "limits.lower = 160 mm\n"
+    );
+    server.shutdown();
 }

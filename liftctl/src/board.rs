@@ -310,7 +310,8 @@ impl Board {
     }
 
     /// Send one command and return its reply line (blank lines and an echo of the command are
-    /// skipped).
+    /// skipped; a `warning:` line the board sends of its own accord is shown on stderr, as
+    /// it came, and skipped).
     pub fn ask(&mut self, cmd: &str) -> Result<String, Error> {
         self.drain(Duration::from_millis(1));
         self.send(cmd)?;
@@ -319,6 +320,10 @@ impl Board {
             let line = self.read_line(cmd, deadline)?;
             let t = line.trim();
             if t.is_empty() || t == cmd.trim() {
+                continue;
+            }
+            if t.starts_with("warning:") {
+                eprintln!("{t}");
                 continue;
             }
             return Ok(t.to_string());

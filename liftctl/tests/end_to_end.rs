@@ -356,6 +356,11 @@ fn a_garbled_reply_or_a_timeout_gives_a_clear_message() {
         Some(match line {
             b"version" => v.clone().into_bytes(),
             b"status" => b"state=li\x07fting h\xffeight=2".to_vec(),
+            // An unsolicited warning before the reply is shown and skipped.
+            b"fault" => {
+                b"warning: stick-slip (episode 1, torque drop 0.40 Nm per slip)\r\nfault=none"
+                    .to_vec()
+            }
             _ => return None,
         })
     });
@@ -365,6 +370,13 @@ fn a_garbled_reply_or_a_timeout_gives_a_clear_message() {
         r.err.starts_with("liftctl: garbled reply to `status`"),
         "{}",
         r.err
+    );
+    let r = liftctl(a, &["fault"]);
+    assert_eq!(r.code, 0, "{}", r.err);
+    assert_eq!(r.out.trim(), "fault        none");
+    assert_eq!(
+        r.err.trim(),
+        "warning: stick-slip (episode 1, torque drop 0.40 Nm per slip)"
     );
     let r = liftctl(a, &["--timeout", "0.3", "limits"]);
     assert_eq!(r.code, 2);

@@ -93,7 +93,10 @@ fn status_reports_the_controller() {
         r.starts_with("state=idle height=250.0mm speed=0.00rad/s current=0.00A T_r="),
         "{r}"
     );
-    assert!(r.ends_with(" stick_slip=no fault=none"), "{r}");
+    assert!(
+        r.ends_with(" stick_slip=no ss_amp=0.00Nm ss_episodes=0 fault=none"),
+        "{r}"
+    );
     let s = b.c.status();
     assert_eq!(
         service::status_view(&s).state,
@@ -398,4 +401,25 @@ proptest! {
             b.ticks(3);
         }
     }
+}
+
+#[test]
+fn status_fault_names_are_one_word() {
+    let v = liftfw::console::StatusView {
+        state: "fault",
+        height: Metres::lit("0.2"),
+        screw_speed: Default::default(),
+        current: Default::default(),
+        friction_torque: Default::default(),
+        stick_slip: false,
+        stick_slip_amplitude: Default::default(),
+        stick_slip_episodes: 0,
+        fault: Some(FaultKind::LimitSwitch.name()),
+    };
+    let mut s = String::new();
+    liftfw::console::write_status(&mut s, &v).unwrap();
+    assert!(
+        s.ends_with(" fault=limit-switch-before-soft-limit-missed"),
+        "{s}"
+    );
 }

@@ -10,6 +10,7 @@
 //! - [`study`]: the step-size convergence study.
 //! - [`truth`]: stick-slip episodes labelled from the plant's phase log; [`score`]: the core's
 //!   stick-slip detector scored against them (`host-sim stickslip`).
+//! - [`serve`]: the simulated board with the core's console on loopback TCP (`host-sim serve`).
 #![warn(missing_docs)]
 
 pub mod paper;
@@ -17,6 +18,7 @@ pub mod physics;
 pub mod plant;
 pub mod plots;
 pub mod score;
+pub mod serve;
 pub mod sim;
 pub mod solver;
 pub mod study;

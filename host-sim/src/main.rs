@@ -43,6 +43,8 @@ enum Command {
     /// Score the core's stick-slip detector against the plant's truth over a seeded scenario
     /// set (precision, recall, latency, false alarms), and show the `speed` reaction.
     Stickslip(StickslipArgs),
+    /// The simulated board in closed loop, its console on a loopback TCP port (for liftctl).
+    Serve(host_sim::serve::ServeArgs),
 }
 
 #[derive(Args, Debug)]
@@ -722,6 +724,7 @@ fn main() -> ExitCode {
             Ok(())
         }
         Command::Stickslip(a) => stickslip(&a),
+        Command::Serve(a) => host_sim::serve::main(&a),
     };
     match res {
         Ok(()) => ExitCode::SUCCESS,

@@ -671,6 +671,24 @@ impl Sim {
         self.bridge = BridgeState::from_command(cmd);
     }
 
+    /// Live stepping (`host-sim serve`): advances `n` base steps from where the previous call
+    /// ended, ticking the driver on schedule; no trace, no summary, no end. Returns the
+    /// simulated time reached. Not to be mixed with [`Sim::run`] on the same `Sim`.
+    pub fn step_n(&mut self, n: u64) -> f64 {
+        let dt = self.cfg.dt;
+        let per_tick = (1.0 / (self.cfg.control_rate * dt)).round().max(1.0) as u64;
+        for _ in 0..n {
+            let k = self.steps;
+            let t = k as f64 * dt;
+            if !self.driver.is_paper() && k.is_multiple_of(per_tick) {
+                self.tick(t);
+            }
+            self.advance(t, (k + 1) as f64 * dt);
+            self.steps += 1;
+        }
+        self.steps as f64 * dt
+    }
+
     /// Runs to the configured duration and summarises.
     pub fn run(&mut self) -> Summary {
         let dt = self.cfg.dt;

@@ -469,7 +469,8 @@ fn write_fixed(out: &mut dyn Write, bits: i32, frac: u32, dec: u32) -> fmt::Resu
     }
 }
 
-/// The reply to `status`: one line, `key=value` pairs a person and a script can read.
+/// The reply to `status`: one line, `key=value` pairs a person and a script can read (a fault
+/// name's spaces are written as `-`, so every value is one word).
 pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
     write!(out, "state={} height=", s.state)?;
     write_mm(out, s.height)?;
@@ -485,12 +486,16 @@ pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
         if s.stick_slip { "yes" } else { "no" }
     )?;
     write_fixed(out, s.stick_slip_amplitude.to_bits(), 16, 2)?;
-    write!(
-        out,
-        "Nm ss_episodes={} fault={}",
-        s.stick_slip_episodes,
-        s.fault.unwrap_or("none")
-    )
+    write!(out, "Nm ss_episodes={} fault=", s.stick_slip_episodes)?;
+    write_word(out, s.fault.unwrap_or("none"))
+}
+
+/// A name as one `key=value` word: spaces become `-` ("encoder lost" → `encoder-lost`).
+fn write_word(out: &mut dyn Write, name: &str) -> fmt::Result {
+    for c in name.chars() {
+        out.write_char(if c.is_whitespace() { '-' } else { c })?;
+    }
+    Ok(())
 }
 
 /// The console warning of the stick-slip reactions `warn` and `speed`, one line.

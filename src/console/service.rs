@@ -19,7 +19,7 @@
 
 use super::{
     parse, write_fixed, write_get, write_help, write_limits, write_mm, write_parse_error,
-    write_refused, write_status, Feed, ParseError, Request, StatusView,
+    write_refused, write_status, write_word, Feed, ParseError, Request, StatusView,
 };
 use crate::config::store::StoreError;
 use crate::config::{record, settings, ValidatedConfig};
@@ -250,9 +250,7 @@ pub fn write_fault(out: &mut dyn Write, fault: Option<&Fault>) -> fmt::Result {
     };
     // The fault's name may contain spaces; `-` keeps the line `key=value`.
     out.write_str("fault=")?;
-    for c in f.kind.name().chars() {
-        out.write_char(if c == ' ' { '-' } else { c })?;
-    }
+    write_word(out, f.kind.name())?;
     let ms = f.at.0 / 1000;
     write!(
         out,

@@ -24,6 +24,7 @@ use core::cell::RefCell;
 use defmt::{error, info, warn};
 use embassy_embedded_hal::adapter::BlockingAsync;
 use embassy_executor::Spawner;
+use embassy_futures::select::{select, Either};
 use embassy_stm32::flash::{Blocking, Flash};
 use embassy_stm32::usart::{self, BufferedUart};
 use embassy_stm32::{bind_interrupts, peripherals};
@@ -38,7 +39,8 @@ use liftfw::console::service::{self, Action, Lift};
 use liftfw::console::{Feed, LineBuffer};
 use liftfw::control::config::ControlConfig;
 use liftfw::control::park::ParkLog;
-use liftfw::control::{Bridge, Command, Controller, Fault, Refusal, State, Status};
+use liftfw::control::{Bridge, Command, Controller, Event, Fault, Refusal, State, Status};
+use liftfw::detect::stickslip::Reaction;
 use liftfw::units::Instant;
 use static_cell::StaticCell;
 use {defmt_rtt as _, panic_probe as _};
@@ -75,6 +77,10 @@ enum StoreRequest {
 }
 
 static STORE_REQUESTS: Channel<CriticalSectionRawMutex, StoreRequest, 2> = Channel::new();
+
+/// Unsolicited console lines the control task asks for (faults, homing, stick-slip warnings);
+/// dropped when the console is behind (the defmt log has them all).
+static NOTICES: Channel<CriticalSectionRawMutex, Event, 4> = Channel::new();
 static SAVED: Signal<CriticalSectionRawMutex, Result<u32, StoreError>> = Signal::new();
 
 #[embassy_executor::main]
@@ -198,20 +204,31 @@ async fn control(mut board: Board, mut park: ParkLog) {
             }
         }
 
-        // State changes and faults (with their snapshot) go to the defmt log.
-        match outputs.event {
-            Some(liftfw::control::Event::Fault(f)) => error!("FAULT {}", f),
-            // Reactions `warn` and `speed` (stickslip.reaction): a warning, not an info line.
-            Some(
-                e @ liftfw::control::Event::StickSlip {
-                    reaction:
-                        liftfw::detect::stickslip::Reaction::Warn
-                        | liftfw::detect::stickslip::Reaction::ChangeSpeed,
-                    ..
-                },
-            ) => warn!("{}", e),
-            Some(e) => info!("{}", e),
-            None => {}
+        // State changes and faults (with their snapshot) go to the defmt log (stick-slip with
+        // the reactions `warn` and `speed` as a warning); faults, homing and those stick-slip
+        // warnings also to the console.
+        if let Some(e) = outputs.event {
+            let notify = match e {
+                Event::Fault(f) => {
+                    error!("FAULT {}", f);
+                    true
+                }
+                Event::StickSlip { reaction, .. } if reaction != Reaction::Log => {
+                    warn!("{}", e);
+                    true
+                }
+                Event::Homed { .. } | Event::SwitchStop => {
+                    info!("{}", e);
+                    true
+                }
+                _ => {
+                    info!("{}", e);
+                    false
+                }
+            };
+            if notify && NOTICES.try_send(e).is_err() {
+                warn!("console notice dropped (console behind)");
+            }
         }
         if outputs.bridge != last_bridge {
             info!("bridge {} -> {}", last_bridge, outputs.bridge);
@@ -246,6 +263,32 @@ async fn storage(mut store: ConfigStore<StoreFlash>) {
                 }
             }
         }
+    }
+}
+
+/// An unsolicited console line (`warning:` prefix: host tools show and skip them).
+fn write_notice(out: &mut dyn core::fmt::Write, e: &Event) -> core::fmt::Result {
+    match *e {
+        Event::Fault(f) => write!(
+            out,
+            "warning: fault latched: {} (`fault` shows the snapshot, `fault clear` clears it)",
+            f.kind.name()
+        ),
+        Event::Homed { .. } => out.write_str("warning: homed on the lower limit switch"),
+        Event::SwitchStop => {
+            out.write_str("warning: a limit switch stopped the lift before the soft stop")
+        }
+        Event::StickSlip {
+            amplitude,
+            episode,
+            reaction,
+        } => liftfw::console::write_stick_slip_warning(
+            out,
+            episode,
+            amplitude,
+            reaction == Reaction::ChangeSpeed,
+        ),
+        Event::State { .. } => Ok(()),
     }
 }
 
@@ -328,11 +371,22 @@ async fn console_task(
     let mut lines = LineBuffer::new();
     let mut chunk = [0u8; 16];
     loop {
-        let n = match uart.read(&mut chunk).await {
-            Ok(n) => n,
+        // A notice from the control task, or bytes from the host (BufferedUart's read is
+        // cancel-safe: unread bytes stay in its ring buffer).
+        let n = match select(uart.read(&mut chunk), NOTICES.receive()).await {
+            Either::First(Ok(n)) => n,
             // Framing/noise/overrun: drop the bytes and keep listening.
-            Err(e) => {
+            Either::First(Err(e)) => {
                 warn!("console read error: {}", e);
+                continue;
+            }
+            Either::Second(event) => {
+                reply.clear();
+                let _ = write_notice(&mut reply, &event);
+                let _ = reply.write_str("\r\n");
+                if uart.write_all(reply.as_bytes()).await.is_err() {
+                    warn!("console write failed");
+                }
                 continue;
             }
         };

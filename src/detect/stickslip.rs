@@ -95,8 +95,8 @@ impl StickSlipConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         range(
             self.drop_threshold,
-            NewtonMetres::lit("0.2"),
-            NewtonMetres::lit("50"),
+            const { NewtonMetres::lit("0.2") },
+            const { NewtonMetres::lit("50") },
             "stickslip.drop",
             "0.2..50 Nm",
         )?;
@@ -109,8 +109,8 @@ impl StickSlipConfig {
         )?;
         range(
             self.escape_speed,
-            RadiansPerSecond::lit("0.2"),
-            RadiansPerSecond::lit("20"),
+            const { RadiansPerSecond::lit("0.2") },
+            const { RadiansPerSecond::lit("20") },
             "stickslip.escape_speed",
             "0.2..20 rad/s",
         )
@@ -352,8 +352,9 @@ impl StickSlipDetector {
 /// Two evaluations of the law, once per steady motion.
 pub fn falling_branch(law: &CompiledLaw, reference: RadiansPerSecond) -> bool {
     let v = reference.sat_abs();
-    let dv =
-        RadiansPerSecond::from_raw((v.to_bits() / 4).max(RadiansPerSecond::lit("0.05").bits()));
+    let dv = RadiansPerSecond::from_raw(
+        (v.to_bits() / 4).max(const { RadiansPerSecond::lit("0.05") }.bits()),
+    );
     law.mu(v.sat_add(dv)) < law.mu(v)
 }
 

@@ -210,6 +210,33 @@ proptest! {
     }
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 500, ..ProptestConfig::default() })]
+
+    /// The ball screw seen as a thread (the estimator's law in ball-screw mode) against the
+    /// twin's (the plant's): both are μ_eq = (arm/r_m)·f(τ(θ̇)) at the reference force.
+    #[test]
+    fn equivalent_thread_law_matches_the_twin(fa in 1000.0f64..80_000.0, w in -400.0f64..400.0) {
+        let (b, t) = (core(), twin());
+        let fq = Newtons::from_f64(fa);
+        let law = b.equivalent_thread_law(fq).unwrap().compile(BallScrewConfig::SEED_001_4008.r_m, Ratio::ONE).unwrap();
+        let tl = t.equivalent_law(fq.to_f64());
+        let wq = RadiansPerSecond::from_f64(w);
+        let got = law.mu(wq).to_f64();
+        let want = tl.mu_of(wq.to_f64());
+        prop_assert!((got - want).abs() <= 2e-6 * want + 2e-7, "{got} vs {want}");
+        // Not self-locking at rest.
+        prop_assert!(law.mu(RadiansPerSecond::ZERO).to_f64() < t.helix().tan());
+    }
+}
+
+#[test]
+fn ball_screw_preset_is_a_valid_controller_configuration() {
+    let c = liftfw::control::config::ControlConfig::ball_screw_4008().unwrap();
+    assert_eq!(c.screw, liftfw::control::config::ScrewKind::Ball);
+    assert!(liftfw::control::Controller::new(&c, 1000).is_ok());
+}
+
 #[test]
 fn configuration_is_validated_once() {
     let ok = BallScrewConfig::SEED_001_4008;

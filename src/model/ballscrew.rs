@@ -142,6 +142,8 @@ impl BallScrewConfig {
         let c = self.viscosity.to_num::<f64>() * rm * f64::from(self.loaded_balls) * sa * cos_b;
         let tau_scale = scale_of(c * (1u64 << 20) as f64);
         Ok(BallScrew {
+            k_arm: (arm / rm).into(),
+            tau_per_rate: c.into(),
             config: *self,
             law,
             arm_scale,
@@ -174,9 +176,29 @@ fn scale_of(v: f64) -> Scale {
     Scale::from_ratio((v * den as f64) as i128, den)
 }
 
+/// An `f64` kept by its bits, so that configuration types holding one stay `Eq`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct F64Bits(u64);
+
+impl From<f64> for F64Bits {
+    fn from(v: f64) -> Self {
+        F64Bits(v.to_bits())
+    }
+}
+
+impl F64Bits {
+    fn get(self) -> f64 {
+        f64::from_bits(self.0)
+    }
+}
+
 /// A compiled ball screw: every per-tick operation is a few integer multiplies.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BallScrew {
+    /// arm/r_m and η₀ r_m M sin α cos β, kept for [`BallScrew::equivalent_thread_law`]
+    /// (configuration time only; stored as bits so the type stays `Eq`).
+    k_arm: F64Bits,
+    tau_per_rate: F64Bits,
     config: BallScrewConfig,
     law: CompiledLaw,
     arm_scale: Scale,
@@ -293,6 +315,40 @@ impl BallScrew {
     ) -> Option<Ratio> {
         let fa = self.axial_force(load);
         self.coefficient_from_torque(self.friction_in(screw_torque, fa, lifting), fa)
+    }
+
+    /// The ball screw as a thread for the lead-screw model (estimator and plant): the friction
+    /// law in the screw rate whose thread friction torque μ·W·r_m equals Eq 1's `f·F·arm` at
+    /// axial force `f_axial`: `μ_eq(θ̇) = (arm/r_m)·f(τ)` with `τ = η₀ r_m M sin α cos β·|θ̇|/F`.
+    /// The thread model adds `μ tan λ` (≈ 0.1 %) and `tan²λ` (≈ 0.4 %) corrections the ball
+    /// screw does not have; τ's dependence on the load is frozen at `f_axial` (docs/model.md).
+    /// Configuration time only.
+    pub fn equivalent_thread_law(&self, f_axial: Newtons) -> Result<FrictionLaw, ConfigError> {
+        let fa = f_axial.to_f64();
+        if fa < 1.0 {
+            return Err(ConfigError::OutOfRange {
+                field: "ballscrew.reference_force",
+                range: ">= 1 N",
+            });
+        }
+        let k = self.k_arm.get();
+        let tau_per_rate = self.tau_per_rate.get() / fa;
+        let l = &self.config.law;
+        let law = FrictionLaw {
+            base: Ratio::from_f64(l.base.to_f64() * k),
+            amp: Ratio::from_f64(l.amp.to_f64() * k),
+            rate: I32F32::saturating_from_num(l.rate.to_num::<f64>() * tau_per_rate),
+            slope: I32F32::saturating_from_num(l.slope.to_num::<f64>() * k * tau_per_rate),
+            s_max: if l.s_max == I32F32::MAX {
+                I32F32::MAX
+            } else {
+                I32F32::saturating_from_num(l.s_max.to_num::<f64>() / tau_per_rate)
+            },
+            variable: LawVariable::ScrewRate,
+        };
+        // Validate the result as a law in its own right.
+        law.compile(self.config.r_m, Ratio::ONE)?;
+        Ok(law)
     }
 
     /// The law's minimum on τ ∈ [0, 0.01] (seed 002's turning point between mixed and

@@ -101,9 +101,54 @@ impl BallScrewFriction {
     }
 }
 
+impl BallScrewFriction {
+    /// The ball screw as a thread for the plant's lead-screw mechanics: the law in the screw
+    /// rate whose thread friction torque μ·W·r_m equals M_f at axial force `f_axial`,
+    /// `μ_eq(θ̇) = (arm/r_m)·f(η₀ r_m M sin α cos β·|θ̇|/F)` (twin of the core's
+    /// `BallScrew::equivalent_thread_law`; τ's load dependence frozen at `f_axial`).
+    pub fn equivalent_law(&self, f_axial: f64) -> FrictionLaw {
+        let k = self.arm() / self.r_m;
+        let tau_per_rate = self.tau(1.0, f_axial);
+        FrictionLaw {
+            base: self.law.base * k,
+            amp: self.law.amp * k,
+            rate: self.law.rate * tau_per_rate,
+            slope: self.law.slope * k * tau_per_rate,
+            s_max: self.law.s_max / tau_per_rate,
+            variable: super::friction::Variable::ScrewRate,
+        }
+    }
+
+    /// The plant's screw for this ball screw: pitch radius r_m, lead angle atan(l/(2π r_m)),
+    /// the inertia of a Ø35 mm × 0.4 m steel shaft (4.6·10⁻⁴ kg·m²); supports, nut mass and
+    /// coupling as `base`.
+    pub fn plant_screw(&self, base: super::Screw) -> super::Screw {
+        super::Screw {
+            r_m: self.r_m,
+            lambda: self.helix(),
+            inertia: 4.6e-4,
+            ..base
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn equivalent_thread_friction_equals_eq_1() {
+        let b = BallScrewFriction::seed_001_4008();
+        let fa = 9806.65;
+        let law = b.equivalent_law(fa);
+        for w in [0.0, 0.5, 2.0, 20.0] {
+            let mu = law.mu_of(w);
+            let mf = b.friction_torque(b.coefficient(b.tau(w, fa)), fa);
+            assert!((mu * fa * b.r_m - mf).abs() < 1e-12 * mf, "{w}");
+        }
+        // Not self-locking: μ_eq < tan λ at rest.
+        assert!(law.mu_of(0.0) < b.helix().tan());
+    }
 
     #[test]
     fn eq2_inverts_eq1() {

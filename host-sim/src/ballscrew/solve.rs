@@ -254,7 +254,7 @@ impl Solver {
         let c = self.screw.segment_compliance() * self.screw.ball_spacing();
         let mut g = vec![0.0; n];
         let mut st = self.states(idx, x);
-        let mut uref = self.residuals(fa, idx, &st, &mut g);
+        let uref = self.residuals(fa, idx, &st, &mut g);
         let mut m = Self::merit(&g, fa, uref);
         let (mut a, mut bb) = (vec![0.0; n], vec![0.0; n]);
         let mut trial = vec![0.0; n];
@@ -298,14 +298,12 @@ impl Solver {
                     x.copy_from_slice(&trial);
                     st = st_t;
                     g.copy_from_slice(&gt);
-                    uref = u_t;
                     m = m_t;
                     break;
                 }
                 t *= 0.5;
             }
         }
-        let _ = uref;
         if m <= TOL * 100.0 {
             // Rounding floor of the Hertz/elliptic evaluations: accept (still ≪ 1e-9).
             return Ok(MAX_NEWTON);

@@ -94,6 +94,21 @@ fn ball_screw_holds_rated_load_at_rest() {
     }
 }
 
+#[test]
+fn an_unhomed_ball_screw_lift_holds_where_it_boots() {
+    // After a power-off a ball screw's position is unknown (it may have moved): the core boots
+    // unhomed, with the encoder set to the lower switch's height. The hold must follow that
+    // re-based encoder, not pull toward the counts it had before.
+    let mut s = Scenario::ball_screw(RATED, 30.0, 1.0);
+    s.unhomed = true;
+    let r = run(&s, Box::new(|_: &mut Tick<'_>| {}));
+    assert!(r.first_fault().is_none(), "{:?}", r.events);
+    assert!(!r.controller.homed());
+    let moved = (height_at(30.0) - r.final_height()).abs() * 1e3;
+    assert!(moved < 1.0, "moved {moved:.3} mm");
+    assert!(drift_after(&r, 0.3) < 0.02);
+}
+
 fn goto(start_deg: f64, dh: f64, duration: f64) -> (Run, f64) {
     let s = Scenario::ball_screw(RATED, start_deg, duration);
     let target = height_at(start_deg) + dh;

@@ -526,6 +526,7 @@ impl Controller {
         self.enc.rebase(position);
         self.est.reset(position);
         self.hold_position = position;
+        self.hold_target = position;
         self.profile.reset(position);
         self.last_ref_counts = position;
     }

@@ -273,9 +273,9 @@ impl ControlConfig {
         let reference = Newtons::from_f64(c.rated_load.to_f64() * 9.806_65);
         c.estimator.law = bs.equivalent_thread_law(bs.axial_force(reference))?;
         c.estimator.drive.pitch_radius = BallScrewConfig::SEED_001_4008.r_m;
-        c.estimator.drive.lead_angle_deg = fixed::types::I16F16::lit("3.643");
+        c.estimator.drive.lead_angle_deg = const { fixed::types::I16F16::lit("3.643") };
         c.estimator.mechanics.inertia_ukgm2 = 460;
-        c.motion.cruise_speed = RadiansPerSecond::lit("1.5");
+        c.motion.cruise_speed = const { RadiansPerSecond::lit("1.5") };
         c.screw = ScrewKind::Ball;
         Ok(c)
     }

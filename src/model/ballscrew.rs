@@ -66,15 +66,15 @@ impl BallScrewConfig {
         use crate::check_range as range;
         range(
             self.r_m,
-            Metres::lit("0.002"),
-            Metres::lit("0.1"),
+            const { Metres::lit("0.002") },
+            const { Metres::lit("0.1") },
             "ballscrew.r_m",
             "2..100 mm",
         )?;
         range(
             self.r_b,
-            Metres::lit("0.0005"),
-            Metres::lit("0.02"),
+            const { Metres::lit("0.0005") },
+            const { Metres::lit("0.02") },
             "ballscrew.r_b",
             "0.5..20 mm",
         )?;
@@ -86,15 +86,15 @@ impl BallScrewConfig {
         }
         range(
             self.contact_angle_deg,
-            I16F16::lit("20"),
-            I16F16::lit("80"),
+            const { I16F16::lit("20") },
+            const { I16F16::lit("80") },
             "ballscrew.contact_angle",
             "20..80 deg",
         )?;
         range(
             self.lead,
-            Metres::lit("0.0005"),
-            Metres::lit("0.05"),
+            const { Metres::lit("0.0005") },
+            const { Metres::lit("0.05") },
             "ballscrew.lead",
             "0.5..50 mm",
         )?;
@@ -102,14 +102,14 @@ impl BallScrewConfig {
         range(
             self.preload,
             Newtons::ZERO,
-            Newtons::lit("100000"),
+            const { Newtons::lit("100000") },
             "ballscrew.preload",
             "0..100 kN",
         )?;
         range(
             self.viscosity,
-            I32F32::lit("0.0001"),
-            I32F32::lit("10"),
+            const { I32F32::lit("0.0001") },
+            const { I32F32::lit("10") },
             "ballscrew.viscosity",
             "1e-4..10 Pa.s",
         )?;
@@ -265,7 +265,7 @@ impl BallScrew {
     /// `Ratio` range; error ≤ 10⁻⁵ relative plus 1 LSB for F ≥ 1 N (test).
     #[inline]
     pub fn coefficient_from_torque(&self, torque: NewtonMetres, f_axial: Newtons) -> Option<Ratio> {
-        if f_axial < Newtons::lit("1") {
+        if f_axial < const { Newtons::lit("1") } {
             return None;
         }
         let den = self.arm_scale.apply(f_axial.bits()); // F·arm in N·m, Q16
@@ -355,7 +355,7 @@ impl BallScrew {
     /// hydrodynamic lubrication), located on the fixed-point law itself by golden-section search
     /// (configuration time, ≈ 60 law evaluations): `(τ*, f(τ*))`.
     pub fn turning_point(&self) -> (Ratio, Ratio) {
-        let (mut lo, mut hi) = (0i64, (Ratio::lit("0.01")).bits() as i64);
+        let (mut lo, mut hi) = (0i64, const { Ratio::lit("0.01") }.bits() as i64);
         // Ternary search on a unimodal integer function; the law is flat to 1 LSB near the
         // minimum, so stop at a 64-LSB bracket and scan it.
         while hi - lo > 64 {

@@ -119,6 +119,16 @@ async fn main(spawner: Spawner) {
     } else {
         info!("configuration: {}", source);
     }
+    // A ball screw is not self-locking: with the power off the load may have turned it since
+    // it was parked, so only a lead screw's parked position is trusted (docs/control.md).
+    let parked = if config.get().screw.holds_without_power() {
+        parked
+    } else {
+        if parked.is_some() {
+            warn!("ball screw: the parked position is not trusted after a power-off");
+        }
+        None
+    };
     let made = match parked {
         Some(counts) => {
             info!("parked at {} counts", counts);

@@ -328,16 +328,17 @@ fn encoded(cfg: &ControlConfig) -> Vec<u8> {
 #[test]
 fn record_of_another_version_is_not_used_and_says_why() {
     let mut rec = encoded(&ControlConfig::DEFAULT);
-    rec[4..6].copy_from_slice(&2u16.to_le_bytes());
+    // Version 3: a future format (this firmware writes 2 and also reads 1).
+    rec[4..6].copy_from_slice(&3u16.to_le_bytes());
     let (loaded, _) = load(store_raw(&with_crc(rec)));
     assert_eq!(
         loaded.source,
-        Source::Incompatible(DecodeError::Version { found: 2 })
+        Source::Incompatible(DecodeError::Version { found: 3 })
     );
     assert_eq!(loaded.config, ValidatedConfig::factory());
     let msg = format!("{}", loaded.source);
     assert!(msg.contains("version mismatch"), "{msg}");
-    assert!(msg.contains("version 2"), "{msg}");
+    assert!(msg.contains("version 3"), "{msg}");
 }
 
 #[test]

@@ -11,8 +11,10 @@
 //! - [`truth`]: stick-slip episodes labelled from the plant's phase log; [`score`]: the core's
 //!   stick-slip detector scored against them (`host-sim stickslip`).
 //! - [`serve`]: the simulated board with the core's console on loopback TCP (`host-sim serve`).
+//! - [`ballscrew`]: the ball-screw load distribution with geometric errors (seed 001) and its study.
 #![warn(missing_docs)]
 
+pub mod ballscrew;
 pub mod paper;
 pub mod physics;
 pub mod plant;

@@ -13,7 +13,7 @@ use std::error::Error;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-const FONT: &str = "sans-serif";
+pub(crate) const FONT: &str = "sans-serif";
 
 /// Where fonts usually are: Debian/Ubuntu, Fedora, Arch, macOS, Windows.
 const FONT_PATHS: [&str; 6] = [
@@ -55,7 +55,7 @@ pub fn init_font() -> Result<PathBuf, String> {
 
 type Res = Result<(), Box<dyn Error>>;
 
-fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+pub(crate) fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
         (lo.min(v), hi.max(v))
     });

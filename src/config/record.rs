@@ -22,8 +22,9 @@ use crate::control::config::ControlConfig;
 
 /// Record magic, "LFCF".
 pub const MAGIC: [u8; 4] = *b"LFCF";
-/// Format version written by this firmware.
-pub const VERSION: u16 = 1;
+/// Format version written by this firmware. 2: `drive.screw` added (version 1 records have no
+/// screw kind; they are refused and the factory configuration applies, see docs/config-store.md).
+pub const VERSION: u16 = 2;
 /// Bytes before the settings.
 pub const HEADER_LEN: usize = 16;
 
@@ -56,14 +57,30 @@ fn crc32_update(mut crc: u32, data: &[u8]) -> u32 {
     crc
 }
 
-/// The schema fingerprint: CRC-32 of the stored keys in order, each followed by `\n`.
-pub fn schema() -> u32 {
+/// Keys a format-1 record lacks (added by format 2; they keep their factory value).
+const NOT_IN_V1: [&str; 1] = ["drive.screw"];
+
+/// Whether a stored setting is in records of `version`.
+fn in_version(key: &str, version: u16) -> bool {
+    version >= 2 || !NOT_IN_V1.contains(&key)
+}
+
+/// The schema fingerprint of `version`'s key list.
+fn schema_of(version: u16) -> u32 {
     let mut crc = 0xFFFF_FFFF;
-    for s in SETTINGS.iter().filter(|s| s.stored) {
+    for s in SETTINGS
+        .iter()
+        .filter(|s| s.stored && in_version(s.key, version))
+    {
         crc = crc32_update(crc, s.key.as_bytes());
         crc = crc32_update(crc, b"\n");
     }
     crc ^ 0xFFFF_FFFF
+}
+
+/// The schema fingerprint: CRC-32 of the stored keys in order, each followed by `\n`.
+pub fn schema() -> u32 {
+    schema_of(VERSION)
 }
 
 /// Why a stored record was not used.
@@ -145,7 +162,7 @@ fn le_u32(b: &[u8], at: usize) -> u32 {
 
 /// Decode a record into `(config, sequence)`. The configuration is *not* validated yet: see
 /// [`crate::config::ValidatedConfig::new`]. Settings start from [`ControlConfig::DEFAULT`], so a
-/// field the record does not hold (none, in version 1) keeps its factory value.
+/// field the record does not hold (`drive.screw` in a version-1 record) keeps its factory value.
 pub fn decode(bytes: &[u8]) -> Result<(ControlConfig, u32), DecodeError> {
     if bytes.len() < HEADER_LEN + 4 || bytes.len() > MAX_RECORD_LEN {
         return Err(DecodeError::BadLength);
@@ -158,11 +175,17 @@ pub fn decode(bytes: &[u8]) -> Result<(ControlConfig, u32), DecodeError> {
         return Err(DecodeError::BadCrc);
     }
     let version = le_u16(bytes, 4);
-    if version != VERSION {
+    if version != VERSION && version != 1 {
         return Err(DecodeError::Version { found: version });
     }
+    // Format 1 is format 2 without `drive.screw`: decoded with its own key list, the missing
+    // setting keeps its factory value.
+    let count = SETTINGS
+        .iter()
+        .filter(|s| s.stored && in_version(s.key, version))
+        .count();
     let n = usize::from(le_u16(bytes, 6));
-    if n != stored_count() || le_u32(bytes, 8) != schema() {
+    if n != count || le_u32(bytes, 8) != schema_of(version) {
         return Err(DecodeError::Schema);
     }
     if bytes.len() != HEADER_LEN + 8 * n + 4 {
@@ -170,7 +193,11 @@ pub fn decode(bytes: &[u8]) -> Result<(ControlConfig, u32), DecodeError> {
     }
     let seq = le_u32(bytes, 12);
     let mut cfg = ControlConfig::DEFAULT;
-    for (i, s) in SETTINGS.iter().filter(|s| s.stored).enumerate() {
+    for (i, s) in SETTINGS
+        .iter()
+        .filter(|s| s.stored && in_version(s.key, version))
+        .enumerate()
+    {
         let at = HEADER_LEN + 8 * i;
         let mut w = [0; 8];
         w.copy_from_slice(&bytes[at..at + 8]);
@@ -196,5 +223,40 @@ mod tests {
         let len = encode(&ControlConfig::DEFAULT, 7, &mut buf).unwrap();
         assert_eq!(len, record_len());
         assert_eq!(decode(&buf[..len]), Ok((ControlConfig::DEFAULT, 7)));
+    }
+
+    /// A version-1 record (no `drive.screw`), built by hand: decoded, the screw kind stays Lead.
+    #[test]
+    fn version_1_record_decodes_with_the_factory_screw_kind() {
+        let mut cfg = ControlConfig::DEFAULT;
+        cfg.motion.ramp_ms = 120;
+        let keys: usize = SETTINGS
+            .iter()
+            .filter(|s| s.stored && in_version(s.key, 1))
+            .count();
+        assert_eq!(keys + NOT_IN_V1.len(), stored_count());
+        let mut b = [0u8; MAX_RECORD_LEN];
+        b[0..4].copy_from_slice(&MAGIC);
+        b[4..6].copy_from_slice(&1u16.to_le_bytes());
+        b[6..8].copy_from_slice(&(keys as u16).to_le_bytes());
+        b[8..12].copy_from_slice(&schema_of(1).to_le_bytes());
+        b[12..16].copy_from_slice(&3u32.to_le_bytes());
+        for (i, s) in SETTINGS
+            .iter()
+            .filter(|s| s.stored && in_version(s.key, 1))
+            .enumerate()
+        {
+            let at = HEADER_LEN + 8 * i;
+            b[at..at + 8].copy_from_slice(&s.get(&cfg).to_le_bytes());
+        }
+        let body = HEADER_LEN + 8 * keys;
+        let crc = crc32(&b[..body]);
+        b[body..body + 4].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(decode(&b[..body + 4]), Ok((cfg, 3)));
+        // The same bytes labelled version 2 are refused: the key list differs.
+        b[4..6].copy_from_slice(&2u16.to_le_bytes());
+        let crc = crc32(&b[..body]);
+        b[body..body + 4].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(decode(&b[..body + 4]), Err(DecodeError::Schema));
     }
 }

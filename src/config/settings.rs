@@ -9,7 +9,7 @@
 //! settings in this table's order.
 
 use crate::config::ValidatedConfig;
-use crate::control::config::{ButtonMode, ControlConfig, RampShape};
+use crate::control::config::{ButtonMode, ControlConfig, RampShape, ScrewKind};
 use crate::detect::stickslip::Reaction;
 use crate::model::friction::{FrictionLaw, LawVariable};
 use crate::units::{Amperes, Kilograms, Metres, NewtonMetres, RadiansPerSecond, Ratio, Volts};
@@ -289,7 +289,7 @@ pub const LAW_PRESETS: [FrictionLaw; 4] = [
 
 /// Every setting. The flash record's layout follows this order (the `stored` ones): changing
 /// it changes the record's schema fingerprint (see [`crate::config::record`]).
-pub static SETTINGS: [Setting; 54] = [
+pub static SETTINGS: [Setting; 55] = [
     setting!("limits.lower", LEN, "the mechanism's height range (see `limits`)",
         "lowest head height the lift drives to", q32 limits.lower),
     setting!("limits.upper", LEN, "the mechanism's height range (see `limits`)",
@@ -390,6 +390,25 @@ pub static SETTINGS: [Setting; 54] = [
         "screw pitch radius r_m", q32 estimator.drive.pitch_radius),
     setting!("drive.lead_angle", num(16, &DEGREES), "0.5..20 deg",
         "screw lead angle", q32 estimator.drive.lead_angle_deg),
+    Setting {
+        key: "drive.screw",
+        kind: Kind::Choice(&["lead", "ball"]),
+        range: "lead or ball",
+        about: "screw type: lead (self-locking) or ball (held actively at rest)",
+        stored: true,
+        get: |c| match c.screw {
+            ScrewKind::Lead => 0,
+            ScrewKind::Ball => 1,
+        },
+        set: |c, v| {
+            c.screw = match v {
+                0 => ScrewKind::Lead,
+                1 => ScrewKind::Ball,
+                _ => return false,
+            };
+            true
+        },
+    },
     setting!("mech.inertia", num(0, &MICRO_KGM2), "0..100000 ukgm2",
         "screw inertia I", int i32, estimator.mechanics.inertia_ukgm2),
     setting!("mech.damping", num(0, &MICRO_NMS), "0..1e6 uNms/rad",
@@ -609,9 +628,10 @@ mod tests {
                     window_ms: _,
                     escape_speed: _,
                 },
+            screw: _,
         } = ControlConfig::DEFAULT;
-        // 53 fields above, one key each, plus the `friction.law` preset selector.
-        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 53);
+        // 54 fields above, one key each, plus the `friction.law` preset selector.
+        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 54);
     }
 
     #[test]

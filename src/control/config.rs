@@ -9,7 +9,7 @@ use crate::check_range as range;
 use crate::detect::stickslip::StickSlipConfig;
 use crate::estimator::EstimatorConfig;
 use crate::model::geometry::Geometry;
-use crate::units::{Amperes, Kilograms, Metres, RadiansPerSecond, Ratio, Volts};
+use crate::units::{Amperes, Kilograms, Metres, Newtons, RadiansPerSecond, Ratio, Volts};
 use crate::ConfigError;
 
 /// Shape of the speed ramp.
@@ -33,6 +33,29 @@ pub enum ButtonMode {
     HoldToRun,
     /// A press starts motion to the limit stop; STOP (or the other button) stops it.
     Latched,
+}
+
+/// The kind of screw the jack has: it decides whether the lift holds its load by itself.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ScrewKind {
+    /// Trapezoidal lead screw (seed 000): self-locking, the motor rests with its windings
+    /// shorted once slow.
+    #[default]
+    Lead,
+    /// Ball screw (seeds 001, 002): not self-locking. At rest the controller holds the position
+    /// actively (speed loop at zero speed with the position error), and a back-driven screw
+    /// (uncommanded travel) latches `Runaway` and is held where it tripped (docs/control.md).
+    Ball,
+}
+
+impl ScrewKind {
+    /// Whether the lift stays where it stopped with the power off (the screw is self-locking):
+    /// only then may a position parked in flash be trusted at boot. An unpowered ball screw
+    /// lets the load turn it back through the gearbox.
+    pub fn holds_without_power(self) -> bool {
+        matches!(self, ScrewKind::Lead)
+    }
 }
 
 /// Speed profile and button behaviour.
@@ -218,6 +241,8 @@ pub struct ControlConfig {
     pub sensing: SensingConfig,
     /// Stick-slip detector and its reaction.
     pub stick_slip: StickSlipConfig,
+    /// Lead screw or ball screw.
+    pub screw: ScrewKind,
 }
 
 impl ControlConfig {
@@ -230,7 +255,30 @@ impl ControlConfig {
         protection: ProtectionConfig::DEFAULT,
         sensing: SensingConfig::DEFAULT,
         stick_slip: StickSlipConfig::DEFAULT,
+        screw: ScrewKind::Lead,
     };
+
+    /// The default lift with seed 001's 4008 ball screw (r_m = 20 mm, lead 8 mm, λ = 3.64°) in
+    /// place of the S12x2: the estimator sees it through [`BallScrew::equivalent_thread_law`]
+    /// at the rated load's axial force at α = 45° (seed 002's f(τ), VG100 oil), the screw's
+    /// inertia is that of a Ø35 mm × 0.4 m steel shaft (460 µkg·m²), and the cruise speed is
+    /// halved (the 8 mm lead moves the nut 4.9× farther per turn than the S12x2's 2 mm).
+    ///
+    /// [`BallScrew::equivalent_thread_law`]: crate::model::ballscrew::BallScrew::equivalent_thread_law
+    pub fn ball_screw_4008() -> Result<ControlConfig, ConfigError> {
+        use crate::model::ballscrew::BallScrewConfig;
+        let bs = BallScrewConfig::SEED_001_4008.compile()?;
+        let mut c = ControlConfig::DEFAULT;
+        // R = M·g/tan 45° = M·g at α = 45°.
+        let reference = Newtons::from_f64(c.rated_load.to_f64() * 9.806_65);
+        c.estimator.law = bs.equivalent_thread_law(bs.axial_force(reference))?;
+        c.estimator.drive.pitch_radius = BallScrewConfig::SEED_001_4008.r_m;
+        c.estimator.drive.lead_angle_deg = const { fixed::types::I16F16::lit("3.643") };
+        c.estimator.mechanics.inertia_ukgm2 = 460;
+        c.motion.cruise_speed = const { RadiansPerSecond::lit("1.5") };
+        c.screw = ScrewKind::Ball;
+        Ok(c)
+    }
 
     /// Check every range that does not need the compiled geometry, then the limit stops
     /// against it. The estimator's own settings are checked by [`crate::estimator::Estimator::new`].

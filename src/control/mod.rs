@@ -11,7 +11,8 @@
 //! 3. [`protect`]: every monitor; a trip latches a [`Fault`] with a snapshot and coasts the bridge;
 //! 4. the supervisor (this module): buttons and commands → Idle / Lifting / Lowering / Holding / Fault;
 //! 5. [`profile`]: the ramped reference toward the target (a limit stop or a set height);
-//! 6. [`speed`]: PI speed loop with the model's torque as feed-forward → duty.
+//! 6. [`speed`]: PI speed loop with the model's torque as feed-forward → duty (at rest too for a
+//!    ball screw, which is not self-locking: `hold`).
 //!
 //! The halt planner works on the *screw* position: the encoder sits on the motor, and under a
 //! torque T the coupling (stiffness k) lets the screw lag the gear output by T/k (≈ 0.47 rad,
@@ -20,6 +21,7 @@
 //! millimetre short of it.
 
 pub mod config;
+mod hold;
 pub mod park;
 pub mod profile;
 pub mod protect;
@@ -344,6 +346,8 @@ pub struct Controller {
     settle_ticks: u32,
     motion_ticks: u32,
     hold_position: i32,
+    /// Where a ball screw is held at rest (set when the rest begins; see `hold`).
+    hold_target: i32,
     /// Buttons pressed since boot/fault must be released before they count (edge-triggered).
     buttons_armed: bool,
     /// Ticks since the lift came to rest.
@@ -472,6 +476,7 @@ impl Controller {
             settle_ticks: 0,
             motion_ticks: 0,
             hold_position: position,
+            hold_target: position,
             buttons_armed: false,
             release_ticks: 0,
             rest_ticks: u32::MAX,
@@ -521,6 +526,7 @@ impl Controller {
         self.enc.rebase(position);
         self.est.reset(position);
         self.hold_position = position;
+        self.hold_target = position;
         self.profile.reset(position);
         self.last_ref_counts = position;
     }
@@ -722,7 +728,9 @@ impl Controller {
         if !moving {
             self.profile.reset(here);
             self.profile.set_cruise(self.cruise_q32);
-            self.speed.reset();
+            if !self.keeps_integrator(None) {
+                self.speed.reset();
+            }
             self.monitors.reset();
             self.motion_ticks = 0;
         }
@@ -762,7 +770,10 @@ impl Controller {
         self.held_button = 0;
         self.rest_ticks = 0;
         self.hold_position = self.enc.position();
-        self.speed.reset();
+        self.hold_target = self.enc.position();
+        if !self.keeps_integrator(None) {
+            self.speed.reset();
+        }
         self.profile.reset(self.enc.position());
         self.set_state(to);
     }
@@ -786,7 +797,10 @@ impl Controller {
         };
         self.fault = Some(f);
         self.held_button = 0;
-        self.speed.reset();
+        self.hold_target = self.enc.position();
+        if !self.keeps_integrator(Some(kind)) {
+            self.speed.reset();
+        }
         self.profile.reset(self.enc.position());
         self.state = State::Fault;
         self.pending_event = Some(Event::Fault(f));
@@ -917,7 +931,7 @@ impl Controller {
                 if self.rest_ticks <= SETTLE_MS * 1000 / self.tick_us {
                     self.hold_position = self.enc.position();
                 }
-                self.rest_bridge()
+                self.at_rest_bridge()
             }
         };
         self.detect_stick_slip();
@@ -1025,7 +1039,7 @@ impl Controller {
                 || self.settle_ticks > SETTLE_MS * 1000 / self.tick_us
             {
                 self.enter_rest(State::Holding);
-                return self.rest_bridge();
+                return self.at_rest_bridge();
             }
         }
         let duty = self.speed.step(

@@ -3,10 +3,13 @@
 //! - [`geometry`]: encoder counts → θ → x → α → height and back; R (Eq 1), F₀ (Eq 6), c_x (Eq 4).
 //! - [`friction`]: the friction laws (Eqs 11, 13, 14; seed 002 Eq 3) as one compiled shape.
 //! - [`screw`]: ξ, N, T_r and the torque balance (Eqs 7–10) for both directions and flanks.
+//! - [`ballscrew`]: the ball-screw variant (seed 002): f(τ), friction torque (Eq 1), f from a
+//!   measured torque (Eq 2) and its online identification.
 //!
 //! Every function here has a float64 twin in `host-sim::physics` and a property test in
 //! `tests/model_vs_float_twin.rs` bounding its error over the operating envelope.
 
+pub mod ballscrew;
 pub mod friction;
 pub mod geometry;
 pub mod screw;

@@ -42,6 +42,9 @@ pub struct Scenario {
     pub battery: f64,
     /// Boot with the position unknown ([`Controller::new_unhomed`]) instead of at the start.
     pub unhomed: bool,
+    /// The plant has seed 001's 4008 ball screw instead of the S12x2 lead screw (see
+    /// [`Scenario::ball_screw`]); the core's configuration is the caller's.
+    pub ball_screw: bool,
 }
 
 impl Scenario {
@@ -59,6 +62,7 @@ impl Scenario {
             dt: 4e-6,
             battery: 12.6,
             unhomed: false,
+            ball_screw: false,
         }
     }
 
@@ -68,6 +72,15 @@ impl Scenario {
         self.control.limits.switch_lower = Metres::from_f64(0.13355);
         self.control.limits.lower = Metres::from_f64(0.1341);
         self.control.limits.upper = Metres::from_f64(0.414);
+    }
+
+    /// The ball-screw lift: plant with the 4008 ball screw (seed 002's law as a thread law at
+    /// the rated load's axial force at 45°), core with `ControlConfig::ball_screw_4008()`.
+    pub fn ball_screw(load: f64, start_deg: f64, duration: f64) -> Self {
+        let mut s = Self::new(Lubricant::Dry, load, start_deg, duration);
+        s.control = ControlConfig::ball_screw_4008().expect("valid preset");
+        s.ball_screw = true;
+        s
     }
 }
 
@@ -81,6 +94,9 @@ pub struct Tick<'a> {
     pub controller: &'a mut Controller,
     /// Skip the controller this tick (a hung control task): the bridge keeps its last command.
     pub skip: bool,
+    /// Apply this bridge state instead of the controller's command (a failed bridge or driver);
+    /// the controller still runs and does not know.
+    pub force: Option<Bridge>,
 }
 
 /// A tick hook.
@@ -155,6 +171,11 @@ pub fn run(s: &Scenario, mut hook: Hook) -> Run {
     cfg.record_rate = 1000.0;
     cfg.seed = s.seed;
     cfg.drive.battery_voltage = s.battery;
+    if s.ball_screw {
+        let bs = host_sim::physics::ballscrew::BallScrewFriction::seed_001_4008();
+        cfg.plant.screw = bs.plant_screw(cfg.plant.screw);
+        cfg.plant.law = bs.equivalent_law(1000.0 * host_sim::physics::G);
+    }
     let probe = Controller::new(&s.control, 0).expect("valid control config");
     let start = start_counts(&probe, s.start_deg);
     let controller = if s.unhomed {
@@ -179,6 +200,7 @@ pub fn run(s: &Scenario, mut hook: Hook) -> Run {
             inputs: &mut inputs,
             controller: c,
             skip: false,
+            force: None,
         };
         hook(&mut tick);
         if tick.skip {
@@ -189,7 +211,11 @@ pub fn run(s: &Scenario, mut hook: Hook) -> Run {
             });
             return last;
         }
-        let out = c.step(Instant((t * 1e6).round() as u64 as u32), &inputs);
+        let force = tick.force;
+        let mut out = c.step(Instant((t * 1e6).round() as u64 as u32), &inputs);
+        if let Some(b) = force {
+            out.bridge = b;
+        }
         if let Some(e) = out.event {
             events.push((t, e));
         }

@@ -5,6 +5,7 @@
 //! and the building block of the simulated plant. It is deliberately plain `f64` code that reads
 //! like the equations; nothing here is optimised.
 
+pub mod ballscrew;
 pub mod friction;
 pub mod geometry;
 pub mod screw;

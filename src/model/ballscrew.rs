@@ -1,0 +1,449 @@
+//! Ball-screw friction in fixed point (seed 002, Zhang, Zhou & Feng 2021): the f(τ) law, the
+//! friction torque from the axial load (Eq 1) and its inverse, the friction coefficient from a
+//! measured torque (Eq 2), so that the board can identify f online from motor current.
+//!
+//! Readings (docs/model.md, "Ball screw"):
+//! - Eq 1 as printed gives `M_f = f·F·(r_m + r_b cos α)/sin α` (its `M·Q·cos β` cancels), while
+//!   Eq 2 inverts `M_f = 2·f·F·(r_m + r_b cos α)/sin α`. We take Eq 2's factor 2 (each ball rubs
+//!   on the screw *and* on the nut raceway), so that Eq 2 is exactly the inverse of our Eq 1:
+//!   the identification loop (measure with Eq 2, predict with Eq 1) is then consistent whatever
+//!   the factor really is.
+//! - `F` is the axial force on the loaded balls: the preload plus |R|, the lift's axial load
+//!   (seed 002: "when there is no external load … the preload is regarded as the axial load").
+//! - τ = η₀·V/P (Eq 3) with P = F/(M sin α cos β) the normal load per ball (seed 002's Q) and V
+//!   the ball-centre circle's speed r_m·|θ̇| (seed 002 says only "relative speed of the
+//!   ball–raceway contact").
+//! - The ball screw is not self-locking: the load alone turns it with torque `F·l/(2π)`
+//!   ([`BallScrew::load_torque`]), against which only the friction torque holds.
+//!
+//! Every function has a float64 twin in `host_sim::physics::ballscrew` and a property test in
+//! `tests/ballscrew_vs_float_twin.rs`.
+
+use crate::model::friction::{CompiledLaw, FrictionLaw, LawVariable};
+use crate::model::Scale;
+use crate::units::{qmul, Angle, Metres, NewtonMetres, Newtons, RadiansPerSecond, Ratio, Q};
+use crate::ConfigError;
+use fixed::types::{I16F16, I32F32};
+
+/// The ball screw's geometry and lubricant, as the user gives them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BallScrewConfig {
+    /// Radius of the ball-centre circle r_m, 2…100 mm.
+    pub r_m: Metres,
+    /// Ball radius r_b, 0.5…20 mm, less than r_m.
+    pub r_b: Metres,
+    /// Contact angle α, 20…80°.
+    pub contact_angle_deg: I16F16,
+    /// Lead l (travel per screw turn), 0.5…50 mm.
+    pub lead: Metres,
+    /// Number of loaded balls M, 1…1000.
+    pub loaded_balls: u16,
+    /// Preload F_p, 0…100 kN.
+    pub preload: Newtons,
+    /// Dynamic viscosity of the lubricant η₀, 10⁻⁴…10 Pa·s.
+    pub viscosity: I32F32,
+    /// The friction law; must be written in τ ([`LawVariable::Lubrication`]).
+    pub law: FrictionLaw,
+}
+
+impl BallScrewConfig {
+    /// Seed 001's 4008-3 ball screw (r_m = 20 mm, ball Ø4.763 mm, α = 45°, lead 8 mm, 78 balls,
+    /// no preload) in ISO VG100 oil (η₀ ≈ 0.09 Pa·s at 40 °C, the oil of seed 002's tests) with
+    /// seed 002's law.
+    pub const SEED_001_4008: BallScrewConfig = BallScrewConfig {
+        r_m: Metres::lit("0.020"),
+        r_b: Metres::lit("0.0023815"),
+        contact_angle_deg: I16F16::lit("45"),
+        lead: Metres::lit("0.008"),
+        loaded_balls: 78,
+        preload: Newtons::ZERO,
+        viscosity: I32F32::lit("0.09"),
+        law: FrictionLaw::BALL_SCREW,
+    };
+
+    /// Validate and quantise once.
+    pub fn compile(&self) -> Result<BallScrew, ConfigError> {
+        use crate::check_range as range;
+        range(
+            self.r_m,
+            const { Metres::lit("0.002") },
+            const { Metres::lit("0.1") },
+            "ballscrew.r_m",
+            "2..100 mm",
+        )?;
+        range(
+            self.r_b,
+            const { Metres::lit("0.0005") },
+            const { Metres::lit("0.02") },
+            "ballscrew.r_b",
+            "0.5..20 mm",
+        )?;
+        if self.r_b >= self.r_m {
+            return Err(ConfigError::Conflict {
+                field: "ballscrew.r_b",
+                reason: "must be less than ballscrew.r_m",
+            });
+        }
+        range(
+            self.contact_angle_deg,
+            const { I16F16::lit("20") },
+            const { I16F16::lit("80") },
+            "ballscrew.contact_angle",
+            "20..80 deg",
+        )?;
+        range(
+            self.lead,
+            const { Metres::lit("0.0005") },
+            const { Metres::lit("0.05") },
+            "ballscrew.lead",
+            "0.5..50 mm",
+        )?;
+        range(self.loaded_balls, 1, 1000, "ballscrew.balls", "1..1000")?;
+        range(
+            self.preload,
+            Newtons::ZERO,
+            const { Newtons::lit("100000") },
+            "ballscrew.preload",
+            "0..100 kN",
+        )?;
+        range(
+            self.viscosity,
+            const { I32F32::lit("0.0001") },
+            const { I32F32::lit("10") },
+            "ballscrew.viscosity",
+            "1e-4..10 Pa.s",
+        )?;
+        if self.law.variable != LawVariable::Lubrication {
+            return Err(ConfigError::Conflict {
+                field: "ballscrew.law",
+                reason: "a ball-screw law is written in tau = eta0*V/P",
+            });
+        }
+        // The law's r_m/cos λ only matter for sliding-speed laws: any valid values do.
+        let law = self.law.compile(self.r_m, Ratio::ONE)?;
+
+        // Design in float (configuration time only), quantise once.
+        let alpha = Angle::from_degrees(self.contact_angle_deg);
+        let (cos_a, sin_a) = alpha.cos_sin();
+        let (ca, sa) = (cos_a.to_f64(), sin_a.to_f64());
+        let (rm, rb, lead) = (self.r_m.to_f64(), self.r_b.to_f64(), self.lead.to_f64());
+        // Helix angle β: tan β = l/(2π r_m), cos β = 1/√(1 + tan²β).
+        let tan_b = lead / (2.0 * core::f64::consts::PI * rm);
+        let cos_b = 1.0 / sqrt_f64(1.0 + tan_b * tan_b);
+        // Eq 1 (with Eq 2's factor 2): M_f = f·F·arm, arm = 2(r_m + r_b cos α)/sin α, metres.
+        let arm = 2.0 * (rm + rb * ca) / sa;
+        // f·F (N, Q8) → N·m (Q16): ×arm·2^8.
+        let arm_scale = scale_of(arm * 256.0);
+        // F (Q8) → N·m (Q16) for the denominator of Eq 2.
+        let lever = lead / (2.0 * core::f64::consts::PI);
+        let lever_scale = scale_of(lever * 256.0);
+        // τ (Q28) = η₀·r_m·M·sin α·cos β · |θ̇| / F: numerator constant c = η₀ r_m M sin α cos β
+        // (N·s), |θ̇| in Q16, F in Q8 → τ_bits = c·2^20·θ̇_bits / F_bits.
+        let c = self.viscosity.to_num::<f64>() * rm * f64::from(self.loaded_balls) * sa * cos_b;
+        let tau_scale = scale_of(c * (1u64 << 20) as f64);
+        Ok(BallScrew {
+            k_arm: (arm / rm).into(),
+            tau_per_rate: c.into(),
+            config: *self,
+            law,
+            arm_scale,
+            lever_scale,
+            tau_scale,
+            arm: Metres::from_f64(arm),
+            lever: Metres::from_f64(lever),
+        })
+    }
+}
+
+/// √x for configuration time without libm (`core` has no `f64::sqrt`): Newton from above,
+/// to the last bit for 1 ≤ x ≤ 10⁶.
+fn sqrt_f64(x: f64) -> f64 {
+    let mut s = if x > 1.0 { x } else { 1.0 };
+    for _ in 0..64 {
+        let next = 0.5 * (s + x / s);
+        if next >= s {
+            break;
+        }
+        s = next;
+    }
+    s
+}
+
+/// A positive constant as a [`Scale`] (configuration time only).
+fn scale_of(v: f64) -> Scale {
+    // 2^40 keeps ≥ 31 significant bits for every constant here (10⁻⁸ … 10⁶).
+    let den: i128 = 1 << 40;
+    Scale::from_ratio((v * den as f64) as i128, den)
+}
+
+/// An `f64` kept by its bits, so that configuration types holding one stay `Eq`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct F64Bits(u64);
+
+impl From<f64> for F64Bits {
+    fn from(v: f64) -> Self {
+        F64Bits(v.to_bits())
+    }
+}
+
+impl F64Bits {
+    fn get(self) -> f64 {
+        f64::from_bits(self.0)
+    }
+}
+
+/// A compiled ball screw: every per-tick operation is a few integer multiplies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BallScrew {
+    /// arm/r_m and η₀ r_m M sin α cos β, kept for [`BallScrew::equivalent_thread_law`]
+    /// (configuration time only; stored as bits so the type stays `Eq`).
+    k_arm: F64Bits,
+    tau_per_rate: F64Bits,
+    config: BallScrewConfig,
+    law: CompiledLaw,
+    arm_scale: Scale,
+    lever_scale: Scale,
+    tau_scale: Scale,
+    arm: Metres,
+    lever: Metres,
+}
+
+impl BallScrew {
+    /// The configuration it was compiled from.
+    pub fn config(&self) -> &BallScrewConfig {
+        &self.config
+    }
+
+    /// Moment arm of Eq 1, 2(r_m + r_b cos α)/sin α.
+    pub fn arm(&self) -> Metres {
+        self.arm
+    }
+
+    /// Lead lever l/(2π): screw torque per newton of axial force without friction.
+    pub fn lever(&self) -> Metres {
+        self.lever
+    }
+
+    /// Axial force on the loaded balls: preload + |R|, saturating.
+    #[inline]
+    pub fn axial_force(&self, load: Newtons) -> Newtons {
+        self.config.preload.sat_add(load.sat_abs())
+    }
+
+    /// τ = η₀·V/P (Eq 3) at screw rate θ̇ and axial force `f_axial` (Q28; saturates at 8 for a
+    /// vanishing force). Error: ≤ 2·10⁻⁹ relative plus 1 LSB (3.7·10⁻⁹) from the truncating
+    /// division (test against the twin: 10⁻⁶ relative or 10⁻⁸ absolute).
+    #[inline]
+    pub fn tau(&self, theta_dot: RadiansPerSecond, f_axial: Newtons) -> Ratio {
+        let w = theta_dot.bits().unsigned_abs().min(i32::MAX as u32) as i32;
+        let num = self.tau_scale.apply(w); // τ·F_bits
+        let den = i64::from(f_axial.bits().max(0));
+        if den == 0 {
+            return if num > 0 { Ratio::MAX } else { Ratio::ZERO };
+        }
+        let t = num / den;
+        Ratio::from_raw(t.min(i64::from(i32::MAX)) as i32)
+    }
+
+    /// f at τ (the configured law, seed 002 Eq 3); error ≤ 2·10⁻⁸ (the law's, see
+    /// [`CompiledLaw`]).
+    #[inline]
+    pub fn coefficient(&self, tau: Ratio) -> Ratio {
+        self.law.mu_at_tau(tau)
+    }
+
+    /// Friction torque M_f = f·F·arm (Eq 1 with Eq 2's factor 2), always ≥ 0 for f, F ≥ 0.
+    /// Error: f·F is rounded to 1/256 N, so ≤ arm/256 N·m (0.24 mN·m for the 4008) plus 0.01 %.
+    #[inline]
+    pub fn friction_torque(&self, f: Ratio, f_axial: Newtons) -> NewtonMetres {
+        let ff: Newtons = qmul(f, f_axial);
+        NewtonMetres::from_raw(self.arm_scale.apply32(ff.bits()))
+    }
+
+    /// The friction coefficient from a friction torque (Eq 2): f = M_f / (F·arm).
+    /// `None` below 1 N of axial force (the quotient means nothing there). Saturates at the
+    /// `Ratio` range; error ≤ 10⁻⁵ relative plus 1 LSB for F ≥ 1 N (test).
+    #[inline]
+    pub fn coefficient_from_torque(&self, torque: NewtonMetres, f_axial: Newtons) -> Option<Ratio> {
+        if f_axial < const { Newtons::lit("1") } {
+            return None;
+        }
+        let den = self.arm_scale.apply(f_axial.bits()); // F·arm in N·m, Q16
+        if den <= 0 {
+            return None;
+        }
+        let num = i64::from(torque.bits()) << 28;
+        let q = num / den;
+        Some(Ratio::from_raw(crate::units::sat32(q)))
+    }
+
+    /// Screw torque the axial force alone produces, F·l/(2π) (≥ 0): what back-drives a ball
+    /// screw, and what the motor must hold when it stands still.
+    #[inline]
+    pub fn load_torque(&self, f_axial: Newtons) -> NewtonMetres {
+        NewtonMetres::from_raw(self.lever_scale.apply32(f_axial.bits()))
+    }
+
+    /// The friction torque in a measured screw torque (positive = lifting direction):
+    /// `T_screw − F·l/(2π)` when lifting; `F·l/(2π) − T_screw` when lowering (the load then
+    /// drives, friction helps the motor hold it back, so the motor brakes with less than the
+    /// load torque). Saturating.
+    #[inline]
+    pub fn friction_in(
+        &self,
+        screw_torque: NewtonMetres,
+        f_axial: Newtons,
+        lifting: bool,
+    ) -> NewtonMetres {
+        let tl = self.load_torque(f_axial);
+        if lifting {
+            screw_torque.sat_sub(tl)
+        } else {
+            tl.sat_sub(screw_torque)
+        }
+    }
+
+    /// Eq 2 online: f from the screw torque the motor delivers (current × k_t × gear ratio ×
+    /// efficiency, measured at steady speed) and the axial load R. `None` when the force is too
+    /// small for the quotient to mean anything.
+    #[inline]
+    pub fn identify(
+        &self,
+        screw_torque: NewtonMetres,
+        load: Newtons,
+        lifting: bool,
+    ) -> Option<Ratio> {
+        let fa = self.axial_force(load);
+        self.coefficient_from_torque(self.friction_in(screw_torque, fa, lifting), fa)
+    }
+
+    /// The ball screw as a thread for the lead-screw model (estimator and plant): the friction
+    /// law in the screw rate whose thread friction torque μ·W·r_m equals Eq 1's `f·F·arm` at
+    /// axial force `f_axial`: `μ_eq(θ̇) = (arm/r_m)·f(τ)` with `τ = η₀ r_m M sin α cos β·|θ̇|/F`.
+    /// The thread model adds `μ tan λ` (≈ 0.1 %) and `tan²λ` (≈ 0.4 %) corrections the ball
+    /// screw does not have; τ's dependence on the load is frozen at `f_axial` (docs/model.md).
+    /// Configuration time only.
+    pub fn equivalent_thread_law(&self, f_axial: Newtons) -> Result<FrictionLaw, ConfigError> {
+        let fa = f_axial.to_f64();
+        if fa < 1.0 {
+            return Err(ConfigError::OutOfRange {
+                field: "ballscrew.reference_force",
+                range: ">= 1 N",
+            });
+        }
+        let k = self.k_arm.get();
+        let tau_per_rate = self.tau_per_rate.get() / fa;
+        let l = &self.config.law;
+        let law = FrictionLaw {
+            base: Ratio::from_f64(l.base.to_f64() * k),
+            amp: Ratio::from_f64(l.amp.to_f64() * k),
+            rate: I32F32::saturating_from_num(l.rate.to_num::<f64>() * tau_per_rate),
+            slope: I32F32::saturating_from_num(l.slope.to_num::<f64>() * k * tau_per_rate),
+            s_max: if l.s_max == I32F32::MAX {
+                I32F32::MAX
+            } else {
+                I32F32::saturating_from_num(l.s_max.to_num::<f64>() / tau_per_rate)
+            },
+            variable: LawVariable::ScrewRate,
+        };
+        // Validate the result as a law in its own right.
+        law.compile(self.config.r_m, Ratio::ONE)?;
+        Ok(law)
+    }
+
+    /// The law's minimum on τ ∈ [0, 0.01] (seed 002's turning point between mixed and
+    /// hydrodynamic lubrication), located on the fixed-point law itself by golden-section search
+    /// (configuration time, ≈ 60 law evaluations): `(τ*, f(τ*))`.
+    pub fn turning_point(&self) -> (Ratio, Ratio) {
+        let (mut lo, mut hi) = (0i64, const { Ratio::lit("0.01") }.bits() as i64);
+        // Ternary search on a unimodal integer function; the law is flat to 1 LSB near the
+        // minimum, so stop at a 64-LSB bracket and scan it.
+        while hi - lo > 64 {
+            let m1 = lo + (hi - lo) / 3;
+            let m2 = hi - (hi - lo) / 3;
+            let f1 = self.coefficient(Ratio::from_raw(m1 as i32));
+            let f2 = self.coefficient(Ratio::from_raw(m2 as i32));
+            if f1 <= f2 {
+                hi = m2;
+            } else {
+                lo = m1;
+            }
+        }
+        let mut best = (
+            Ratio::from_raw(lo as i32),
+            self.coefficient(Ratio::from_raw(lo as i32)),
+        );
+        for t in lo..=hi {
+            let r = Ratio::from_raw(t as i32);
+            let f = self.coefficient(r);
+            if f < best.1 {
+                best = (r, f);
+            }
+        }
+        best
+    }
+}
+
+/// Online estimate of the ball screw's friction coefficient from motor current (Eq 2): an
+/// exponential average of [`BallScrew::identify`] over the samples taken at steady speed under
+/// load, `f ← f + (f_sample − f)/2^shift`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrictionIdentifier {
+    estimate: Ratio,
+    samples: u32,
+    shift: u32,
+    min_force: Newtons,
+}
+
+impl FrictionIdentifier {
+    /// Start from `initial` (e.g. the law's value), average over about 2^`shift` samples
+    /// (`shift` ≤ 16), and ignore samples below `min_force` of axial force.
+    pub fn new(initial: Ratio, shift: u32, min_force: Newtons) -> Self {
+        Self {
+            estimate: initial,
+            samples: 0,
+            shift: shift.min(16),
+            min_force,
+        }
+    }
+
+    /// Feed one measurement (screw torque, axial load R, direction). Returns whether it was used.
+    pub fn update(
+        &mut self,
+        bs: &BallScrew,
+        screw_torque: NewtonMetres,
+        load: Newtons,
+        lifting: bool,
+    ) -> bool {
+        let fa = bs.axial_force(load);
+        if fa < self.min_force {
+            return false;
+        }
+        let Some(f) = bs.identify(screw_torque, load, lifting) else {
+            return false;
+        };
+        // The first sample replaces the initial guess's weight faster: plain average of the
+        // first 2^shift samples, then the exponential average.
+        let n = self.samples.saturating_add(1);
+        let w = if n < (1 << self.shift) {
+            n
+        } else {
+            1 << self.shift
+        };
+        let d = i64::from(f.bits()) - i64::from(self.estimate.bits());
+        let next = i64::from(self.estimate.bits()) + d / i64::from(w);
+        self.estimate = Ratio::from_raw(crate::units::sat32(next));
+        self.samples = n;
+        true
+    }
+
+    /// The current estimate of f.
+    pub fn estimate(&self) -> Ratio {
+        self.estimate
+    }
+
+    /// Samples used so far (saturating).
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+}

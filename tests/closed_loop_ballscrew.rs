@@ -1,0 +1,218 @@
+//! The ball-screw lift in closed loop (issue 9 item 4): seed 001's 4008 ball screw in the plant
+//! (seed 002's friction, not self-locking) and the core configured with `drive.screw = ball`
+//! (`ControlConfig::ball_screw_4008`). At rated load it must hold when stopped, lift and lower
+//! to a set height without running away, and catch a back-driven screw.
+#![allow(clippy::expect_used, clippy::unwrap_used)]
+
+mod support;
+use host_sim::physics::Geometry;
+use liftfw::control::config::ScrewKind;
+use liftfw::control::{Bridge, Command, FaultKind, State};
+use liftfw::units::Metres;
+use support::{command_at, run, Run, Scenario, Tick};
+
+const RATED: f64 = 1000.0;
+
+fn height_at(deg: f64) -> f64 {
+    Geometry::paper().height(deg.to_radians())
+}
+
+/// Largest |height − h(t₀)| over t ≥ t₀, mm.
+fn drift_after(r: &Run, t0: f64) -> f64 {
+    let recs: Vec<_> = r.trace.records.iter().filter(|x| x.t >= t0).collect();
+    let h0 = recs.first().map_or(0.0, |x| x.height);
+    recs.iter()
+        .map(|x| (x.height - h0).abs())
+        .fold(0.0, f64::max)
+        * 1e3
+}
+
+#[test]
+fn nothing_holds_a_ball_screw_and_its_travel_is_detected() {
+    // Premise of everything below: the bridge lets go (coasts) at 0.2 s and the ball screw
+    // runs backwards under the rated load. The controller sees the uncommanded travel.
+    let s = Scenario::ball_screw(RATED, 30.0, 0.8);
+    let r = run(
+        &s,
+        Box::new(|k: &mut Tick<'_>| {
+            if k.t >= 0.2 {
+                k.force = Some(Bridge::Coast);
+            }
+        }),
+    );
+    let (t, f) = r.first_fault().expect("back-driving must be detected");
+    assert_eq!(f.kind, FaultKind::Runaway, "{:?}", r.events);
+    assert!(t > 0.2 && t < 0.6, "detected at {t} s");
+    let drop = (height_at(30.0) - r.final_height()) * 1e3;
+    assert!(drop > 1.0, "the load should have run down, not {drop} mm");
+}
+
+#[test]
+fn a_shorted_motor_alone_lets_a_ball_screw_sink() {
+    // The lead screw's rest (motor windings shorted) on the ball screw: the short damps the
+    // back-drive to a slow sink but does not stop it, which is why `drive.screw = ball` holds
+    // actively.
+    let mut s = Scenario::ball_screw(RATED, 30.0, 2.0);
+    s.control.screw = ScrewKind::Lead;
+    let r = run(&s, Box::new(|_: &mut Tick<'_>| {}));
+    let at = |t: f64| {
+        r.trace
+            .records
+            .iter()
+            .find(|x| x.t >= t)
+            .map_or(f64::NAN, |x| x.height)
+    };
+    let sink = (at(0.5) - at(2.0)) * 1e3;
+    assert!(sink > 0.05, "sank only {sink:.3} mm in 1.5 s");
+    assert!(r.ticks.iter().skip(10).all(|k| k.bridge == Bridge::Brake));
+}
+
+#[test]
+fn ball_screw_holds_rated_load_at_rest() {
+    for deg in [16.0, 30.0, 60.0] {
+        let s = Scenario::ball_screw(RATED, deg, 1.5);
+        let r = run(&s, Box::new(|_: &mut Tick<'_>| {}));
+        assert!(r.first_fault().is_none(), "{deg}°: {:?}", r.events);
+        assert_eq!(r.controller.state(), State::Idle);
+        // The motor holds: it is driven at rest, and the head stays put.
+        assert!(r
+            .ticks
+            .iter()
+            .skip(100)
+            .all(|k| matches!(k.bridge, Bridge::Drive(_))));
+        // The simulation starts with an unwound coupling: the screw settles by the coupling's
+        // twist under the holding torque (T/k), then stays.
+        let sag = (height_at(deg) - r.final_height()) * 1e3;
+        assert!(sag.abs() < 1.0, "{deg}°: sagged {sag:.3} mm");
+        let d = drift_after(&r, 0.3);
+        assert!(d < 0.02, "{deg}°: moved {d:.3} mm after settling");
+        // The price of holding with the motor: the holding current (docs/control.md quotes
+        // these), within the current limit.
+        let last = r.trace.records.last().unwrap();
+        println!("{deg}°: holding current {:.1} A", last.current);
+        assert!(last.current > 0.0 && last.current < 40.0);
+    }
+}
+
+#[test]
+fn an_unhomed_ball_screw_lift_holds_where_it_boots() {
+    // After a power-off a ball screw's position is unknown (it may have moved): the core boots
+    // unhomed, with the encoder set to the lower switch's height. The hold must follow that
+    // re-based encoder, not pull toward the counts it had before.
+    let mut s = Scenario::ball_screw(RATED, 30.0, 1.0);
+    s.unhomed = true;
+    let r = run(&s, Box::new(|_: &mut Tick<'_>| {}));
+    assert!(r.first_fault().is_none(), "{:?}", r.events);
+    assert!(!r.controller.homed());
+    let moved = (height_at(30.0) - r.final_height()).abs() * 1e3;
+    assert!(moved < 1.0, "moved {moved:.3} mm");
+    assert!(drift_after(&r, 0.3) < 0.02);
+}
+
+fn goto(start_deg: f64, dh: f64, duration: f64) -> (Run, f64) {
+    let s = Scenario::ball_screw(RATED, start_deg, duration);
+    let target = height_at(start_deg) + dh;
+    let r = run(
+        &s,
+        command_at(0.05, Command::GoTo(Metres::from_f64(target))),
+    );
+    (r, target)
+}
+
+#[test]
+fn ball_screw_lifts_rated_load_and_holds_at_the_target() {
+    let (r, target) = goto(20.0, 0.005, 3.5);
+    assert!(r.first_fault().is_none(), "{:?}", r.events);
+    assert_eq!(r.controller.state(), State::Holding, "{:?}", r.events);
+    let err = (r.final_height() - target) * 1e3;
+    assert!(err.abs() < 0.5, "final error {err:.3} mm");
+    let over = (r.extreme_height(true) - target) * 1e3;
+    assert!(over < 0.5, "overshoot {over:.3} mm");
+    // Held for the last second: no sag after the stop.
+    assert!(
+        drift_after(&r, 2.5) < 0.05,
+        "drift {:.3} mm",
+        drift_after(&r, 2.5)
+    );
+}
+
+#[test]
+fn ball_screw_lowers_rated_load_without_running_away() {
+    let (r, target) = goto(30.0, -0.005, 3.5);
+    assert!(r.first_fault().is_none(), "{:?}", r.events);
+    assert_eq!(r.controller.state(), State::Holding, "{:?}", r.events);
+    let err = (r.final_height() - target) * 1e3;
+    assert!(err.abs() < 0.5, "final error {err:.3} mm");
+    let under = (target - r.extreme_height(false)) * 1e3;
+    assert!(under < 0.5, "went {under:.3} mm below the target");
+    // The load drove the screw, the motor braked it: on average at the cruise speed, and even
+    // the stick-slip bursts of seed 002's Stribeck law stay bounded.
+    let cruise = s_cruise();
+    let rec = &r.trace.records;
+    // (From 0.05 s: the simulation starts with an unwound coupling, and the screw's first
+    // millisecond of settling onto it is not the controller's doing.)
+    let fastest = rec
+        .iter()
+        .filter(|x| x.t > 0.05)
+        .map(|x| -x.theta_dot)
+        .fold(0.0, f64::max);
+    println!("lowering: fastest screw speed {fastest:.2} rad/s (cruise {cruise})");
+    assert!(fastest < 3.0 * cruise, "screw reached {fastest:.2} rad/s");
+    let (a, b) = (
+        rec.iter().find(|x| x.t >= 0.5).unwrap(),
+        rec.iter().find(|x| x.t >= 1.0).unwrap(),
+    );
+    let mean = (a.theta - b.theta) / (b.t - a.t);
+    assert!(mean < 1.1 * cruise, "mean lowering speed {mean:.2} rad/s");
+    assert!(drift_after(&r, 3.0) < 0.05);
+}
+
+fn s_cruise() -> f64 {
+    liftfw::control::config::ControlConfig::ball_screw_4008()
+        .unwrap()
+        .motion
+        .cruise_speed
+        .to_f64()
+}
+
+#[test]
+fn a_bridge_failure_at_rest_is_caught_as_back_driving_and_held() {
+    // The bridge lets go for 300 ms while the lift stands at 30° with its rated load: the load
+    // back-drives the screw. The controller latches Runaway and, once the bridge works again,
+    // holds the screw where it tripped instead of letting it sink.
+    let s = Scenario::ball_screw(RATED, 30.0, 2.0);
+    let r = run(
+        &s,
+        Box::new(|k: &mut Tick<'_>| {
+            if k.t >= 0.5 && k.t < 0.8 {
+                k.force = Some(Bridge::Coast);
+            }
+        }),
+    );
+    let (t, f) = r.first_fault().expect("back-driving must be detected");
+    assert_eq!(f.kind, FaultKind::Runaway, "{:?}", r.events);
+    assert!((0.5..0.9).contains(&t), "tripped at {t} s");
+    assert_eq!(r.controller.state(), State::Fault);
+    // Held after the trip: driven, not shorted or coasting, and still.
+    assert!(r
+        .ticks
+        .iter()
+        .filter(|k| k.t > 0.8)
+        .all(|k| matches!(k.bridge, Bridge::Drive(_))));
+    // Once the bridge works again the hold stops the sinking at once (the position loop then
+    // pulls the screw back toward where it tripped, slowly) and the lift settles.
+    let h_back = r.trace.records.iter().find(|x| x.t >= 0.8).unwrap().height;
+    let lowest = r.extreme_height(false);
+    assert!(
+        lowest > h_back - 0.2e-3,
+        "sank {:.3} mm after the bridge recovered",
+        (h_back - lowest) * 1e3
+    );
+    assert!(
+        drift_after(&r, 1.7) < 0.05,
+        "drift {:.3} mm",
+        drift_after(&r, 1.7)
+    );
+    let drop = (height_at(30.0) - r.final_height()) * 1e3;
+    assert!(drop > 0.0 && drop < 5.0, "dropped {drop:.2} mm");
+}

@@ -52,6 +52,18 @@ pub fn rk23_step_from<S: OdeState>(
     k1: &S,
     h: f64,
 ) -> S {
+    stages(f, t, y, k1, h).2
+}
+
+/// The second and third stages and the third-order solution of a step with `k1` known.
+#[inline]
+fn stages<S: OdeState>(
+    f: &mut impl FnMut(f64, &S) -> S,
+    t: f64,
+    y: &S,
+    k1: &S,
+    h: f64,
+) -> (S, S, S) {
     let mut y2 = y.clone();
     y2.add_scaled(0.5 * h, k1);
     let k2 = f(t + 0.5 * h, &y2);
@@ -62,7 +74,7 @@ pub fn rk23_step_from<S: OdeState>(
     out.add_scaled(2.0 / 9.0 * h, k1);
     out.add_scaled(1.0 / 3.0 * h, &k2);
     out.add_scaled(4.0 / 9.0 * h, &k3);
-    out
+    (k2, k3, out)
 }
 
 /// One Bogacki–Shampine step with its embedded error estimate, for step-size control.
@@ -98,16 +110,7 @@ pub fn rk23_embedded<S: OdeState>(
     k1: &S,
     h: f64,
 ) -> EmbeddedStep<S> {
-    let mut y2 = y.clone();
-    y2.add_scaled(0.5 * h, k1);
-    let k2 = f(t + 0.5 * h, &y2);
-    let mut y3 = y.clone();
-    y3.add_scaled(0.75 * h, &k2);
-    let k3 = f(t + 0.75 * h, &y3);
-    let mut out = y.clone();
-    out.add_scaled(2.0 / 9.0 * h, k1);
-    out.add_scaled(1.0 / 3.0 * h, &k2);
-    out.add_scaled(4.0 / 9.0 * h, &k3);
+    let (k2, k3, out) = stages(f, t, y, k1, h);
     let k4 = f(t + h, &out);
     // y₃ − y₂ with y₂ = y + h(7/24 k1 + 1/4 k2 + 1/3 k3 + 1/8 k4).
     let mut err = k1.clone();

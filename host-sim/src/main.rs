@@ -4,7 +4,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use host_sim::paper::{self, CaseResult, MatrixConfig, Steady};
 use host_sim::physics::Lubricant;
 use host_sim::plant::{SpeedProfile, StructureDamping};
-use host_sim::sim::{Driver, OpenLoopDuty, Sim, SimConfig};
+use host_sim::sim::{Driver, OpenLoopDuty, Sim, SimConfig, Stepping};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde::Deserialize;
@@ -166,6 +166,46 @@ struct CaseArgs {
     pin_friction: Option<f64>,
 }
 
+/// The run flags shared by `run` and `paper`: simulated time, profile speed, structure damping
+/// and the integrator's step.
+#[derive(Args, Debug, Clone, Default)]
+struct SimArgs {
+    /// Simulated time, s [default: 5].
+    #[arg(long)]
+    duration: Option<f64>,
+    /// Paper mode: cruise screw speed |ω_c|, rad/s [default: 15].
+    #[arg(long)]
+    cruise: Option<f64>,
+    /// Constant structure damping c_x, kg/s [default: Table 1's c_x(α)]. The paper's text value
+    /// 1e6 makes the thread slide steadily.
+    #[arg(long)]
+    cx: Option<f64>,
+    /// Base integration step, s [default: 2e-6, the converged step]. With --tol: the first
+    /// trial step and the step inside a zoom window.
+    #[arg(long)]
+    dt: Option<f64>,
+    /// Paper mode: adaptive steps (embedded RK23 error estimate) with this error tolerance
+    /// instead of the fixed step dt (docs/plant.md) [default: fixed step].
+    #[arg(long)]
+    tol: Option<f64>,
+    /// With --tol: the largest step, s [default: 1e-3].
+    #[arg(long, requires = "tol")]
+    h_max: Option<f64>,
+}
+
+impl SimArgs {
+    /// Fixed or adaptive steps, from --tol and --h-max.
+    fn stepping(tol: Option<f64>, h_max: Option<f64>) -> Stepping {
+        match tol {
+            Some(tol) => Stepping::Adaptive {
+                tol,
+                h_max: h_max.unwrap_or(host_sim::sim::ADAPTIVE_H_MAX),
+            },
+            None => Stepping::Fixed,
+        }
+    }
+}
+
 /// A scenario: the defaults, overridden by a TOML file, overridden by flags. Field names are
 /// the flags' names with `_` for `-`.
 #[derive(Debug, Clone, Deserialize)]
@@ -184,6 +224,8 @@ struct Scenario {
     seed: u64,
     noise: f64,
     dt: f64,
+    tol: Option<f64>,
+    h_max: Option<f64>,
     control_hz: f64,
     record_hz: f64,
     csv: Option<PathBuf>,
@@ -205,6 +247,8 @@ impl Default for Scenario {
             seed: 0,
             noise: 1.0,
             dt: host_sim::sim::DEFAULT_DT,
+            tol: None,
+            h_max: None,
             control_hz: 1000.0,
             record_hz: 10_000.0,
             csv: None,
@@ -218,7 +262,7 @@ impl Default for Scenario {
 lubricant = \"ptfe\"      # dry | ptfe | lithium\n  start_deg = 45.0\n  direction = \"down\"      # up | down\n  \
 pin_friction = 0.3\n  load_kg = 800.0\n  duration = 2.0\n  cx = 1e6                # constant structure damping, kg/s\n  \
 mode = \"paper\"          # paper | duty | closed\n  cruise = 15.0\n  duty = 0.8\n  seed = 7\n  noise = 1.0\n  \
-dt = 2e-6\n  control_hz = 1000.0\n  record_hz = 10000.0\n  csv = \"trace.csv\""
+dt = 2e-6\n  tol = 3e-4              # adaptive steps (paper mode)\n  h_max = 1e-3\n  control_hz = 1000.0\n  record_hz = 10000.0\n  csv = \"trace.csv\""
 )]
 struct RunArgs {
     /// Read the scenario from a TOML file first (see below); flags given as well win.
@@ -226,22 +270,14 @@ struct RunArgs {
     config: Option<PathBuf>,
     #[command(flatten)]
     case: CaseArgs,
+    #[command(flatten)]
+    sim: SimArgs,
     /// Lifted mass, kg [default: 1000].
     #[arg(long)]
     load_kg: Option<f64>,
-    /// Simulated time, s [default: 5].
-    #[arg(long)]
-    duration: Option<f64>,
-    /// Constant structure damping c_x, kg/s [default: Table 1's c_x(α)]. The paper's text value
-    /// 1e6 makes the thread slide steadily.
-    #[arg(long)]
-    cx: Option<f64>,
     /// Driving mode [default: paper].
     #[arg(long, value_enum)]
     mode: Option<Mode>,
-    /// Paper mode: cruise screw speed, rad/s [default: 15].
-    #[arg(long)]
-    cruise: Option<f64>,
     /// Duty mode: bridge duty magnitude, 0–1 [default: 1].
     #[arg(long)]
     duty: Option<f64>,
@@ -251,9 +287,6 @@ struct RunArgs {
     /// Sensor noise scale: 0 noiseless, 1 the modelled ADC noise [default: 1].
     #[arg(long)]
     noise: Option<f64>,
-    /// Base integration step, s [default: 2e-6, the converged step].
-    #[arg(long)]
-    dt: Option<f64>,
     /// Control rate of the core, Hz [default: 1000].
     #[arg(long)]
     control_hz: Option<f64>,
@@ -285,18 +318,24 @@ impl RunArgs {
             self.case.direction => direction,
             self.case.pin_friction => pin_friction,
             self.load_kg => load_kg,
-            self.duration => duration,
+            self.sim.duration => duration,
             self.mode => mode,
-            self.cruise => cruise,
+            self.sim.cruise => cruise,
             self.duty => duty,
             self.seed => seed,
             self.noise => noise,
-            self.dt => dt,
+            self.sim.dt => dt,
             self.control_hz => control_hz,
             self.record_hz => record_hz,
         );
-        if self.cx.is_some() {
-            s.cx = self.cx;
+        for (flag, field) in [
+            (self.sim.cx, &mut s.cx),
+            (self.sim.tol, &mut s.tol),
+            (self.sim.h_max, &mut s.h_max),
+        ] {
+            if flag.is_some() {
+                *field = flag;
+            }
         }
         if self.csv.is_some() {
             s.csv.clone_from(&self.csv);
@@ -326,18 +365,9 @@ struct PaperArgs {
     /// Parallel jobs [default: one per core].
     #[arg(long)]
     jobs: Option<usize>,
-    /// Cruise screw speed |ω_c|, rad/s.
-    #[arg(long, default_value_t = host_sim::plant::profile::PAPER_CRUISE)]
-    cruise: f64,
-    /// Base integration step, s.
-    #[arg(long, default_value_t = host_sim::sim::DEFAULT_DT)]
-    dt: f64,
-    /// Simulated time per run, s.
-    #[arg(long, default_value_t = 5.0)]
-    duration: f64,
-    /// Constant structure damping c_x for the main matrix, kg/s [default: Table 1's c_x(α)].
-    #[arg(long)]
-    cx: Option<f64>,
+    /// Duration, speed, damping (main matrix) and step of every run.
+    #[command(flatten)]
+    sim: SimArgs,
     /// Sampling rate of the per-run CSVs, Hz (the 0.999–1 s window is written at every step).
     #[arg(long, default_value_t = 1000.0)]
     csv_hz: f64,
@@ -356,6 +386,12 @@ struct ConvergenceArgs {
     /// Study the paper's six dry cases and the two lubricants at 15° lifting instead of one case.
     #[arg(long)]
     all: bool,
+    /// Study all 18 cases of the paper's matrix.
+    #[arg(long, conflicts_with = "all")]
+    matrix: bool,
+    /// Study the adaptive option instead: tolerances TOL, TOL/√10, … (1 s runs).
+    #[arg(long, value_name = "TOL")]
+    tol_max: Option<f64>,
 }
 
 fn run(a: &RunArgs) -> Result<(), Box<dyn std::error::Error>> {
@@ -371,6 +407,7 @@ fn run(a: &RunArgs) -> Result<(), Box<dyn std::error::Error>> {
     }
     cfg.duration = sc.duration;
     cfg.dt = sc.dt;
+    cfg.stepping = SimArgs::stepping(sc.tol, sc.h_max);
     cfg.seed = sc.seed;
     cfg.sensors.current_noise *= sc.noise;
     cfg.sensors.supply_noise *= sc.noise;
@@ -389,7 +426,7 @@ fn run(a: &RunArgs) -> Result<(), Box<dyn std::error::Error>> {
         }),
     };
     println!(
-        "host-sim run: {:?} mode, {} thread, {:?} from α = {}°, load {} kg, μ_b = {}, {} s at dt = {:.1e} s",
+        "host-sim run: {:?} mode, {} thread, {:?} from α = {}°, load {} kg, μ_b = {}, {} s {}",
         sc.mode,
         Lubricant::from(sc.lubricant).name(),
         sc.direction,
@@ -397,7 +434,11 @@ fn run(a: &RunArgs) -> Result<(), Box<dyn std::error::Error>> {
         sc.load_kg,
         sc.pin_friction,
         sc.duration,
-        sc.dt
+        match cfg.stepping {
+            Stepping::Fixed => format!("at dt = {:.1e} s", sc.dt),
+            Stepping::Adaptive { tol, h_max } =>
+                format!("with adaptive steps (tol {tol:.0e}, h_max {h_max:.0e} s)"),
+        }
     );
     let wall = WallClock::now();
     let mut sim = Sim::new(cfg, driver)?;
@@ -405,7 +446,7 @@ fn run(a: &RunArgs) -> Result<(), Box<dyn std::error::Error>> {
     let secs = wall.elapsed().as_secs_f64();
     println!("{summary}");
     println!(
-        "wall time   {:.4} s ({:.4} s per simulated second)",
+        "wall time   {:.6} s ({:.6} s per simulated second)",
         secs,
         secs / summary.duration
     );
@@ -437,14 +478,17 @@ struct Job {
 
 fn paper_cmd(a: &PaperArgs) -> Result<(), Box<dyn std::error::Error>> {
     let wall = WallClock::now();
+    let d = MatrixConfig::default();
     let m = MatrixConfig {
-        cruise: a.cruise,
-        duration: a.duration,
-        dt: a.dt,
+        cruise: a.sim.cruise.unwrap_or(d.cruise),
+        duration: a.sim.duration.unwrap_or(d.duration),
+        dt: a.sim.dt.unwrap_or(d.dt),
+        stepping: SimArgs::stepping(a.sim.tol, a.sim.h_max),
         damping: a
+            .sim
             .cx
             .map_or(StructureDamping::Table1, StructureDamping::Constant),
-        ..MatrixConfig::default()
+        ..d
     };
     let steady_cx = 1e6;
     let ms = MatrixConfig {
@@ -590,7 +634,19 @@ fn paper_cmd(a: &PaperArgs) -> Result<(), Box<dyn std::error::Error>> {
 fn convergence(a: &ConvergenceArgs) {
     let c = &a.case;
     let sign = c.direction.unwrap_or(Direction::Up).sign();
-    let cases: Vec<(Lubricant, f64, f64, f64)> = if a.all {
+    let cases: Vec<(Lubricant, f64, f64, f64)> = if a.matrix {
+        paper::matrix()
+            .into_iter()
+            .map(|c| {
+                (
+                    c.lubricant,
+                    c.mu_pin,
+                    c.start_deg,
+                    if c.lifting { 1.0 } else { -1.0 },
+                )
+            })
+            .collect()
+    } else if a.all {
         let mut v: Vec<_> = [
             (0.3, 15.0, 1.0),
             (0.0, 15.0, 1.0),
@@ -616,8 +672,19 @@ fn convergence(a: &ConvergenceArgs) {
     let out: Vec<String> = cases
         .par_iter()
         .map(|&(lube, mu, deg, sg)| {
-            let st =
-                host_sim::study::convergence(lube.law(), mu, deg, sg * 15.0, a.dt_max, a.levels);
+            let st = match a.tol_max {
+                Some(tol) => host_sim::study::tolerance_convergence(
+                    lube.law(),
+                    mu,
+                    deg,
+                    sg * 15.0,
+                    tol,
+                    a.levels,
+                ),
+                None => {
+                    host_sim::study::convergence(lube.law(), mu, deg, sg * 15.0, a.dt_max, a.levels)
+                }
+            };
             let dir = if sg > 0.0 { "lifting" } else { "lowering" };
             format!(
                 "{} thread, μ_b = {mu}, {dir} from {deg}°:\n{st}",

@@ -1,15 +1,20 @@
 //! Step-size convergence study: the mean thread friction torque over 0.999–1 s, computed at
-//! halving steps, must change by less than 1 % from one step to the next.
+//! halving steps, must change by less than 1 % from one step to the next. The same study over
+//! the tolerance of the adaptive option ([`tolerance_convergence`]).
 
 use crate::physics::FrictionLaw;
-use crate::sim::paper_run;
+use crate::sim::{paper_run_with, Stepping, Summary, ADAPTIVE_H_MAX, DEFAULT_DT};
 use std::fmt;
 
 /// One level of the study.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Level {
-    /// Base step, s.
+    /// Base step, s (fixed step), or the error tolerance (adaptive).
     pub dt: f64,
+    /// Whether `dt` is an adaptive tolerance rather than a step.
+    pub adaptive: bool,
+    /// Right-hand-side evaluations of the run.
+    pub evaluations: u64,
     /// Mean T_r over 0.999–1 s, N·m.
     pub mean_friction_torque: f64,
     /// Peak-to-peak θ − θ_i over 0.999–1 s, rad.
@@ -62,10 +67,37 @@ pub fn convergence_to(
     dt_max: f64,
     levels: u32,
 ) -> Study {
-    let mut out: Vec<Level> = Vec::new();
-    for k in 0..levels {
+    study((0..levels).map(|k| {
         let dt = dt_max / f64::from(1u32 << k);
-        let s = paper_run(law, mu_pin, start_deg, cruise, horizon, dt);
+        let s = paper_run_with(law, mu_pin, start_deg, cruise, horizon, dt, Stepping::Fixed);
+        (dt, false, s)
+    }))
+}
+
+/// The same study over the adaptive option's tolerance: `tol_max`, `tol_max/√10`, … (`levels`
+/// of them), to 1 s; the change is between consecutive tolerances.
+pub fn tolerance_convergence(
+    law: FrictionLaw,
+    mu_pin: f64,
+    start_deg: f64,
+    cruise: f64,
+    tol_max: f64,
+    levels: u32,
+) -> Study {
+    study((0..levels).map(|k| {
+        let tol = tol_max / 10f64.sqrt().powi(k as i32);
+        let stepping = Stepping::Adaptive {
+            tol,
+            h_max: ADAPTIVE_H_MAX,
+        };
+        let s = paper_run_with(law, mu_pin, start_deg, cruise, 1.0, DEFAULT_DT, stepping);
+        (tol, true, s)
+    }))
+}
+
+fn study(runs: impl Iterator<Item = (f64, bool, Summary)>) -> Study {
+    let mut out: Vec<Level> = Vec::new();
+    for (dt, adaptive, s) in runs {
         let (Some(w), Some(c)) = (s.window, s.cruise) else {
             continue;
         };
@@ -75,6 +107,8 @@ pub fn convergence_to(
         });
         out.push(Level {
             dt,
+            adaptive,
+            evaluations: s.evaluations,
             mean_friction_torque: w.mean_friction_torque,
             twist_peak_to_peak: w.twist_peak_to_peak,
             stick_fraction: w.stick_fraction,
@@ -87,21 +121,27 @@ pub fn convergence_to(
 
 impl fmt::Display for Study {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        writeln!(f, "| dt (s) | mean T_r 0.999–1 s (N·m) | change vs 2·dt | θ−θi p-p (mrad) | stuck | mean T_r 0.06–1 s (N·m) |")?;
-        writeln!(f, "|---|---|---|---|---|---|")?;
+        let (step, prev) = if self.levels.first().is_some_and(|l| l.adaptive) {
+            ("tol", "the previous tol")
+        } else {
+            ("dt (s)", "2·dt")
+        };
+        writeln!(f, "| {step} | mean T_r 0.999–1 s (N·m) | change vs {prev} | θ−θi p-p (mrad) | stuck | mean T_r 0.06–1 s (N·m) | evaluations |")?;
+        writeln!(f, "|---|---|---|---|---|---|---|")?;
         for l in &self.levels {
             let ch = l
                 .change
                 .map_or("—".to_string(), |c| format!("{:.3} %", 100.0 * c));
             writeln!(
                 f,
-                "| {:.2e} | {:.4} | {} | {:.4} | {:.1} % | {:.4} |",
+                "| {:.2e} | {:.4} | {} | {:.4} | {:.1} % | {:.4} | {} |",
                 l.dt,
                 l.mean_friction_torque,
                 ch,
                 l.twist_peak_to_peak * 1e3,
                 100.0 * l.stick_fraction,
-                l.cruise_friction_torque
+                l.cruise_friction_torque,
+                l.evaluations
             )?;
         }
         Ok(())

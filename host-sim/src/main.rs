@@ -19,7 +19,7 @@ use std::time::Instant as WallClock;
     about = "Digital twin of a 12 V screw-jack car scissor lift (the screw-nut model of seed 000)",
     long_about = "Digital twin of a 12 V screw-jack car scissor lift: the screw-nut model of \
 Woźniak et al. (seed 000) with stick/slip, in float64, driven by the paper's speed profile or by \
-a motor.\n\nStart here:\n  host-sim run                      one lift run (dry thread, lifting 1000 kg from 15°)\n  \
+a motor.\n\nStart here:\n  host-sim lift                     the board's core lifts 1000 kg to 180 mm: core vs plant, plot\n  host-sim run                      one lift run (dry thread, lifting 1000 kg from 15°)\n  \
 host-sim run --lubricant ptfe     the same with PTFE spray\n  host-sim run --config lift.toml   a \
 scenario from a TOML file (flags override it)\n  host-sim paper                    the paper's 18 runs: \
 CSV, plots, summary, docs/paper-reproduction.md\n  host-sim convergence --all        the step-size study \
@@ -34,6 +34,9 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// The board's core lifts a car to a set height in closed loop: live core vs plant
+    /// (height, speed, estimated friction torque), the halt error and a plot.
+    Lift(LiftArgs),
     /// Simulate one lift run and print a summary (the default).
     Run(RunArgs),
     /// Run seed 000's 18-case matrix in parallel: CSV, PNG plots, summary.md and
@@ -49,6 +52,31 @@ enum Command {
     /// Seed 001's ball-screw load distribution study (Figs 14–21): CSV, PNG plots and
     /// docs/ballscrew-reproduction.md; `--bench` times the solver.
     Ballscrew(BallscrewArgs),
+}
+
+#[derive(Args, Debug)]
+struct LiftArgs {
+    /// Thread lubricant (plant and the core's friction law).
+    #[arg(long, value_enum, default_value = "ptfe")]
+    lubricant: Lube,
+    /// Mass on the head, kg.
+    #[arg(long, default_value_t = 1000.0)]
+    load_kg: f64,
+    /// Start height, mm (the mechanism spans 133.5–416.4 mm).
+    #[arg(long, default_value_t = 150.0)]
+    from_mm: f64,
+    /// Target height, mm (between the limit stops, 145–410 mm by default).
+    #[arg(long, default_value_t = 180.0)]
+    to_mm: f64,
+    /// Sensor-noise seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// PNG of height and T_r, plant vs core.
+    #[arg(long, default_value = "target/lift.png")]
+    plot: PathBuf,
+    /// Skip the plot.
+    #[arg(long)]
+    no_plot: bool,
 }
 
 #[derive(Args, Debug)]
@@ -952,6 +980,16 @@ fn main() -> ExitCode {
     // A bare `host-sim` is `host-sim run` with the defaults.
     let cmd = cli.command.unwrap_or(Command::Run(RunArgs::default()));
     let res = match cmd {
+        Command::Lift(a) => host_sim::lift::main(&host_sim::lift::LiftArgs {
+            lubricant: a.lubricant.into(),
+            load_kg: a.load_kg,
+            from_mm: a.from_mm,
+            to_mm: a.to_mm,
+            seed: a.seed,
+            plot: (!a.no_plot).then_some(a.plot),
+        })
+        .map(|_| ())
+        .map_err(Into::into),
         Command::Run(a) => run(&a),
         Command::Paper(a) => paper_cmd(&a),
         Command::Convergence(a) => {

@@ -1,0 +1,324 @@
+//! `host-sim lift`: the product at a glance. The board's core (`liftfw::control::Controller`,
+//! the same code the firmware runs) lifts a loaded car from one height to a set height in
+//! closed loop with the plant; while it runs, a line every half second compares what the
+//! core believes (height, speed, estimated thread friction torque T_r) with the plant's
+//! truth, then the halt error and a plot of both.
+
+use crate::physics::{Geometry, Lubricant};
+use crate::plots;
+use crate::sim::{Driver, Sim, SimConfig};
+use liftfw::control::config::ControlConfig;
+use liftfw::control::{Command, Controller, Event, State};
+use liftfw::model::friction::FrictionLaw;
+use liftfw::units::{Instant, Metres};
+use plotters::prelude::*;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+/// What to run.
+#[derive(Clone, Debug)]
+pub struct LiftArgs {
+    /// Plant lubricant; the core is configured with the same law.
+    pub lubricant: Lubricant,
+    /// Mass on the head, kg.
+    pub load_kg: f64,
+    /// Start height, mm.
+    pub from_mm: f64,
+    /// Target height, mm.
+    pub to_mm: f64,
+    /// Sensor-noise seed.
+    pub seed: u64,
+    /// Where to write the PNG (`None`: no plot).
+    pub plot: Option<PathBuf>,
+}
+
+/// One control tick as the core saw it, with the plant's truth at the same instant.
+#[derive(Clone, Copy, Debug, Default)]
+struct Sample {
+    t: f64,
+    true_height: f64,
+    core_height: f64,
+    true_speed: f64,
+    core_speed: f64,
+    true_tr: f64,
+    core_tr: f64,
+    current: f64,
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+fn core_law(l: Lubricant) -> FrictionLaw {
+    match l {
+        Lubricant::Dry => FrictionLaw::DRY,
+        Lubricant::Ptfe => FrictionLaw::PTFE,
+        Lubricant::Lithium => FrictionLaw::LITHIUM,
+    }
+}
+
+/// What a lift run measured.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LiftOutcome {
+    /// True head height at the end, mm.
+    pub final_mm: f64,
+    /// Final height − target, mm.
+    pub error_mm: f64,
+    /// Largest excursion beyond the target, mm.
+    pub overshoot_mm: f64,
+    /// Mean plant T_r while the screw turned, N·m.
+    pub tr_plant: f64,
+    /// Mean core estimate of T_r over the same ticks, N·m.
+    pub tr_core: f64,
+}
+
+/// Run it and print as it goes.
+pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
+    let g = Geometry::paper();
+    let to_angle = |mm: f64| -> Result<f64, String> {
+        let s = (mm * 1e-3 - g.h0) / g.length;
+        if !(0.0..1.0).contains(&s) {
+            return Err(format!("{mm} mm is outside the mechanism"));
+        }
+        Ok(s.asin().to_degrees())
+    };
+    let start_deg = to_angle(a.from_mm)?;
+    to_angle(a.to_mm)?;
+    let mut control = ControlConfig::DEFAULT;
+    control.estimator.law = core_law(a.lubricant);
+    let probe = Controller::new(&control, 0).map_err(|e| e.to_string())?;
+    let start = probe
+        .estimator()
+        .geometry()
+        .counts_for_height(Metres::from_f64(a.from_mm * 1e-3))
+        .ok_or("start height outside the mechanism")?;
+    let controller = Controller::new(&control, start).map_err(|e| e.to_string())?;
+    let target = Metres::from_f64(a.to_mm * 1e-3);
+
+    let mut cfg = SimConfig::paper(a.lubricant.law(), 0.3, start_deg);
+    cfg.plant.load = a.load_kg;
+    cfg.dt = 4e-6;
+    cfg.duration = 1e9;
+    cfg.record_rate = 0.0;
+    cfg.seed = a.seed;
+
+    // The core, shared with the sim's driver closure.
+    let shared = Arc::new(Mutex::new((controller, None::<Event>, false)));
+    let inner = Arc::clone(&shared);
+    let driver = Driver::Custom(Box::new(move |t: f64, inputs| {
+        let mut g = lock(&inner);
+        let (c, last_event, sent) = &mut *g;
+        if !*sent && t >= 0.05 {
+            *sent = true;
+            // Refused only for a target outside the stops: the loop then just holds.
+            let _ = c.command(Command::GoTo(target));
+        }
+        let out = c.step(Instant((t * 1e6).round() as u64 as u32), inputs);
+        if out.event.is_some() {
+            *last_event = out.event;
+        }
+        out.bridge
+    }));
+    let mut sim = Sim::new(cfg, driver).map_err(|e| e.to_string())?;
+
+    println!(
+        "host-sim lift: {} thread, {} kg, {:.1} mm → {:.1} mm; the liftfw core at 1 kHz against the plant\n",
+        a.lubricant.name(),
+        a.load_kg,
+        a.from_mm,
+        a.to_mm
+    );
+    println!(
+        "{:>6}  {:>10} {:>10}  {:>9} {:>9}  {:>9} {:>9}  {:>7}  state",
+        "t s", "height mm", "core mm", "ω rad/s", "core", "T_r N·m", "estimate", "I A"
+    );
+    let dt: f64 = 4e-6;
+    let per_tick = (1e-3 / dt).round() as u64;
+    let mut samples: Vec<Sample> = Vec::new();
+    let mut rested_at: Option<f64> = None;
+    let wall = std::time::Instant::now();
+    let mut t = 0.0;
+    while t < 120.0 {
+        t = sim.step_n(per_tick);
+        let r = sim.record(t);
+        let g = lock(&shared);
+        let (c, _, sent) = &*g;
+        let st = c.status();
+        let s = Sample {
+            t,
+            true_height: r.height * 1e3,
+            core_height: st.height.to_f64() * 1e3,
+            true_speed: r.theta_dot,
+            core_speed: st.screw_speed.to_f64(),
+            true_tr: r.friction_torque,
+            core_tr: st.friction_torque.to_f64(),
+            current: r.current,
+        };
+        samples.push(s);
+        let state = c.state();
+        let moving = matches!(state, State::Lifting | State::Lowering);
+        if samples.len().is_multiple_of(500) || (rested_at.is_none() && *sent && !moving && t > 0.06) {
+            println!(
+                "{:6.2}  {:10.3} {:10.3}  {:9.3} {:9.3}  {:9.3} {:9.3}  {:7.2}  {}",
+                s.t,
+                s.true_height,
+                s.core_height,
+                s.true_speed,
+                s.core_speed,
+                s.true_tr,
+                s.core_tr,
+                s.current,
+                state.name()
+            );
+        }
+        if let Some(f) = c.fault() {
+            return Err(format!("fault: {} at {:.3} s", f.kind.name(), t));
+        }
+        if *sent && !moving && t > 0.06 {
+            let at = *rested_at.get_or_insert(t);
+            // Let the coupling unwind and the brake settle before reading the final height.
+            if t > at + 0.5 {
+                break;
+            }
+        }
+    }
+    let last = samples.last().copied().unwrap_or_default();
+    let err = last.true_height - a.to_mm;
+    let up = a.to_mm > a.from_mm;
+    let extreme =
+        samples
+            .iter()
+            .map(|s| s.true_height)
+            .fold(if up { f64::MIN } else { f64::MAX }, |m, h| {
+                if up {
+                    m.max(h)
+                } else {
+                    m.min(h)
+                }
+            });
+    let over = ((extreme - a.to_mm) * if up { 1.0 } else { -1.0 }).max(0.0);
+    // Estimate vs truth while cruising (reference steady, screw turning).
+    let cruise: Vec<&Sample> = samples
+        .iter()
+        .filter(|s| s.t > 0.5 && s.true_speed.abs() > 1.0)
+        .collect();
+    let n = cruise.len().max(1) as f64;
+    let mean_true = cruise.iter().map(|s| s.true_tr).sum::<f64>() / n;
+    let mean_core = cruise.iter().map(|s| s.core_tr).sum::<f64>() / n;
+    println!(
+        "\nhalted at {:.3} mm: error {:+.3} mm, overshoot {:.3} mm (goal ±0.5 mm)",
+        last.true_height, err, over
+    );
+    println!(
+        "T_r while moving: plant {:.3} N·m mean, core estimate {:.3} N·m ({:+.1} %), {} ticks",
+        mean_true,
+        mean_core,
+        100.0 * (mean_core - mean_true) / mean_true.abs().max(1e-9),
+        cruise.len()
+    );
+    println!(
+        "{:.2} s simulated in {:.2} s wall",
+        last.t,
+        wall.elapsed().as_secs_f64()
+    );
+    if let Some(path) = &a.plot {
+        // The numbers above are the result; a missing font only costs the picture.
+        match plot(path, a, &samples) {
+            Ok(()) => println!("plot: {}", path.display()),
+            Err(e) => println!("plot skipped: {e}"),
+        }
+    }
+    Ok(LiftOutcome {
+        final_mm: last.true_height,
+        error_mm: err,
+        overshoot_mm: over,
+        tr_plant: mean_true,
+        tr_core: mean_core,
+    })
+}
+
+fn plot(path: &Path, a: &LiftArgs, s: &[Sample]) -> Result<(), String> {
+    plots::init_font()?;
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    }
+    let draw = || -> Result<(), Box<dyn std::error::Error>> {
+        let root = BitMapBackend::new(path, (1200, 760)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let (top, bottom) = root.split_vertically(380);
+        let t_end = s.last().map_or(1.0, |x| x.t);
+        let (h_lo, h_hi) = plots::range(s.iter().flat_map(|x| [x.true_height, x.core_height]));
+        let mut c = ChartBuilder::on(&top)
+            .caption(
+                format!(
+                    "{} thread, {} kg: head height, plant vs liftfw core (target {} mm)",
+                    a.lubricant.name(),
+                    a.load_kg,
+                    a.to_mm
+                ),
+                (plots::FONT, 18),
+            )
+            .margin(10)
+            .x_label_area_size(30)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..t_end, h_lo - 0.5..h_hi + 0.5)?;
+        c.configure_mesh()
+            .x_desc("t, s")
+            .y_desc("height, mm")
+            .label_style((plots::FONT, 13))
+            .draw()?;
+        c.draw_series(LineSeries::new(
+            s.iter().map(|x| (x.t, x.true_height)),
+            &BLUE,
+        ))?
+        .label("plant (truth)")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 18, y)], BLUE));
+        c.draw_series(LineSeries::new(
+            s.iter().map(|x| (x.t, x.core_height)),
+            &RED,
+        ))?
+        .label("core (encoder, model)")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 18, y)], RED));
+        c.draw_series(LineSeries::new(
+            [(0.0, a.to_mm), (t_end, a.to_mm)],
+            BLACK.mix(0.4),
+        ))?;
+        c.configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font((plots::FONT, 13))
+            .position(SeriesLabelPosition::LowerRight)
+            .draw()?;
+
+        let (t_lo, t_hi) = plots::range(s.iter().flat_map(|x| [x.true_tr, x.core_tr]));
+        let mut c = ChartBuilder::on(&bottom)
+            .caption(
+                "thread friction torque T_r: plant vs the core's real-time estimate",
+                (plots::FONT, 18),
+            )
+            .margin(10)
+            .x_label_area_size(30)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..t_end, t_lo - 0.2..t_hi + 0.2)?;
+        c.configure_mesh()
+            .x_desc("t, s")
+            .y_desc("T_r, N·m")
+            .label_style((plots::FONT, 13))
+            .draw()?;
+        c.draw_series(LineSeries::new(s.iter().map(|x| (x.t, x.true_tr)), &BLUE))?
+            .label("plant T_r")
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 18, y)], BLUE));
+        c.draw_series(LineSeries::new(s.iter().map(|x| (x.t, x.core_tr)), &RED))?
+            .label("core estimate")
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 18, y)], RED));
+        c.configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font((plots::FONT, 13))
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()?;
+        root.present()?;
+        Ok(())
+    };
+    draw().map_err(|e| format!("{}: {e}", path.display()))
+}

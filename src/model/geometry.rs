@@ -7,9 +7,9 @@
 //! ≤ 0.05 mm of nut travel at 50 N·m).
 
 use crate::check_range as check;
-use crate::math::{recip_q30, sqrt_q30};
+use crate::math::{first_quadrant_angle, sqrt_q30, sqrt_rsqrt_q30};
 use crate::model::Scale;
-use crate::units::{qmul, sat32, Angle, Kilograms, KilogramsPerSecond, Metres, Newtons, Ratio, Q};
+use crate::units::{sat32, Angle, Kilograms, KilogramsPerSecond, Metres, Newtons, Ratio, Q};
 use crate::ConfigError;
 use fixed::types::I16F16;
 
@@ -278,17 +278,20 @@ impl Geometry {
             c = self.cos_lo.bits();
             clamped = true;
         }
-        // sin α = √(1 − c²): c in Q28 → c² in Q56 → 1 − c² in Q30 for the kernel.
+        // sin α = √(1 − c²) and 1/sin α from one kernel: c in Q28 → c² in Q56 → 1 − c² in Q30.
         let c2_q30 = ((i64::from(c) * i64::from(c)) >> 26) as u32;
-        let s_q30 = sqrt_q30((1u32 << 30) - c2_q30);
+        let (s_q30, inv_s_q28) = sqrt_rsqrt_q30((1u32 << 30) - c2_q30);
         let s = Ratio::from_raw((s_q30 >> 2) as i32);
-        let inv_s = Ratio::from_raw(recip_q30(s_q30) as i32);
+        let inv_s = Ratio::from_raw(inv_s_q28 as i32);
         let cos_alpha = Ratio::from_raw(c);
-        let alpha = Angle::atan2(s, cos_alpha);
-        let height = self
-            .cfg
-            .h0
-            .sat_add(qmul::<Metres, Ratio, Metres>(self.cfg.length, s));
+        // c ∈ [cos 89.5°, cos 7°] here, so c·2^3 and s·2 are Q31 values below 2^31 (s rounds
+        // to at most 2^30 in Q30).
+        let alpha = Angle(first_quadrant_angle((c as u32) << 3, s_q30 << 1));
+        // h = h₀ + L·sin α ≤ 1 m + 2 m (validated), far inside Metres' range: no saturation.
+        let height = Metres::from_raw(
+            self.cfg.h0.bits()
+                + ((i64::from(self.cfg.length.bits()) * i64::from(s.bits())) >> 28) as i32,
+        );
         Pose {
             x,
             cos_alpha,

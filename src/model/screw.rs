@@ -11,8 +11,8 @@ use crate::math::recip_q30;
 use crate::model::geometry::DriveConfig;
 use crate::model::Scale;
 use crate::units::{
-    qmul, sat32, Angle, Kilograms, KilogramsPerSecond, Metres, MetresPerSecond, NewtonMetres,
-    Newtons, RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
+    qmul, Angle, Kilograms, KilogramsPerSecond, Metres, MetresPerSecond, NewtonMetres, Newtons,
+    RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
 };
 use crate::ConfigError;
 
@@ -160,7 +160,7 @@ impl ScrewModel {
     /// Nut speed ẋ = r_m·tan λ·θ̇.
     #[inline]
     pub fn nut_speed(&self, theta_dot: RadiansPerSecond) -> MetresPerSecond {
-        MetresPerSecond::from_raw(sat32(self.lead.apply(theta_dot.bits())))
+        MetresPerSecond::from_raw(self.lead.apply32(theta_dot.bits()))
     }
 
     /// Axial demand W = m·ẍ + R + F₀·dir + c_x·ẋ, with dir = sgn θ̇ ∈ {−1, 0, 1}.
@@ -174,7 +174,7 @@ impl ScrewModel {
         pin_friction: Newtons,
         c_x: KilogramsPerSecond,
     ) -> Newtons {
-        let inertial = Newtons::from_raw(sat32(self.mass_lead.apply(theta_ddot.bits())));
+        let inertial = Newtons::from_raw(self.mass_lead.apply32(theta_ddot.bits()));
         let damping: Newtons = qmul(c_x, self.nut_speed(theta_dot));
         let pins = match dir {
             d if d > 0 => pin_friction,
@@ -232,8 +232,8 @@ impl ScrewModel {
         dir: i8,
         contact: &Contact,
     ) -> NewtonMetres {
-        let inertia = NewtonMetres::from_raw(sat32(self.inertia.apply(theta_ddot.bits())));
-        let damping = NewtonMetres::from_raw(sat32(self.damping.apply(theta_dot.bits())));
+        let inertia = NewtonMetres::from_raw(self.inertia.apply32(theta_ddot.bits()));
+        let damping = NewtonMetres::from_raw(self.damping.apply32(theta_dot.bits()));
         let support = match dir {
             d if d > 0 => self.support_torque,
             d if d < 0 => self.support_torque.sat_neg(),

@@ -353,8 +353,7 @@ impl Estimator {
             m.commanded_dir.signum()
         };
         let weight = Geometry::weight(m.load);
-        let axial_load = self.geometry.axial_load(&pose, weight);
-        let pin_friction = self.geometry.pin_friction(&pose, weight);
+        let (axial_load, pin_friction) = self.geometry.axial_and_pin(&pose, weight);
         let c_x = self.geometry.structure_damping(pose.alpha);
         let mu = self.law.mu(speed);
         let w = self
@@ -380,18 +379,18 @@ impl Estimator {
             qmul(motor_torque, self.n_over_eta)
         };
         let residual = measured_screw_torque.sat_sub(model_screw_torque);
-        if [axial_load, pin_friction, w, contact.normal]
-            .iter()
-            .any(|f| f.is_saturated())
-            || [
-                model_screw_torque,
-                contact.friction_torque,
-                measured_screw_torque,
-            ]
-            .iter()
-            .any(|t| t.is_saturated())
-            || speed.is_saturated()
-            || accel.is_saturated()
+        // On a saturation bound (MAX or MIN): v ^ (v >> 31) is MAX for both. Non-short-circuit
+        // `|` keeps the sweep branch-free.
+        let on_bound = |v: i32| (v ^ (v >> 31)) == i32::MAX;
+        if on_bound(axial_load.bits())
+            | on_bound(pin_friction.bits())
+            | on_bound(w.bits())
+            | on_bound(contact.normal.bits())
+            | on_bound(model_screw_torque.bits())
+            | on_bound(contact.friction_torque.bits())
+            | on_bound(measured_screw_torque.bits())
+            | on_bound(speed.bits())
+            | on_bound(accel.bits())
         {
             flags |= EstimateFlags::SATURATED;
         }

@@ -112,26 +112,23 @@ pub fn recip_q30(d: u32) -> u32 {
     if d < (1 << 20) {
         return u32::MAX >> 1;
     }
-    // Normalise d to dn ∈ [2^31, 2^32).
+    // Normalise d to dn ∈ [2^31, 2^32) (sh ≤ 11 as d ≥ 2^20).
     let sh = d.leading_zeros();
     let dn = d << sh;
-    // Seed ≈ 2^48/dn from a 32/16 division (dn>>16 ∈ [2^15, 2^16)): relative error < 2^-15.
-    // r0 ≈ 2^63/dn < 2^32 (the seed is at most 131 071).
-    let r0 = u64::from(u32::MAX / (dn >> 16)) << 15;
+    // Seed ≈ 2^48/dn from a 32/16 division (dn>>16 ∈ [2^15, 2^16); the OR only tells the
+    // compiler the divisor is not zero): relative error < 2^-15. r0 ≈ 2^63/dn < 2^32 (the
+    // seed is at most 131 071).
+    let r0 = u64::from(u32::MAX / ((dn >> 16) | (1 << 15))) << 15;
     // Newton: r1 = r0·(2 − dn·r0/2^63); e = dn·r0/2^32 ≈ 2^31, so 2^32 − e ≈ 2^31 and both
     // products stay below 2^64. The error after the step is −(seed error)² ≈ 10⁻⁹.
     let e = (u64::from(dn) * r0) >> 32;
-    let r1 = (r0 * ((1u64 << 32) - e)) >> 31; // ≈ 2^63/dn
-                                              // 1/d in Q28 = 2^58/d = 2^(58 + sh)/dn = r1·2^(sh − 5).
-    let out = if sh <= 5 {
-        r1 >> (5 - sh)
-    } else {
-        r1 << (sh - 5)
-    };
-    if out > u64::from(u32::MAX >> 1) {
+    let r1 = (r0 * ((1u64 << 32) - e)) >> 31; // ≈ 2^63/dn ∈ (2^31, 2^32]
+    let r1 = r1.min(u64::from(u32::MAX)) as u32;
+    // 1/d in Q28 = 2^58/d = 2^(58 + sh)/dn = r1·2^(sh − 5): from sh = 5 on it is ≥ 2^31.
+    if sh >= 5 {
         u32::MAX >> 1
     } else {
-        out as u32
+        (r1 >> (5 - sh)).min(u32::MAX >> 1)
     }
 }
 
@@ -165,26 +162,21 @@ pub fn sqrt_rsqrt_q30(v: u32) -> (u32, u32) {
     let h = k / 2;
     let m = v << k; // [2^30, 2^32): u = m/2^30 ∈ [1, 4)
     let idx = ((m >> 24) - 64) as usize;
-    // y ≈ 1/√u in Q31 (≤ 1, and Newton steps approach it from below).
+    // y ≈ 1/√u in Q31, ≤ 1 (the seed is at most 0.39 % high, the Newton steps end below).
     let mut y = u32::from(RSQRT_SEED.get(idx).copied().unwrap_or(1 << 15)) << 15;
-    let mut i = 0;
-    while i < 2 {
-        let y2 = (u64::from(y) * u64::from(y)) >> 31; // y² in Q31 (< 2^31: y < 1)
-        let my2 = (u64::from(m) * y2) >> 30; // m·y² in Q31, ≈ 2^31
-        let t = (3u64 << 31).saturating_sub(my2); // (3 − m·y²) in Q31, < 2^33
-        y = ((u64::from(y) * t) >> 32) as u32; // y·(3 − m·y²)/2 in Q31
-        i += 1;
+    for _ in 0..2 {
+        // y ← y·(3 − m·y²)/2 = y + y·d/2 with d = 1 − m·y² (|d| < 1 %), d in Q31.
+        let y2 = ((u64::from(y) * u64::from(y)) >> 31) as u32; // y² in Q31, < 2^31
+        let my2 = (u64::from(m) * u64::from(y2)) >> 30; // m·y² in Q31, ≈ 2^31
+        let d = ((1u64 << 31) as i64 - my2 as i64) as i32;
+        // y·d/2 in Q31 = (y·d)>>32: one SMMUL (y < 2^31 is a valid i32).
+        y = (y as i32 + ((i64::from(y as i32) * i64::from(d)) >> 32) as i32) as u32;
     }
-    // √v = √u·2^−h: m(Q30)·y(Q31) = √u in Q61 → Q30 → >> h.
-    let root = ((u64::from(m) * u64::from(y)) >> (31 + h)) as u32;
-    // 1/√v = (1/√u)·2^h: Q31 → Q28 with the factor 2^h.
-    let inv = (u64::from(y) << h) >> 3;
-    let inv = if inv > i32::MAX as u64 {
-        i32::MAX as u32
-    } else {
-        inv as u32
-    };
-    (root, inv)
+    // √v = √u·2^−h: m(Q30)·y(Q31) = √u in Q61 → Q30 (< 2^31) → >> h.
+    let root = (((u64::from(m) * u64::from(y)) >> 31) as u32) >> h;
+    // 1/√v = (1/√u)·2^h in Q28 = y·2^h/2^3: beyond 8 (h ≥ 4, as y ≥ ½ in Q31) it saturates.
+    let inv = if h <= 3 { y >> (3 - h) } else { i32::MAX as u32 };
+    (root, inv.min(i32::MAX as u32))
 }
 
 /// Coefficients of asin(u) = u·P(u²) on 0 ≤ u ≤ sin 45°, P of degree 5 (least-squares fit

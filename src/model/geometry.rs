@@ -266,6 +266,7 @@ impl Geometry {
     }
 
     /// The pose for a nut travel `x` (Eq 1: cos α = cos α₀ − x/L).
+    #[inline]
     pub fn pose_at_travel(&self, x: Metres) -> Pose {
         // x/L in Q28: x(Q24)·invL(Q24) → Q48 → >> 20.
         let x_over_l = sat32((i64::from(x.bits()) * i64::from(self.inv_len_q24)) >> 20);
@@ -342,6 +343,15 @@ impl Geometry {
     pub fn pin_friction(&self, pose: &Pose, weight: Newtons) -> Newtons {
         let f = weight.scale(self.cfg.mu_pin).scale(pose.inv_sin_alpha);
         f.sat_add(f)
+    }
+
+    /// R (Eq 1) and F₀ (Eq 6) together, sharing the product M·g/sin α: three products
+    /// instead of four. Each is within one LSB of [`Self::axial_load`] / [`Self::pin_friction`].
+    #[inline]
+    pub fn axial_and_pin(&self, pose: &Pose, weight: Newtons) -> (Newtons, Newtons) {
+        let w_inv_s = weight.scale(pose.inv_sin_alpha);
+        let f = w_inv_s.scale(self.cfg.mu_pin);
+        (w_inv_s.scale(pose.cos_alpha), f.sat_add(f))
     }
 
     /// Structure damping c_x(α) (Eq 4, Table 1): linear in α between the table's angles, held

@@ -73,6 +73,18 @@ impl Scale {
         }
     }
 
+    /// `v·constant` for `v ≥ 0` and a non-negative constant, saturated to `u32` (a negative
+    /// product, impossible under that contract, gives 0).
+    #[inline]
+    pub fn apply_u32(self, v: i32) -> u32 {
+        let p = i64::from(v) * i64::from(self.mant);
+        if self.shift >= 32 {
+            (((p >> 32) as i32) >> ((self.shift - 32) & 31)).max(0) as u32
+        } else {
+            (p >> self.shift).clamp(0, i64::from(u32::MAX)) as u32
+        }
+    }
+
     /// This constant times `num/den` (exact integer arithmetic, configuration time only).
     pub fn times(self, num: i128, den: i128) -> Scale {
         Scale::from_ratio(i128::from(self.mant) * num, den << self.shift)

@@ -29,8 +29,6 @@ use liftfw::units::{
 use liftfw_golden::{verify, Kind};
 use liftfw_ref_float::{EstimatorF32, EstimatorF64, FloatMeasurements};
 use semihosting::println;
-// The device vector table cortex-m-rt asks for (see Cargo.toml).
-use stm32_metapac as _;
 
 /// The golden vectors, generated on the host from the same source.
 static GOLDEN: &[u8] = include_bytes!(env!("LIFTFW_GOLDEN_FILE"));
@@ -398,6 +396,20 @@ fn count_control(overhead: u32) {
         }
         st.report();
     }
+    // A short move (300 counts): every tick after the first few brakes and takes the root.
+    let mut p = Profile::new(20_000, 5_905_580_032, 60, RampShape::Trapezoid);
+    p.set_target(20_300);
+    let mut st = Stats::new("control.profile.step trapezoid short move (braking)");
+    for _ in 0..N {
+        let r = black_box(p.step());
+        if r.done {
+            break;
+        }
+        // Measure the next step from the same state as this one (a copy: same work).
+        let mut q = p.clone();
+        st.push(ticks(&mut q, |q| q.step()), overhead);
+    }
+    st.report();
 
     // The full tick: Controller::step lifting (ramp, then cruise) with realistic inputs.
     let Some(mut c) = lifting_controller() else {
@@ -417,6 +429,17 @@ fn count_control(overhead: u32) {
     }
     tick_all.report();
     let cruise_median = tick_cruise.report();
+    // `stop` at cruise: the planner brakes along the ramp (its root on every tick), then the
+    // supervisor settles (the synthetic encoder keeps counting: a worst case for the arrival
+    // check, not a physical run).
+    let _ = c.command(Command::Stop);
+    let mut braking = Stats::new("control.tick after stop (braking, settling)");
+    for k in N..N + 80 {
+        let now = Instant(10_000 + 1000 * k as u32);
+        let inp = cruise_inputs(k);
+        braking.push(ticks(&inp, |i| c.step(now, i)), overhead);
+    }
+    braking.report();
     println!(
         "ICOUNT-STATE after the lift motion: {} (fault: {:?})",
         c.state().name(),

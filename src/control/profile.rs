@@ -43,6 +43,8 @@ pub struct Profile {
     /// `2|d| − v·dir` (Q32 counts) from which the braking speed surely exceeds cruise, so the
     /// square root can be skipped (see [`Self::step_trapezoid`]).
     cruise_room: i64,
+    /// a²/4 (Q64), the discriminant's constant term.
+    accel_sq_4: i128,
     shape: RampShape,
     // Trapezoid generator state.
     p: i64,
@@ -64,17 +66,17 @@ pub struct Profile {
 const ONE: i64 = 1 << 32;
 
 /// Largest next speed v' from which the ramp still stops on the target after this step moves
-/// (v + v')/2: v'² ≤ 2a(d − (v + v')/2), i.e. v' = √(a²/4 + a(2d − v)) − a/2. Q32 operands give
-/// a Q64 discriminant; its Q40 root is Q20. Kept out of line: only the braking ticks need it.
+/// (v + v')/2: v'² ≤ 2a(d − (v + v')/2), i.e. v' = √(a²/4 + a·room) − a/2 with
+/// room = 2|d| − v·dir. Q32 operands give a Q64 discriminant; its Q40 root is Q20. Kept out of
+/// line: only the braking ticks need it.
 #[inline(never)]
-fn braking_speed(accel: i64, d: i64, v: i64, dir: i64) -> i64 {
-    let a = i128::from(accel);
-    let disc = a * a / 4 + a * (2 * i128::from(d).abs() - i128::from(v) * i128::from(dir));
+fn braking_speed(accel: i64, a2_4: i128, room: i64) -> i64 {
+    let disc = a2_4 + i128::from(accel) * i128::from(room);
     if disc <= 0 {
         0
     } else {
         let q40 = u64::try_from(disc >> 24).unwrap_or(u64::MAX);
-        ((q40.isqrt() << 12) as i64 - accel / 2).max(0)
+        ((i64::from(crate::math::isqrt_u64(q40)) << 12) - accel / 2).max(0)
     }
 }
 
@@ -105,6 +107,7 @@ impl Profile {
             accel,
             cruise,
             cruise_room: cruise_room(cruise, accel),
+            accel_sq_4: i128::from(accel) * i128::from(accel) / 4,
             shape,
             p,
             v: 0,
@@ -201,10 +204,13 @@ impl Profile {
             _ => 0,
         };
         let two_d = d.saturating_abs().saturating_add(d.saturating_abs());
-        let brake = if two_d.saturating_sub(v_toward) >= self.cruise_room {
+        // room = 2|d| − v·dir saturates only upwards (|v| ≤ 64 counts/tick), and then it is
+        // ≥ cruise_room: below it, it is exact.
+        let room = two_d.saturating_sub(v_toward);
+        let brake = if room >= self.cruise_room {
             self.cruise
         } else {
-            braking_speed(self.accel, d, self.v, dir)
+            braking_speed(self.accel, self.accel_sq_4, room)
         };
         let v_goal = dir * brake.min(self.cruise);
         let v_new = if v_goal > self.v {

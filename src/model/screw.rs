@@ -210,9 +210,10 @@ impl ScrewModel {
         let xi: Ratio = qmul(num, inv);
         let w_inv: Newtons = qmul(w, inv);
         let normal: Newtons = qmul(w_inv, self.sec_l);
-        let f: Newtons = qmul(w_inv.sat_abs(), mu_s);
-        let friction_torque: NewtonMetres = qmul(f, self.r_m);
-        let thread_torque: NewtonMetres = qmul(qmul::<Newtons, Ratio, Newtons>(w, xi), self.r_m);
+        // r_m·W/(1 ∓ μ_s tan λ) once: T_r = μ_s·|that|, thread torque r_m·W·ξ = that·num.
+        let w_inv_rm: NewtonMetres = qmul(w_inv, self.r_m);
+        let friction_torque: NewtonMetres = qmul(w_inv_rm.sat_abs(), mu_s);
+        let thread_torque: NewtonMetres = qmul(w_inv_rm, num);
         Contact {
             mu_s,
             xi,

@@ -145,8 +145,8 @@ fn motion(k: usize) -> (Instant, Measurements) {
         Instant(1_000 * k as u32),
         Measurements {
             position_counts: 20_000 + (milli_counts / 1000) as i32,
-            motor_current: Amperes::lit("10"),
-            load: Kilograms::lit("800"),
+            motor_current: const { Amperes::lit("10") },
+            load: const { Kilograms::lit("800") },
             commanded_dir: 1,
         },
     )
@@ -531,25 +531,29 @@ fn measure_stack() {
     for k in 0..100 {
         c.step(Instant(10_000 + 1000 * k), &cruise_inputs(k as usize));
     }
+    let mut empty = 0u32;
+    let baseline = stack_used(&mut empty, |e| *e = black_box(*e));
+    println!("STACK harness baseline (an empty call): {baseline} bytes");
     let mut worst = 0;
     let mut k = 100usize;
     let mut report = |name: &str, used: usize| {
         println!("STACK {name}: {used} bytes");
         worst = worst.max(used);
     };
-    let cruise = stack_used(&mut (&mut c, &mut k), |(c, k)| {
-        **k += 1;
-        c.step(Instant(10_000 + 1000 * **k as u32), &cruise_inputs(**k));
+    // Inputs are built outside the measured calls: only the core's own frames count.
+    let cruise = stack_used(&mut (&mut c, cruise_inputs(k)), |(c, i)| {
+        c.step(Instant(10_000 + 1000 * 100), i);
     });
     report("control.tick lifting at cruise", cruise);
-    let fault = stack_used(&mut c, |c| {
-        let mut i = cruise_inputs(101);
-        i.current_raw = 4095; // 66 A: over-current trips on this tick
-        c.step(Instant(200_000), &i);
+    k += 1;
+    let mut over = cruise_inputs(k);
+    over.current_raw = 4095; // 66 A: over-current trips on this tick
+    let fault = stack_used(&mut (&mut c, over), |(c, i)| {
+        c.step(Instant(200_000), i);
     });
     report("control.tick latching a fault", fault);
-    let faulted = stack_used(&mut c, |c| {
-        c.step(Instant(201_000), &cruise_inputs(101));
+    let faulted = stack_used(&mut (&mut c, cruise_inputs(k)), |(c, i)| {
+        c.step(Instant(201_000), i);
     });
     report(
         if c.state() == State::Fault {
@@ -565,8 +569,8 @@ fn measure_stack() {
     };
     report(
         "estimator.step",
-        stack_used(&mut est, |e| {
-            black_box(e.step(Instant(0), &motion(100).1));
+        stack_used(&mut (&mut est, motion(100).1), |(e, m)| {
+            black_box(e.step(Instant(0), m));
         }),
     );
     let mut line: &[u8] = b"set motion.cruise_speed 3 rad/s";

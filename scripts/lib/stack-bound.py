@@ -2,11 +2,12 @@
 """Static worst-case stack of a call tree in a Cortex-M ELF, from its disassembly.
 
     stack-bound.py OBJDUMP ELF ROOT_SUBSTRING [ROOT_SUBSTRING...]
-    stack-bound.py OBJDUMP ELF --entry MAIN --task POLL [--isr HANDLER ...]
+    stack-bound.py OBJDUMP ELF --entry MAIN --task POLL [--task POLL ...] [--isr HANDLER ...]
 
-The second form also prints the task's worst case on the main stack: the entry's bound (main
-and the executor loop) + the task's poll + for each interrupt handler its bound and an
-exception frame with the FPU context (104 B), as if every handler nested once.
+The second form also prints each task's worst case on the main stack (embassy's thread-mode
+executor polls every task on it, one at a time): the entry's bound (main and the executor loop)
++ the task's poll + for each interrupt handler its bound and an exception frame with the FPU
+context (104 B), as if every handler nested once. The stack's worst case is the largest.
 
 For every function: its frame is the sum of every `push`/`stmdb sp!`/`vpush` and
 `sub sp, #N` it contains (an upper bound: a path runs each at most once, and a function that
@@ -135,24 +136,26 @@ def main():
     funcs = parse(objdump, elf)
     if "--task" not in rest:
         return 0 if all(report(funcs, r) is not None for r in rest) else 1
-    entry, task, isrs = None, None, []
+    entry, tasks, isrs = None, [], []
     it = iter(rest)
     for flag in it:
         value = next(it, None)
         if flag == "--entry":
             entry = value
         elif flag == "--task":
-            task = value
+            tasks.append(value)
         elif flag == "--isr":
             isrs.append(value)
-    parts = [report(funcs, r) for r in [entry, task] + isrs if r is not None]
-    if any(p is None for p in parts):
+    base = [report(funcs, r) for r in [entry] + isrs if r is not None]
+    polls = [(t, report(funcs, t)) for t in tasks]
+    if any(p is None for p in base) or any(b is None for _, b in polls):
         return 1
-    total = sum(parts) + EXCEPTION_FRAME_FPU * len(isrs)
-    print(
-        f"stack bound of the task, worst case: {total} B "
-        f"(entry + task + {len(isrs)} nested handler(s) with FPU frames)"
-    )
+    extra = sum(base) + EXCEPTION_FRAME_FPU * len(isrs)
+    for t, b in polls:
+        print(
+            f"stack bound worst case with {t[:40]}: {extra + b} B "
+            f"(entry + task + {len(isrs)} nested handler(s) with FPU frames)"
+        )
     return 0
 
 

@@ -163,15 +163,19 @@ pub struct Estimator {
     n_over_eta: Factor,
     eta_over_n: Ratio,
     inv_n_eta: Ratio,
-    tick_us: u32,
     rest_speed: RadiansPerSecond,
-    gains: [i64; 3],
+    /// α, β, 2γ in Q28 (each ≤ 1).
+    gains: [i32; 3],
     speed_scale: Scale,
     accel_scale: Scale,
-    // Filter state in Q16 counts, counts/tick, counts/tick².
-    p: i64,
-    v: i64,
-    a: i64,
+    /// A tick later than this (1.5 periods, µs) is flagged late.
+    late_us: u32,
+    // Filter state: the last count; position relative to it, speed and acceleration in Q16
+    // counts, counts/tick, counts/tick².
+    last_counts: i32,
+    q: i32,
+    v: i32,
+    a: i32,
     last: Option<Instant>,
 }
 
@@ -257,12 +261,13 @@ impl Estimator {
             n_over_eta,
             eta_over_n,
             inv_n_eta,
-            tick_us: cfg.tick_us,
             rest_speed: cfg.rest_speed,
-            gains: [alpha as i64, beta as i64, gamma2 as i64],
+            gains: [alpha as i32, beta as i32, gamma2 as i32],
             speed_scale,
             accel_scale,
-            p: 0,
+            late_us: cfg.tick_us * 3 / 2,
+            last_counts: 0,
+            q: 0,
             v: 0,
             a: 0,
             last: None,
@@ -286,45 +291,53 @@ impl Estimator {
 
     /// Restart the speed filter at a position, at rest (after a fault or a re-home).
     pub fn reset(&mut self, position_counts: i32) {
-        self.p = i64::from(position_counts) << 16;
+        self.last_counts = position_counts;
+        self.q = 0;
         self.v = 0;
         self.a = 0;
         self.last = None;
     }
 
     /// One estimator tick. Total: no panic, no wrap, whatever the inputs.
+    ///
+    /// `#[inline]` with [`Self::estimate`]: the firmware has one caller (the control tick),
+    /// which then builds the estimate in place instead of copying 100 bytes out of a temporary.
+    #[inline]
     pub fn step(&mut self, now: Instant, m: &Measurements) -> Estimate {
         let mut flags = 0u8;
         match self.last {
             None => self.reset(m.position_counts),
             Some(prev) => {
-                if u64::from(now.micros_since(prev)) * 2 > u64::from(self.tick_us) * 3 {
+                if now.micros_since(prev) > self.late_us {
                     flags |= EstimateFlags::LATE_TICK;
                 }
             }
         }
         self.last = Some(now);
-        // α-β-γ: predict one tick, correct with the measured count.
-        self.p = self.p.saturating_add(self.v).saturating_add(self.a / 2);
-        self.v = self.v.saturating_add(self.a);
-        let r = ((i64::from(m.position_counts) << 16).saturating_sub(self.p))
-            .clamp(-(1 << 34), 1 << 34);
-        self.p = self.p.saturating_add((r * self.gains[0]) >> 28);
+        // α-β-γ: predict one tick, correct with the measured count. The filter's position is
+        // kept relative to the last count (q = p − count·2^16), so the whole state is i32:
+        // residual r = count·2^16 − (p + v + a/2), then p ← p + α·r, i.e. q ← α·r − r.
+        // The residual is saturated to i32 (±32 768 counts per tick, beyond any drive), so
+        // each correction is one 32×32→64 product and the gains (≤ 1 in Q28) keep it in i32.
+        let moved = i64::from(m.position_counts) - i64::from(self.last_counts);
+        self.last_counts = m.position_counts;
+        let predicted = i64::from(self.q) + i64::from(self.v) + i64::from(self.a >> 1);
+        let r = sat32((moved << 16) - predicted);
+        let correction = |g: i32| ((i64::from(r) * i64::from(g)) >> 28) as i32;
+        self.q = correction(self.gains[0]).saturating_sub(r);
         self.v = self
             .v
-            .saturating_add((r * self.gains[1]) >> 28)
-            .clamp(-(1 << 40), 1 << 40);
-        self.a = self
-            .a
-            .saturating_add((r * self.gains[2]) >> 28)
-            .clamp(-(1 << 40), 1 << 40);
-        let speed = RadiansPerSecond::from_raw(sat32(self.speed_scale.apply(sat32(self.v))));
-        let accel = RadiansPerSecond2::from_raw(sat32(self.accel_scale.apply(sat32(self.a))));
+            .saturating_add(self.a)
+            .saturating_add(correction(self.gains[1]));
+        self.a = self.a.saturating_add(correction(self.gains[2]));
+        let speed = RadiansPerSecond::from_raw(self.speed_scale.apply32(self.v));
+        let accel = RadiansPerSecond2::from_raw(self.accel_scale.apply32(self.a));
         self.estimate(m, speed, accel, flags)
     }
 
     /// The model's estimate at a given speed and acceleration (no filtering): the function the
     /// float64 twin is held to.
+    #[inline]
     pub fn estimate(
         &self,
         m: &Measurements,
@@ -345,8 +358,7 @@ impl Estimator {
             m.commanded_dir.signum()
         };
         let weight = Geometry::weight(m.load);
-        let axial_load = self.geometry.axial_load(&pose, weight);
-        let pin_friction = self.geometry.pin_friction(&pose, weight);
+        let (axial_load, pin_friction) = self.geometry.axial_and_pin(&pose, weight);
         let c_x = self.geometry.structure_damping(pose.alpha);
         let mu = self.law.mu(speed);
         let w = self
@@ -372,18 +384,18 @@ impl Estimator {
             qmul(motor_torque, self.n_over_eta)
         };
         let residual = measured_screw_torque.sat_sub(model_screw_torque);
-        if [axial_load, pin_friction, w, contact.normal]
-            .iter()
-            .any(|f| f.is_saturated())
-            || [
-                model_screw_torque,
-                contact.friction_torque,
-                measured_screw_torque,
-            ]
-            .iter()
-            .any(|t| t.is_saturated())
-            || speed.is_saturated()
-            || accel.is_saturated()
+        // On a saturation bound (MAX or MIN): v ^ (v >> 31) is MAX for both. Non-short-circuit
+        // `|` keeps the sweep branch-free.
+        let on_bound = |v: i32| (v ^ (v >> 31)) == i32::MAX;
+        if on_bound(axial_load.bits())
+            | on_bound(pin_friction.bits())
+            | on_bound(w.bits())
+            | on_bound(contact.normal.bits())
+            | on_bound(model_screw_torque.bits())
+            | on_bound(contact.friction_torque.bits())
+            | on_bound(measured_screw_torque.bits())
+            | on_bound(speed.bits())
+            | on_bound(accel.bits())
         {
             flags |= EstimateFlags::SATURATED;
         }

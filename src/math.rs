@@ -1,4 +1,5 @@
-//! Integer kernels behind the fixed-point model: e^(−y), √, 1/d.
+//! Integer kernels behind the fixed-point model: e^(−y), √, 1/√, 1/d, and the angle of a
+//! first-quadrant (cos, sin) pair.
 //!
 //! Each states its error bound; `tests` below prove it against `f64` over the whole input range.
 //! Trigonometry comes from `idsp` (see [`crate::units::Angle`]).
@@ -104,33 +105,155 @@ pub fn sqrt_q30(v: u32) -> u32 {
 }
 
 /// 1/d for d in Q2.30 with 2⁻¹⁰ ≤ d < 4, result in Q4.28 (saturates for smaller d).
-/// Error ≤ max(3·10⁻⁹ relative, 2 LSB). One 32-bit division (`UDIV`, 2–12 cycles) and one Newton step.
+/// Error ≤ max(3·10⁻⁹ relative, 2 LSB). One 32-bit division (`UDIV`, 2–12 cycles) for a 16-bit
+/// seed and one Newton step, all in 32×32→64 products (`UMULL`): ≈ 25 instructions.
 #[inline]
 pub fn recip_q30(d: u32) -> u32 {
     if d < (1 << 20) {
         return u32::MAX >> 1;
     }
-    // Normalise d to [2^31, 2^32).
+    // Normalise d to dn ∈ [2^31, 2^32) (sh ≤ 11 as d ≥ 2^20).
     let sh = d.leading_zeros();
     let dn = d << sh;
-    // 16-bit-accurate seed: 2^47/dn ≈ (2^63/dn)>>16 from a 32/16 division.
-    let seed = (u32::MAX / (dn >> 16)) as u64; // ≈ 2^48/dn, Q? see below
-                                               // seed ≈ 2^32 · 2^16/ (dn>>16) / 2^16 = 2^48/dn (less than 2^17). Refine r ≈ 2^63/dn:
-    let r0 = seed << 15; // ≈ 2^63/dn, 32 bits
-                         // Newton: r1 = r0·(2 − dn·r0/2^63).
-    let e = (u128::from(dn) * u128::from(r0)) >> 31; // dn·r0/2^31 ≈ 2^32
-    let two = 1u128 << 33;
-    let r1 = ((u128::from(r0) * (two - e)) >> 32) as u64; // ≈ 2^63/dn
-                                                          // 1/d in Q28 = 2^28·2^30/d = 2^58/d = 2^58·2^sh/dn = r1 >> (5 − sh)... 2^63/dn >> (5 - sh).
-    let out = if sh <= 5 {
-        r1 >> (5 - sh)
-    } else {
-        r1 << (sh - 5)
-    };
-    if out > u64::from(u32::MAX >> 1) {
+    // Seed ≈ 2^48/dn from a 32/16 division (dn>>16 ∈ [2^15, 2^16); the OR only tells the
+    // compiler the divisor is not zero): relative error < 2^-15. r0 ≈ 2^63/dn < 2^32 (the
+    // seed is at most 131 071).
+    let r0 = u64::from(u32::MAX / ((dn >> 16) | (1 << 15))) << 15;
+    // Newton: r1 = r0·(2 − dn·r0/2^63); e = dn·r0/2^32 ≈ 2^31, so 2^32 − e ≈ 2^31 and both
+    // products stay below 2^64. The error after the step is −(seed error)² ≈ 10⁻⁹.
+    let e = (u64::from(dn) * r0) >> 32;
+    let r1 = (r0 * ((1u64 << 32) - e)) >> 31; // ≈ 2^63/dn ∈ (2^31, 2^32]
+    let r1 = r1.min(u64::from(u32::MAX)) as u32;
+    // 1/d in Q28 = 2^58/d = 2^(58 + sh)/dn = r1·2^(sh − 5): from sh = 5 on it is ≥ 2^31.
+    if sh >= 5 {
         u32::MAX >> 1
     } else {
-        out as u32
+        (r1 >> (5 - sh)).min(u32::MAX >> 1)
+    }
+}
+
+/// Seeds of 1/√u for u = m/2^30 ∈ [1, 4) in 192 steps of 1/64, in Q16: `⌊√(2^62/m_mid)⌋` at
+/// the middle of each step, built at compile time. Relative error of a seed ≤ 0.39 %.
+const RSQRT_SEED: [u16; 192] = {
+    let mut t = [0u16; 192];
+    let mut i = 0;
+    while i < 192 {
+        let m_mid = (((i as u64) + 64) << 24) + (1 << 23);
+        t[i] = ((1u64 << 62) / m_mid).isqrt() as u16;
+        i += 1;
+    }
+    t
+};
+
+/// √v and 1/√v for v in Q2.30 (0 ≤ v < 4): `(√v in Q2.30, 1/√v in Q4.28)`, the reciprocal
+/// saturated to `i32::MAX` (below v ≈ 1/64) and `(0, i32::MAX)` for v = 0.
+///
+/// Method: normalise v by an even shift to m ∈ [1, 4), a 192-entry seed of 1/√m, two Newton
+/// steps `y ← y·(3 − m·y²)/2` (relative error 0.39 % → 2.3·10⁻⁵ → 8·10⁻¹⁰, always from below),
+/// then √m = m·(1/√m). About 40 instructions, no division: one call gives sin α and 1/sin α.
+/// Error (tests): √ ≤ max(3·10⁻⁹ relative, 2 LSB of Q30), 1/√ ≤ max(3·10⁻⁹ relative, 2 LSB
+/// of Q28).
+#[inline]
+pub fn sqrt_rsqrt_q30(v: u32) -> (u32, u32) {
+    if v == 0 {
+        return (0, i32::MAX as u32);
+    }
+    let k = v.leading_zeros() & !1;
+    let h = k / 2;
+    let m = v << k; // [2^30, 2^32): u = m/2^30 ∈ [1, 4)
+    let idx = ((m >> 24) - 64) as usize;
+    // y ≈ 1/√u in Q31, ≤ 1 (the seed is at most 0.39 % high, the Newton steps end below).
+    let mut y = u32::from(RSQRT_SEED.get(idx).copied().unwrap_or(1 << 15)) << 15;
+    for _ in 0..2 {
+        // y ← y·(3 − m·y²)/2 = y + y·d/2 with d = 1 − m·y² (|d| < 1 %), d in Q31.
+        let y2 = ((u64::from(y) * u64::from(y)) >> 31) as u32; // y² in Q31, < 2^31
+        let my2 = (u64::from(m) * u64::from(y2)) >> 30; // m·y² in Q31, ≈ 2^31
+        let d = ((1u64 << 31) as i64 - my2 as i64) as i32;
+        // y·d/2 in Q31 = (y·d)>>32: one SMMUL (y < 2^31 is a valid i32).
+        y = (y as i32 + ((i64::from(y as i32) * i64::from(d)) >> 32) as i32) as u32;
+    }
+    // √v = √u·2^−h: m(Q30)·y(Q31) = √u in Q61 → Q30 (< 2^31) → >> h.
+    let root = (((u64::from(m) * u64::from(y)) >> 31) as u32) >> h;
+    // 1/√v = (1/√u)·2^h in Q28 = y·2^h/2^3: beyond 8 (h ≥ 4, as y ≥ ½ in Q31) it saturates.
+    let inv = if h <= 3 {
+        y >> (3 - h)
+    } else {
+        i32::MAX as u32
+    };
+    (root, inv.min(i32::MAX as u32))
+}
+
+/// ⌊√n⌋ for any `u64`, exact. The [`sqrt_rsqrt_q30`] kernel on the top 32 bits of n
+/// (normalised) gives √n to 3·10⁻⁹ relative, then ±1 steps, checked with exact products,
+/// land on the floor: one or two steps for n < 2^54, at most 15 at the top of the range.
+/// No division; ≈ 60 instructions for the ramp planner's braking root where `u64::isqrt`
+/// takes several hundred on a Cortex-M4.
+#[inline]
+pub fn isqrt_u64(n: u64) -> u32 {
+    if n == 0 {
+        return 0;
+    }
+    let k = n.leading_zeros() & !1;
+    let m = n << k; // [2^62, 2^64)
+    let (root_q30, _) = sqrt_rsqrt_q30((m >> 32) as u32);
+    // √(top·2^32) = √top·2^16 = root_q30·2, then undo the normalisation.
+    let mut r = ((u64::from(root_q30) << 1) >> (k / 2)).min(u64::from(u32::MAX));
+    while r > 0 && r * r > n {
+        r -= 1;
+    }
+    // (r + 1)² ≤ n without overflow: r < 2^32 − 1 here, so (r + 1)² ≤ 2^64 − 2^33 + 1.
+    while r < u64::from(u32::MAX) && (r + 1) * (r + 1) <= n {
+        r += 1;
+    }
+    r as u32
+}
+
+/// Coefficients of asin(u) = u·P(u²) on 0 ≤ u ≤ sin 45°, P of degree 5 with non-negative
+/// coefficients (least squares reweighted toward minimax under that constraint, offline: max
+/// error 7.7·10⁻⁷ rad; the fit sets c₄ = 0), rescaled for the evaluation below:
+/// `K_i = c_i·(2/π)·2^32` (2/π because the result is in binary turns, π = 2^31). All terms
+/// non-negative: the Horner sum stays in `u32` and each step is one `UMULL`.
+const ASIN_K: [u32; 6] = [
+    2_734_287_292, // c0 = 1.0000095782078005
+    455_055_196,   // c1 = 0.16642711820441544
+    208_235_930,   // c2 = 0.0761580266627814
+    130_326_409,   // c3 = 0.0476642150197742
+    0,             // c4 = 0
+    218_651_631,   // c5 = 0.07996735587576706
+];
+
+/// The angle in [0, π/2] whose cosine and sine are `c` and `s` (both in Q1.31, non-negative,
+/// c² + s² ≈ 1), as a binary-turn [`crate::units::Angle`] raw value (π/2 = 2^30).
+///
+/// asin of the smaller one by an odd degree-11 polynomial (α = asin s below 45°,
+/// π/2 − asin c above), six 32×32 high-word products: ≈ 20 instructions where idsp's atan2
+/// takes ≈ 130. Error (test): ≤ 8·10⁻⁷ rad over the quadrant (atan2: 2.5·10⁻⁶).
+#[inline]
+pub fn first_quadrant_angle(c_q31: u32, s_q31: u32) -> i32 {
+    let (u, from_cos) = if s_q31 <= c_q31 {
+        (s_q31, false)
+    } else {
+        (c_q31, true)
+    };
+    // The smaller of two numbers whose squares add to 1 is ≤ sin 45°; the bound (√½ rounded
+    // down in Q31) also keeps u² below ½ for any input.
+    let u = u.min(0x5A82_7999);
+    let umulh = |a: u32, b: u32| ((u64::from(a) * u64::from(b)) >> 32) as u32;
+    // w = u² in Q32 = (u·u)>>30 with u in Q31.
+    let w = ((u64::from(u) * u64::from(u)) >> 30) as u32;
+    let mut acc = ASIN_K[5];
+    acc = ASIN_K[4] + umulh(acc, w);
+    acc = ASIN_K[3] + umulh(acc, w);
+    acc = ASIN_K[2] + umulh(acc, w);
+    acc = ASIN_K[1] + umulh(acc, w);
+    acc = ASIN_K[0] + umulh(acc, w);
+    // acc = P(w)·(2/π) in Q32 (≤ 0.71·2^32); asin(u) in binary turns = u·P(w)·2^31/π
+    // = acc·u (Q32·Q31 → high word: ·2^31) / 2.
+    let a = (umulh(acc, u) >> 1) as i32;
+    if from_cos {
+        (1 << 30) - a
+    } else {
+        a
     }
 }
 
@@ -166,6 +289,111 @@ mod tests {
                 Some(n) => v = n,
                 None => break,
             }
+        }
+    }
+
+    #[test]
+    fn sqrt_and_rsqrt_are_within_their_bounds_over_the_whole_range() {
+        let q30 = (1u64 << 30) as f64;
+        let q28 = (1u64 << 28) as f64;
+        let mut worst = (0.0f64, 0.0f64);
+        let mut check = |v: u32| {
+            let (r, inv) = sqrt_rsqrt_q30(v);
+            let want = (f64::from(v) / q30).sqrt();
+            let e_root = (f64::from(r) / q30 - want).abs() * q30;
+            let tol = (3e-9 * want * q30).max(2.0);
+            assert!(e_root <= tol, "sqrt {v}: {r} vs {want} ({e_root} LSB)");
+            if v == 0 {
+                assert_eq!(inv, i32::MAX as u32);
+                return;
+            }
+            let want_inv = 1.0 / want;
+            let got_inv = f64::from(inv) / q28;
+            if want_inv < f64::from(i32::MAX) / q28 {
+                let e = (got_inv - want_inv).abs();
+                let tol = (3e-9 * want_inv).max(2.0 / q28);
+                assert!(e <= tol, "rsqrt {v}: {got_inv} vs {want_inv}");
+                worst.1 = worst.1.max(e / want_inv);
+            } else {
+                // Saturated, or within the last LSBs below saturation.
+                assert!(
+                    got_inv >= f64::from(i32::MAX) / q28 - 2.0 / q28,
+                    "rsqrt {v}"
+                );
+            }
+            worst.0 = worst.0.max(e_root / (want * q30).max(1.0));
+        };
+        let mut v: u32 = 0;
+        loop {
+            check(v);
+            match v.checked_add(997) {
+                Some(n) => v = n,
+                None => break,
+            }
+        }
+        // Every seed interval's edges and the powers of two around the normalisation.
+        for k in 0..32 {
+            for d in [-1i64, 0, 1] {
+                let v = (1i64 << k) + d;
+                if (0..=i64::from(u32::MAX)).contains(&v) {
+                    check(v as u32);
+                }
+            }
+        }
+        check(u32::MAX);
+        println!(
+            "worst relative error: sqrt {:e}, rsqrt {:e}",
+            worst.0, worst.1
+        );
+    }
+
+    #[test]
+    fn isqrt_u64_is_exact() {
+        let check = |n: u64| {
+            let r = u64::from(isqrt_u64(n));
+            assert!(r * r <= n, "{n}: {r}");
+            assert!((r + 1).checked_mul(r + 1).is_none_or(|s| s > n), "{n}: {r}");
+            assert_eq!(r, n.isqrt(), "{n}");
+        };
+        for k in 0..64 {
+            for d in [-2i128, -1, 0, 1, 2] {
+                let n = (1i128 << k) + d;
+                if (0..=i128::from(u64::MAX)).contains(&n) {
+                    check(n as u64);
+                }
+            }
+        }
+        for r in [1u64, 2, 3, 1000, 65_535, 65_536, 1 << 27, (1 << 32) - 1] {
+            for n in [r * r - 1, r * r, r * r + 1, r * r + 2 * r] {
+                check(n);
+            }
+        }
+        check(u64::MAX);
+        let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+        for _ in 0..200_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            check(x >> (x % 64));
+        }
+    }
+
+    #[test]
+    fn first_quadrant_angle_is_within_8e7_rad() {
+        let q31 = (1u64 << 31) as f64;
+        let mut worst: f64 = 0.0;
+        for i in 0..=90_000 {
+            let a = f64::from(i) / 1000.0 * core::f64::consts::PI / 180.0;
+            let c = ((a.cos() * q31) as u32).min(u32::MAX >> 1);
+            let s = ((a.sin() * q31) as u32).min(u32::MAX >> 1);
+            let got = f64::from(first_quadrant_angle(c, s)) * core::f64::consts::PI / q31;
+            worst = worst.max((got - a).abs());
+        }
+        assert!(worst < 8e-7, "{worst:e}");
+        // Nonsense inputs stay in the quadrant.
+        for (c, s) in [(0, 0), (u32::MAX, u32::MAX), (0, u32::MAX), (u32::MAX, 0)] {
+            let a = first_quadrant_angle(c, s);
+            assert!((0..=1 << 30).contains(&a), "{c} {s}: {a}");
         }
     }
 

@@ -272,14 +272,16 @@ pub trait Q: Copy {
 }
 
 /// Saturate an `i64` to `i32`.
+///
+/// Written as "does the low word sign-extend to the whole value": one compare of the high word
+/// with the low word's sign on a Cortex-M4 (≈ 3 instructions instead of two 64-bit compares).
 #[inline]
 pub fn sat32(v: i64) -> i32 {
-    if v > i64::from(i32::MAX) {
-        i32::MAX
-    } else if v < i64::from(i32::MIN) {
-        i32::MIN
+    let lo = v as i32;
+    if i64::from(lo) == v {
+        lo
     } else {
-        v as i32
+        ((v >> 63) as i32) ^ i32::MAX
     }
 }
 
@@ -333,6 +335,25 @@ mod tests {
         assert!((t.to_f64() - 0.004265 * 36600.0).abs() < 1e-3);
         let back: Newtons = qdiv(t, r);
         assert!((back.to_f64() - 36600.0).abs() / 36600.0 < 1e-4);
+    }
+
+    #[test]
+    fn sat32_clamps_exactly_at_the_i32_bounds() {
+        for v in [
+            i64::MIN,
+            i64::from(i32::MIN) - 1,
+            i64::from(i32::MIN),
+            -1,
+            0,
+            1,
+            i64::from(i32::MAX),
+            i64::from(i32::MAX) + 1,
+            1 << 32,
+            i64::MAX,
+        ] {
+            let want = v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+            assert_eq!(sat32(v), want, "{v}");
+        }
     }
 
     #[test]

@@ -5,10 +5,11 @@
 //! Tolerance of the power-screw checks: 0.2 % or 0.5 mN·m, whichever is larger — the budget the
 //! model is held to against its float64 twin (`model_vs_float_twin.rs`). At constant speed the
 //! power-screw formula *is* the model (ξ = tan(λ ± φ) algebraically), so the only differences are
-//! the fixed-point ones: α (atan2, ≤ 2.5·10⁻⁶ rad, i.e. ≤ 0.02 % of R at α₀ = 15°), the Q28
-//! ratios and reciprocals (≤ 3·10⁻⁹ relative) and the output LSBs (Newtons Q8: 3.9 mN, i.e.
-//! 17 µN·m of thread torque; NewtonMetres Q16: 15 µN·m). Measured worst case on the grid below
-//! (printed by `--nocapture`): 7 % of the allowance lifting, 6 % lowering.
+//! the fixed-point ones: sin α and 1/sin α (≤ 3·10⁻⁹ relative: R = M·g·cos α/sin α does not
+//! go through α itself), α (≤ 8·10⁻⁷ rad, only in c_x), the Q28 ratios and reciprocals
+//! (≤ 3·10⁻⁹ relative) and the output LSBs (Newtons Q8: 3.9 mN, i.e. 17 µN·m of thread torque;
+//! NewtonMetres Q16: 15 µN·m). Measured worst case on the grid below (printed by
+//! `--nocapture`): 7 % of the allowance lifting, 3 % lowering.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use liftfw::estimator::{EstimateFlags, Estimator, EstimatorConfig, Measurements};

@@ -157,7 +157,9 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
         samples.push(s);
         let state = c.state();
         let moving = matches!(state, State::Lifting | State::Lowering);
-        if samples.len().is_multiple_of(500) || (rested_at.is_none() && *sent && !moving && t > 0.06) {
+        if samples.len().is_multiple_of(500)
+            || (rested_at.is_none() && *sent && !moving && t > 0.06)
+        {
             println!(
                 "{:6.2}  {:10.3} {:10.3}  {:9.3} {:9.3}  {:9.3} {:9.3}  {:7.2}  {}",
                 s.t,

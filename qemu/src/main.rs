@@ -19,15 +19,16 @@ use core::hint::black_box;
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::entry;
 use liftfw::estimator::{Estimator, EstimatorConfig, Measurements};
-use liftfw::math::{exp_neg_q16, recip_q30, sqrt_q30};
+use liftfw::control::config::{ControlConfig, RampShape};
+use liftfw::control::profile::Profile;
+use liftfw::control::{Command, Controller, Inputs, State, Switches};
+use liftfw::math::{exp_neg_q16, first_quadrant_angle, recip_q30, sqrt_q30, sqrt_rsqrt_q30};
 use liftfw::units::{
     Amperes, Angle, Instant, Kilograms, RadiansPerSecond, RadiansPerSecond2, Ratio,
 };
 use liftfw_golden::{verify, Kind};
 use liftfw_ref_float::{EstimatorF32, EstimatorF64, FloatMeasurements};
 use semihosting::println;
-// The device vector table cortex-m-rt asks for (see Cargo.toml).
-use stm32_metapac as _;
 
 /// The golden vectors, generated on the host from the same source.
 static GOLDEN: &[u8] = include_bytes!(env!("LIFTFW_GOLDEN_FILE"));
@@ -39,6 +40,7 @@ const N: usize = 256;
 fn main() -> ! {
     let golden_ok = replay_golden();
     count_instructions();
+    measure_stack();
     semihosting::process::exit(if golden_ok { 0 } else { 1 })
 }
 
@@ -87,6 +89,7 @@ fn insns(ticks: u32) -> u32 {
 }
 
 struct Stats {
+    prefix: &'static str,
     name: &'static str,
     samples: [u32; N],
     n: usize,
@@ -95,10 +98,14 @@ struct Stats {
 impl Stats {
     fn new(name: &'static str) -> Self {
         Stats {
+            prefix: "",
             name,
             samples: [0; N],
             n: 0,
         }
+    }
+    fn name_prefix(&mut self, prefix: &'static str) {
+        self.prefix = prefix;
     }
     fn push(&mut self, ticks: u32, overhead: u32) {
         if let Some(s) = self.samples.get_mut(self.n) {
@@ -116,8 +123,8 @@ impl Stats {
         let median = s.get(s.len() / 2).copied().unwrap_or(0);
         let mean = s.iter().map(|&v| u64::from(v)).sum::<u64>() / (s.len().max(1) as u64);
         println!(
-            "ICOUNT {} n={} min={} median={} mean={} max={}",
-            self.name, self.n, min, median, mean, max
+            "ICOUNT {}{} n={} min={} median={} mean={} max={}",
+            self.prefix, self.name, self.n, min, median, mean, max
         );
         median
     }
@@ -138,8 +145,8 @@ fn motion(k: usize) -> (Instant, Measurements) {
         Instant(1_000 * k as u32),
         Measurements {
             position_counts: 20_000 + (milli_counts / 1000) as i32,
-            motor_current: Amperes::lit("10"),
-            load: Kilograms::lit("800"),
+            motor_current: const { Amperes::lit("10") },
+            load: const { Kilograms::lit("800") },
             commanded_dir: 1,
         },
     )
@@ -227,30 +234,66 @@ fn count_instructions() {
     e_f32.report();
     e_f64.report();
 
-    // Where the fixed-point instructions go: the parts, measured on their own.
+    // Where the fixed-point instructions go: the parts, measured on their own (each includes
+    // its call and the store of its result, so the parts add up to more than the whole).
     let geo = *fixed.geometry();
     let law = *fixed.law();
     let screw = *fixed.screw();
     let mut p_pose = Stats::new("part geometry.pose");
+    let mut p_rf0 = Stats::new("part geometry.axial_and_pin (weight, R, F0)");
+    let mut p_cx = Stats::new("part geometry.structure_damping");
     let mut p_mu = Stats::new("part law.mu");
+    let mut p_w = Stats::new("part screw.axial_demand");
     let mut p_contact = Stats::new("part screw.contact");
-    let mut p_sqrt = Stats::new("kernel sqrt_q30");
+    let mut p_req = Stats::new("part screw.required_torque");
+    let mut p_sqrt = Stats::new("kernel sqrt_q30 (config time only)");
+    let mut p_rsqrt = Stats::new("kernel sqrt_rsqrt_q30");
+    let mut p_angle = Stats::new("kernel first_quadrant_angle");
     let mut p_recip = Stats::new("kernel recip_q30");
     let mut p_exp = Stats::new("kernel exp_neg_q16");
-    let mut p_atan2 = Stats::new("kernel atan2 (idsp)");
+    let mut p_atan2 = Stats::new("kernel atan2 (idsp, no longer per tick)");
     for k in 0..N {
-        let (m, w, _) = point(k);
+        let (m, w, a) = point(k);
         let pose = geo.pose(m.position_counts);
         p_pose.push(ticks(m.position_counts, |c| geo.pose(c)), overhead);
+        let weight = liftfw::model::geometry::Geometry::weight(m.load);
+        p_rf0.push(
+            ticks((pose, m.load), |(p, l)| {
+                geo.axial_and_pin(&p, liftfw::model::geometry::Geometry::weight(l))
+            }),
+            overhead,
+        );
+        p_cx.push(ticks(pose.alpha, |al| geo.structure_damping(al)), overhead);
         p_mu.push(ticks(w, |w| law.mu(w)), overhead);
         let mu = law.mu(w);
-        let wn = geo.axial_load(&pose, liftfw::model::geometry::Geometry::weight(m.load));
+        let (r, f0) = geo.axial_and_pin(&pose, weight);
+        let cx = geo.structure_damping(pose.alpha);
+        p_w.push(
+            ticks((w, a, r, f0, cx), |(w, a, r, f0, cx)| {
+                screw.axial_demand(w, a, 1, r, f0, cx)
+            }),
+            overhead,
+        );
+        let wn = screw.axial_demand(w, a, 1, r, f0, cx);
         p_contact.push(
             ticks((mu, wn), |(mu, wn)| screw.contact(mu, 1, wn)),
             overhead,
         );
+        let contact = screw.contact(mu, 1, wn);
+        p_req.push(
+            ticks((w, a, contact), |(w, a, c)| screw.required_torque(w, a, 1, &c)),
+            overhead,
+        );
         let v = (k as u32) << 22 | 0x1234;
         p_sqrt.push(ticks(v, sqrt_q30), overhead);
+        p_rsqrt.push(ticks(v, sqrt_rsqrt_q30), overhead);
+        p_angle.push(
+            ticks(
+                ((pose.cos_alpha.to_bits() as u32) << 3, (pose.sin_alpha.to_bits() as u32) << 3),
+                |(c, s)| first_quadrant_angle(c, s),
+            ),
+            overhead,
+        );
         p_recip.push(ticks(v | 1 << 20, recip_q30), overhead);
         p_exp.push(ticks((k as u32) << 14, exp_neg_q16), overhead);
         p_atan2.push(
@@ -263,9 +306,15 @@ fn count_instructions() {
     }
     for s in [
         &mut p_pose,
+        &mut p_rf0,
+        &mut p_cx,
         &mut p_mu,
+        &mut p_w,
         &mut p_contact,
+        &mut p_req,
         &mut p_sqrt,
+        &mut p_rsqrt,
+        &mut p_angle,
         &mut p_recip,
         &mut p_exp,
         &mut p_atan2,
@@ -305,4 +354,231 @@ fn count_instructions() {
             "fixed SLOWER"
         }
     );
+    count_control(overhead);
+}
+
+/// Encoder counter, current and supply codes of a lift at the default drive following the
+/// `motion` profile (60 ms ramp to 3 rad/s at the screw, the default cruise), drawing 20 A
+/// (≈ the rated-load torque at α ≈ 16°) from 12.6 V.
+fn cruise_inputs(k: usize) -> Inputs {
+    let (_, m) = motion(k);
+    Inputs {
+        encoder_count: m.position_counts as u16,
+        current_raw: 2048 + 621, // 20 A at 32.227 mA per code
+        supply_raw: 2820,        // 12.6 V at 4.468 mV per code
+        switches: Switches(0),
+    }
+}
+
+/// A controller at rest at the `motion` start, 10 ticks of sensor data, then `up`.
+fn lifting_controller() -> Option<Controller> {
+    let cfg = ControlConfig::DEFAULT;
+    let mut c = Controller::new(&cfg, motion(0).1.position_counts).ok()?;
+    for k in 0..10 {
+        c.step(Instant(k * 1000), &cruise_inputs(0));
+    }
+    c.command(Command::Up).ok()?;
+    Some(c)
+}
+
+/// The control side (issue 8 item 3): ramp/planner step, the full control tick, console parsing.
+fn count_control(overhead: u32) {
+    // Ramp planner alone: 60-tick ramp to 1.375 counts/tick (3 rad/s), far target.
+    for (shape, name) in [
+        (RampShape::Trapezoid, "control.profile.step trapezoid"),
+        (RampShape::SCurve, "control.profile.step s-curve"),
+    ] {
+        let mut p = Profile::new(20_000, 5_905_580_032, 60, shape);
+        p.set_target(400_000);
+        let mut st = Stats::new(name);
+        for _ in 0..N {
+            st.push(ticks(&mut p, |p| p.step()), overhead);
+        }
+        st.report();
+    }
+    // A short move (300 counts): every tick after the first few brakes and takes the root.
+    let mut p = Profile::new(20_000, 5_905_580_032, 60, RampShape::Trapezoid);
+    p.set_target(20_300);
+    let mut st = Stats::new("control.profile.step trapezoid short move (braking)");
+    for _ in 0..N {
+        let r = black_box(p.step());
+        if r.done {
+            break;
+        }
+        // Measure the next step from the same state as this one (a copy: same work).
+        let mut q = p.clone();
+        st.push(ticks(&mut q, |q| q.step()), overhead);
+    }
+    st.report();
+
+    // The full tick: Controller::step lifting (ramp, then cruise) with realistic inputs.
+    let Some(mut c) = lifting_controller() else {
+        println!("ICOUNT skipped: controller refused the default configuration or `up`");
+        return;
+    };
+    let mut tick_all = Stats::new("control.tick lifting (ramp + cruise)");
+    let mut tick_cruise = Stats::new("control.tick lifting at cruise");
+    for k in 0..N {
+        let now = Instant(10_000 + 1000 * k as u32);
+        let inp = cruise_inputs(k);
+        let t = ticks(&inp, |i| c.step(now, i));
+        tick_all.push(t, overhead);
+        if k >= 80 {
+            tick_cruise.push(t, overhead);
+        }
+    }
+    tick_all.report();
+    let cruise_median = tick_cruise.report();
+    // `stop` at cruise: the planner brakes along the ramp (its root on every tick), then the
+    // supervisor settles (the synthetic encoder keeps counting: a worst case for the arrival
+    // check, not a physical run).
+    let _ = c.command(Command::Stop);
+    let mut braking = Stats::new("control.tick after stop (braking, settling)");
+    for k in N..N + 80 {
+        let now = Instant(10_000 + 1000 * k as u32);
+        let inp = cruise_inputs(k);
+        braking.push(ticks(&inp, |i| c.step(now, i)), overhead);
+    }
+    braking.report();
+    println!(
+        "ICOUNT-STATE after the lift motion: {} (fault: {:?})",
+        c.state().name(),
+        c.status().fault.map(|f| f.name())
+    );
+    // At rest (idle, nothing pressed), for comparison.
+    if let Ok(mut idle) = Controller::new(&ControlConfig::DEFAULT, 20_000) {
+        let mut st = Stats::new("control.tick idle");
+        for k in 0..N {
+            let inp = cruise_inputs(0);
+            st.push(
+                ticks(&inp, |i| idle.step(Instant(1000 * k as u32), i)),
+                overhead,
+            );
+        }
+        st.report();
+    }
+    println!(
+        "ICOUNT-GOAL control.tick at cruise median {} (goal <= 2000: {})",
+        cruise_median,
+        if cruise_median <= 2000 { "met" } else { "OVER" }
+    );
+
+    // Console: one line each.
+    for line in CONSOLE_LINES {
+        let mut st = Stats::new(line);
+        for _ in 0..8 {
+            st.push(
+                ticks(line.as_bytes(), |l| liftfw::console::parse(l).is_ok()),
+                overhead,
+            );
+        }
+        st.name_prefix("console.parse ");
+        st.report();
+    }
+}
+
+/// Typical console lines (docs/console.md).
+const CONSOLE_LINES: [&str; 7] = [
+    "status",
+    "up",
+    "goto 300mm",
+    "get limits.upper",
+    "set motion.cruise_speed 3 rad/s",
+    "set limits.upper 0.41 m",
+    "fault clear",
+];
+
+/// Bytes below the caller's stack pointer painted before a measured call.
+const PAINT: usize = 16 * 1024;
+/// The paint: a word no code writes by chance.
+const PATTERN: u32 = 0xC5AC_CE55;
+
+/// Stack used by `f` (issue 8 item 4): the stack below this frame is painted with [`PATTERN`],
+/// `f` runs (through a function pointer, so it cannot be inlined into this frame), and the
+/// lowest word that no longer holds the pattern is the high-water mark. Measures the paths the
+/// call took, not every path; interrupts are off (none is enabled in this program).
+#[inline(never)]
+fn stack_used<T>(arg: &mut T, f: fn(&mut T)) -> usize {
+    let sp = cortex_m::register::msp::read() as usize;
+    // Leave 64 bytes under the stack pointer for this function's own spills.
+    let top = sp - 64;
+    let bottom = sp - PAINT;
+    let mut a = bottom;
+    while a < top {
+        // Note(unsafe): the words lie between the stack limit (4 MiB of SRAM, the stack grows
+        // down from its top, nothing else lives there) and this frame; nothing live is there.
+        unsafe { core::ptr::write_volatile(a as *mut u32, PATTERN) };
+        a += 4;
+    }
+    black_box(f)(arg);
+    let mut a = bottom;
+    while a < top {
+        // Note(unsafe): the same painted words, read back.
+        if unsafe { core::ptr::read_volatile(a as *const u32) } != PATTERN {
+            break;
+        }
+        a += 4;
+    }
+    sp - a
+}
+
+fn measure_stack() {
+    let Some(mut c) = lifting_controller() else {
+        return;
+    };
+    // Bring it to cruise, then measure a cruise tick, a tick that latches a fault (over-current:
+    // snapshot + event) and a tick in the fault state.
+    for k in 0..100 {
+        c.step(Instant(10_000 + 1000 * k), &cruise_inputs(k as usize));
+    }
+    let mut empty = 0u32;
+    let baseline = stack_used(&mut empty, |e| *e = black_box(*e));
+    println!("STACK harness baseline (an empty call): {baseline} bytes");
+    let mut worst = 0;
+    let mut k = 100usize;
+    let mut report = |name: &str, used: usize| {
+        println!("STACK {name}: {used} bytes");
+        worst = worst.max(used);
+    };
+    // Inputs are built outside the measured calls: only the core's own frames count.
+    let cruise = stack_used(&mut (&mut c, cruise_inputs(k)), |(c, i)| {
+        c.step(Instant(10_000 + 1000 * 100), i);
+    });
+    report("control.tick lifting at cruise", cruise);
+    k += 1;
+    let mut over = cruise_inputs(k);
+    over.current_raw = 4095; // 66 A: over-current trips on this tick
+    let fault = stack_used(&mut (&mut c, over), |(c, i)| {
+        c.step(Instant(200_000), i);
+    });
+    report("control.tick latching a fault", fault);
+    let faulted = stack_used(&mut (&mut c, cruise_inputs(k)), |(c, i)| {
+        c.step(Instant(201_000), i);
+    });
+    report(
+        if c.state() == State::Fault {
+            "control.tick in the fault state"
+        } else {
+            "control.tick after the fault input (no fault latched!)"
+        },
+        faulted,
+    );
+    let mut est = match Estimator::new(&EstimatorConfig::DEFAULT) {
+        Ok(e) => e,
+        Err(_) => return,
+    };
+    report(
+        "estimator.step",
+        stack_used(&mut (&mut est, motion(100).1), |(e, m)| {
+            black_box(e.step(Instant(0), m));
+        }),
+    );
+    let mut line: &[u8] = b"set motion.cruise_speed 3 rad/s";
+    report(
+        "console.parse (set with a value)",
+        stack_used(&mut line, |l| {
+            black_box(liftfw::console::parse(l).is_ok());
+        }),
+    );
+    println!("STACK worst measured call: {worst} bytes (method: paint + high-water, docs/qemu.md)");
 }

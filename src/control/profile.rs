@@ -40,6 +40,11 @@ impl Reference {
 pub struct Profile {
     accel: i64,
     cruise: i64,
+    /// `2|d| − v·dir` (Q32 counts) from which the braking speed surely exceeds cruise, so the
+    /// square root can be skipped (see [`Self::step_trapezoid`]).
+    cruise_room: i64,
+    /// a²/4 (Q64), the discriminant's constant term.
+    accel_sq_4: i128,
     shape: RampShape,
     // Trapezoid generator state.
     p: i64,
@@ -60,6 +65,31 @@ pub struct Profile {
 /// Q32 one.
 const ONE: i64 = 1 << 32;
 
+/// Largest next speed v' from which the ramp still stops on the target after this step moves
+/// (v + v')/2: v'² ≤ 2a(d − (v + v')/2), i.e. v' = √(a²/4 + a·room) − a/2 with
+/// room = 2|d| − v·dir. Q32 operands give a Q64 discriminant; its Q40 root is Q20. Kept out of
+/// line: only the braking ticks need it.
+#[inline(never)]
+fn braking_speed(accel: i64, a2_4: i128, room: i64) -> i64 {
+    let disc = a2_4 + i128::from(accel) * i128::from(room);
+    if disc <= 0 {
+        0
+    } else {
+        let q40 = u64::try_from(disc >> 24).unwrap_or(u64::MAX);
+        ((i64::from(crate::math::isqrt_u64(q40)) << 12) - accel / 2).max(0)
+    }
+}
+
+/// Smallest `2|d| − v·dir` at which the braking speed `√(a²/4 + a(2|d| − v·dir)) − a/2` exceeds
+/// `cruise` by more than 2^14 (Q32), the most the fixed-point root (Q40 → Q20, floored) can
+/// lose: from there the braking limit is surely inactive. Exact form:
+/// `(cruise + δ)²/a + cruise + δ + 1`, saturated.
+fn cruise_room(cruise: i64, accel: i64) -> i64 {
+    let c = i128::from(cruise) + (1 << 14);
+    let room = c * c / i128::from(accel.max(1)) + c + 1;
+    i64::try_from(room).unwrap_or(i64::MAX)
+}
+
 impl Profile {
     /// A planner at rest at `position` counts. `cruise_q32` is the cruise speed in Q32 counts per
     /// tick and `ramp_ticks` the ramp time in ticks (≥ 1).
@@ -72,9 +102,12 @@ impl Profile {
         };
         let ticks_per_entry = smooth_ticks.div_ceil(SMOOTH_LEN as u32).max(1);
         let p = i64::from(position) << 32;
+        let accel = (cruise / i64::from(trap_ticks.max(1))).max(1);
         Profile {
-            accel: (cruise / i64::from(trap_ticks.max(1))).max(1),
+            accel,
             cruise,
+            cruise_room: cruise_room(cruise, accel),
+            accel_sq_4: i128::from(accel) * i128::from(accel) / 4,
             shape,
             p,
             v: 0,
@@ -163,16 +196,21 @@ impl Profile {
     fn step_trapezoid(&mut self) {
         let d = self.target.saturating_sub(self.p);
         let dir = d.signum();
-        // Largest next speed v' from which the ramp still stops on the target after this
-        // step moves (v + v')/2: v'² ≤ 2a(d − (v + v')/2), i.e. v' = √(a²/4 + a(2d − v)) − a/2.
-        // Q32 operands give a Q64 discriminant; its Q40 root is Q20.
-        let a = i128::from(self.accel);
-        let disc = a * a / 4 + a * (2 * i128::from(d).abs() - i128::from(self.v) * i128::from(dir));
-        let brake = if disc <= 0 {
-            0
+        // The braking limit ([`braking_speed`]). Far from the target (the whole cruise) the braking speed exceeds cruise by more than
+        // the root's rounding: skip the 128-bit discriminant and the root, same result.
+        let v_toward = match dir {
+            1 => self.v,
+            -1 => self.v.saturating_neg(),
+            _ => 0,
+        };
+        let two_d = d.saturating_abs().saturating_add(d.saturating_abs());
+        // room = 2|d| − v·dir saturates only upwards (|v| ≤ 64 counts/tick), and then it is
+        // ≥ cruise_room: below it, it is exact.
+        let room = two_d.saturating_sub(v_toward);
+        let brake = if room >= self.cruise_room {
+            self.cruise
         } else {
-            let q40 = u64::try_from(disc >> 24).unwrap_or(u64::MAX);
-            ((q40.isqrt() << 12) as i64 - self.accel / 2).max(0)
+            braking_speed(self.accel, self.accel_sq_4, room)
         };
         let v_goal = dir * brake.min(self.cruise);
         let v_new = if v_goal > self.v {
@@ -205,7 +243,15 @@ impl Profile {
         self.tick_in_entry += 1;
         let n = SMOOTH_LEN as i64 * i64::from(self.ticks_per_entry);
         // Output position advances by the mean over the whole window (entries + partial).
-        let out_v = (self.sum + self.entry_acc) / n;
+        // A power-of-two window (ramps up to 128 ticks) divides by a shift rounded toward
+        // zero, exactly as `/` does, instead of a 64-bit division routine.
+        let total = self.sum + self.entry_acc;
+        let out_v = if n.count_ones() == 1 {
+            let k = n.trailing_zeros();
+            (total + ((total >> 63) & (n - 1))) >> k
+        } else {
+            total / n
+        };
         self.out_v = out_v;
         self.out_p = self.out_p.saturating_add(out_v);
         if self.tick_in_entry >= self.ticks_per_entry {

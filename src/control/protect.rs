@@ -230,7 +230,8 @@ impl Monitors {
             return Some(FaultKind::Stall);
         }
         let limit: NewtonMetres = qmul(s.model_torque, l.overload_factor);
-        let over = s.overload_armed && s.measured_torque > limit.sat_add(NewtonMetres::from_int(2));
+        let over =
+            s.overload_armed && s.measured_torque > limit.sat_add(const { NewtonMetres::lit("2") });
         if count(&mut self.overload, over) >= l.overload_ticks {
             return Some(FaultKind::Overload);
         }

@@ -132,7 +132,7 @@ impl SpeedLoop {
 
 /// `v / supply` as a Q15 duty, saturated to ±1; zero if the supply reads below 1 V.
 pub fn duty_q15(v: Volts, supply: Volts) -> i16 {
-    if supply < Volts::from_int(1) {
+    if supply < const { Volts::lit("1") } {
         return 0;
     }
     // supply/32 in Q2.30 (1…31 V → 2^-5…0.97); recip gives 32/supply in Q4.28.

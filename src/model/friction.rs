@@ -181,17 +181,16 @@ impl CompiledLaw {
     #[inline]
     pub fn mu_raw(&self, input: u32) -> Ratio {
         let input = input.min(i32::MAX as u32) as i32;
-        let y = self.exp_scale.apply(input);
-        let y = if y > i64::from(u32::MAX) {
-            u32::MAX
-        } else {
-            y as u32
-        };
-        let e = exp_neg_q16(y); // Q32
-        let exp_term = (i64::from(self.amp.bits()) * i64::from(e)) >> 32; // Q28
+        // input ≥ 0 and rate ≥ 0: y ≥ 0, saturated to u32 (e^(−y) is 0 long before).
+        let y = self.exp_scale.apply_u32(input);
+        // e^(−y) in Q31 (≤ 2^31 − 1), so amp·e is one signed 32×32 product.
+        let e = (exp_neg_q16(y) >> 1) as i32;
+        let exp_term = (i64::from(self.amp.bits()) * i64::from(e)) >> 31; // Q28
         let lin_in = input.min(self.in_max.min(i32::MAX as u32) as i32);
-        let lin = self.lin_scale.apply(lin_in);
-        let mu = i64::from(self.base.bits()) + exp_term + lin;
+        // Saturated to i32: beyond ±8 − 2 (base and the exponential term are within ±1) μ is
+        // clamped below anyway.
+        let lin = self.lin_scale.apply32(lin_in);
+        let mu = i64::from(self.base.bits()) + exp_term + i64::from(lin);
         Ratio::from_raw(mu.clamp(0, i64::from(i32::MAX)) as i32)
     }
 

@@ -58,10 +58,31 @@ impl Scale {
     }
 
     /// `v·constant` for a 32-bit input, saturated to `i32`.
+    ///
+    /// Constants below ½ (shift ≥ 32, the usual case) take the high word of the product
+    /// (`SMULL`) and an `i32` shift: floor(floor(p/2^32)/2^(s−32)) = floor(p/2^s), and
+    /// |p/2^32| < 2^30 cannot overflow. Larger constants shift the `i64` and saturate.
     #[inline]
     pub fn apply32(self, v: i32) -> i32 {
         let p = i64::from(v) * i64::from(self.mant);
-        crate::units::sat32(if self.shift >= 64 { 0 } else { p >> self.shift })
+        if self.shift >= 32 {
+            // from_ratio keeps shift ≤ 62, so the mask never changes it.
+            ((p >> 32) as i32) >> ((self.shift - 32) & 31)
+        } else {
+            crate::units::sat32(p >> self.shift)
+        }
+    }
+
+    /// `v·constant` for `v ≥ 0` and a non-negative constant, saturated to `u32` (a negative
+    /// product, impossible under that contract, gives 0).
+    #[inline]
+    pub fn apply_u32(self, v: i32) -> u32 {
+        let p = i64::from(v) * i64::from(self.mant);
+        if self.shift >= 32 {
+            (((p >> 32) as i32) >> ((self.shift - 32) & 31)).max(0) as u32
+        } else {
+            (p >> self.shift).clamp(0, i64::from(u32::MAX)) as u32
+        }
     }
 
     /// This constant times `num/den` (exact integer arithmetic, configuration time only).

@@ -306,6 +306,28 @@ const BRAKE_AMPS: i32 = 30;
 /// Overload monitoring starts this long after a motion starts (breakaway, winding the coupling).
 const OVERLOAD_HOLDOFF_MS: u32 = 250;
 
+/// The supervisor's durations in control ticks.
+#[derive(Clone, Copy, Debug)]
+struct TickCounts {
+    /// Overload monitoring holdoff after a start (+ one ramp).
+    overload_holdoff: u32,
+    /// Settling after the reference arrived / after a stop.
+    settle: u32,
+    /// Buttons seen released before they arm.
+    arm: u32,
+}
+
+impl TickCounts {
+    fn new(tick_us: u32, ramp_ms: u32) -> TickCounts {
+        let t = |ms: u32| ms.saturating_mul(1000) / tick_us.max(1);
+        TickCounts {
+            overload_holdoff: t(OVERLOAD_HOLDOFF_MS).saturating_add(t(ramp_ms)),
+            settle: t(SETTLE_MS),
+            arm: t(ARM_MS),
+        }
+    }
+}
+
 /// The control core: configuration (validated) and state.
 #[derive(Clone, Debug)]
 pub struct Controller {
@@ -333,6 +355,8 @@ pub struct Controller {
     /// Screw torque (Q16 N·m) → coupling twist in counts.
     twist_scale: Scale,
     tick_us: u32,
+    /// Durations in ticks, computed once (no division on the tick path).
+    ticks: TickCounts,
     state: State,
     fault: Option<Fault>,
     last_tick: Option<Instant>,
@@ -464,6 +488,7 @@ impl Controller {
             speed_scale,
             twist_scale,
             tick_us,
+            ticks: TickCounts::new(tick_us, cfg.motion.ramp_ms),
             state: State::Idle,
             fault: None,
             last_tick: None,
@@ -852,8 +877,7 @@ impl Controller {
         };
         let emf_speed = self.emf_speed();
         let project = |t: NewtonMetres| if dir < 0 { t.sat_neg() } else { t };
-        let holdoff = OVERLOAD_HOLDOFF_MS * 1000 / self.tick_us
-            + self.cfg.motion.ramp_ms * 1000 / self.tick_us;
+        let holdoff = self.ticks.overload_holdoff;
         let sample = Sample {
             moving,
             lowering: dir < 0,
@@ -928,7 +952,7 @@ impl Controller {
                 // through the motor; that motion is commanded, so the runaway reference follows
                 // it for SETTLE_MS (a runaway is measured from where the lift settled).
                 self.rest_ticks = self.rest_ticks.saturating_add(1);
-                if self.rest_ticks <= SETTLE_MS * 1000 / self.tick_us {
+                if self.rest_ticks <= self.ticks.settle {
                     self.hold_position = self.enc.position();
                 }
                 self.at_rest_bridge()
@@ -999,7 +1023,7 @@ impl Controller {
             } else {
                 0
             };
-            self.buttons_armed = self.release_ticks >= ARM_MS * 1000 / self.tick_us;
+            self.buttons_armed = self.release_ticks >= self.ticks.arm;
             return;
         }
         if self.held_button != 0 && pressed & self.held_button == 0 {
@@ -1036,7 +1060,7 @@ impl Controller {
             self.settle_ticks = self.settle_ticks.saturating_add(1);
             let still = self.estimate.screw_speed.sat_abs() < self.cfg.estimator.rest_speed;
             if (error_counts.abs() <= ARRIVED_COUNTS && still)
-                || self.settle_ticks > SETTLE_MS * 1000 / self.tick_us
+                || self.settle_ticks > self.ticks.settle
             {
                 self.enter_rest(State::Holding);
                 return self.at_rest_bridge();

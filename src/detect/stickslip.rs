@@ -117,8 +117,15 @@ impl StickSlipConfig {
     }
 }
 
-/// Settling after the reference speed last changed before slips count, ms.
-pub const SETTLE_MS: u32 = 50;
+/// Settling after the reference *acceleration* last changed (the start and the end of a ramp,
+/// every tick of an S-curve) before slips count, ms: the motor current then moves by the
+/// rotor's inertia torque (≈ 9 N·m at the screw for the default ramp) and the speed loop's
+/// transient dies out within ≈ 25 ms (host-sim). Slips count during a constant-acceleration
+/// ramp.
+pub const SETTLE_MS: u32 = 25;
+/// Tolerance on the reference's second difference that still counts as a constant
+/// acceleration, Q16 rad/s per tick² (the profile's rounding moves it by 1 LSB).
+const ACCEL_TOL: i32 = 2;
 /// A slip's fall is measured over this long after it crossed the threshold; no new slip
 /// starts meanwhile, ms.
 pub const EVENT_MS: u32 = 8;
@@ -173,6 +180,7 @@ pub struct StickSlipDetector {
     sum: i64,
     filled: usize,
     prev_reference: i32,
+    prev_accel: i32,
     steady: u32,
     peak: i32,
     in_event: u32,
@@ -181,6 +189,8 @@ pub struct StickSlipDetector {
     interval: u32,
     chain: u32,
     falling: bool,
+    /// Ticks since the flag last fell in this motion (`u32::MAX`: not yet).
+    since_fall: u32,
     /// Last two torques (for the second difference) and the noise level: EWMA (1/64) of
     /// |second difference|, each sample clipped at 4× the level so slips barely move it, Q16.
     last: [i32; 2],
@@ -211,6 +221,7 @@ impl StickSlipDetector {
             sum: 0,
             filled: 0,
             prev_reference: 0,
+            prev_accel: 0,
             steady: 0,
             peak: 0,
             in_event: 0,
@@ -219,10 +230,16 @@ impl StickSlipDetector {
             interval: 0,
             chain: 0,
             falling: false,
+            since_fall: u32::MAX,
             last: [0; 2],
             noise: 0,
             out: StickSlipOutput::default(),
         }
+    }
+
+    /// TEMP
+    pub fn noise_f64(&self) -> f64 {
+        f64::from(self.noise) / 65536.0
     }
 
     /// The last report.
@@ -237,6 +254,8 @@ impl StickSlipDetector {
         self.sum = 0;
         self.filled = 0;
         self.prev_reference = 0;
+        self.prev_accel = 0;
+        self.since_fall = u32::MAX;
         self.last = [0; 2];
         self.steady = 0;
         self.in_event = 0;
@@ -280,14 +299,17 @@ impl StickSlipDetector {
         self.filled = (self.filled + 1).min(MEAN_LEN);
         let mean = (self.sum / MEAN_LEN as i64) as i32; // |sum| ≤ 4·2^31: exact in i32 after /4
         self.since_slip = self.since_slip.saturating_add(1);
+        self.since_fall = self.since_fall.saturating_add(1);
 
         let reference = x.reference.to_bits();
-        if reference != self.prev_reference || reference == 0 {
+        let accel = reference.saturating_sub(self.prev_reference);
+        if reference == 0 || accel.saturating_sub(self.prev_accel).saturating_abs() > ACCEL_TOL {
             self.steady = 0;
         } else {
             self.steady = self.steady.saturating_add(1);
         }
         self.prev_reference = reference;
+        self.prev_accel = accel;
         if self.steady < self.settle_ticks || self.filled < MEAN_LEN {
             self.peak = mean;
             self.in_event = 0;
@@ -318,6 +340,7 @@ impl StickSlipDetector {
             if self.since_slip > hold {
                 self.out.active = false;
                 self.chain = 0;
+                self.since_fall = 0;
             }
         }
         self.out
@@ -338,8 +361,12 @@ impl StickSlipDetector {
         let need = if self.falling { 2 } else { 3 };
         if !self.out.active && self.chain >= need {
             self.out.active = true;
-            self.out.onset = true;
-            self.out.episodes = self.out.episodes.wrapping_add(1);
+            // Within `window_ms` of the flag's fall it is the same episode (the truth's
+            // definition joins cycles ≤ 2 s apart): the flag rises again, no new onset.
+            if self.since_fall > self.window_ticks {
+                self.out.onset = true;
+                self.out.episodes = self.out.episodes.wrapping_add(1);
+            }
         }
     }
 
@@ -382,6 +409,7 @@ mod tests {
         head: usize,
         filled: usize,
         prev_ref: f64,
+        prev_accel: f64,
         steady: u32,
         peak: f64,
         in_event: u32,
@@ -390,6 +418,7 @@ mod tests {
         interval: u32,
         chain: u32,
         falling: bool,
+        since_fall: u32,
         active: bool,
         amplitude: f64,
         episodes: u32,
@@ -413,6 +442,7 @@ mod tests {
                 head: 0,
                 filled: 0,
                 prev_ref: 0.0,
+                prev_accel: 0.0,
                 steady: 0,
                 peak: 0.0,
                 in_event: 0,
@@ -421,6 +451,7 @@ mod tests {
                 interval: 0,
                 chain: 0,
                 falling,
+                since_fall: u32::MAX,
                 active: false,
                 amplitude: 0.0,
                 episodes: 0,
@@ -450,12 +481,15 @@ mod tests {
             self.filled = (self.filled + 1).min(4);
             let mean = self.ring.iter().sum::<f64>() / 4.0;
             self.since = self.since.saturating_add(1);
-            if reference != self.prev_ref || reference == 0.0 {
+            self.since_fall = self.since_fall.saturating_add(1);
+            let accel = reference - self.prev_ref;
+            if reference == 0.0 || (accel - self.prev_accel).abs() > 2.0 / 65536.0 {
                 self.steady = 0;
             } else {
                 self.steady += 1;
             }
             self.prev_ref = reference;
+            self.prev_accel = accel;
             let mut slip = false;
             if self.steady < self.settle || self.filled < 4 {
                 self.peak = mean;
@@ -486,7 +520,9 @@ mod tests {
                     let need = if self.falling { 2 } else { 3 };
                     if !self.active && self.chain >= need {
                         self.active = true;
-                        self.episodes += 1;
+                        if self.since_fall > self.window {
+                            self.episodes += 1;
+                        }
                     }
                 }
             }
@@ -495,6 +531,7 @@ mod tests {
                 if self.since > hold {
                     self.active = false;
                     self.chain = 0;
+                    self.since_fall = 0;
                 }
             }
             (slip, self.active)
@@ -623,18 +660,66 @@ mod tests {
     }
 
     #[test]
-    fn ramping_reference_is_ignored() {
+    fn changing_acceleration_is_ignored() {
         let l = law(FrictionLaw::DRY);
         let mut d = StickSlipDetector::new(&cfg("0.5"), 1000);
         for ms in 0..400i32 {
-            // The reference changes every tick: a ramp. Torque drops 10 N·m every 50 ms.
+            // The acceleration changes every tick (an S-curve). Torque drops 10 N·m every 50 ms.
             let t = NewtonMetres::from_f64(30.0 - 10.0 * f64::from(ms % 50 / 49));
             let x = DetectorInputs {
-                reference: RadiansPerSecond::from_raw(1000 + ms),
+                reference: RadiansPerSecond::from_raw(1000 + 10 * ms * ms),
                 ..drive(t, "3")
             };
             assert!(!d.step(&x, &l).slip);
         }
+    }
+
+    #[test]
+    fn slips_count_during_a_constant_acceleration_ramp_but_not_at_its_end() {
+        let l = law(FrictionLaw::DRY);
+        let mut d = StickSlipDetector::new(&cfg("0.5"), 1000);
+        let mut slips = Vec::new();
+        for ms in 0..300i32 {
+            // Ramp for 200 ms, then cruise. Inertia torque 9 N·m during the ramp (it falls away
+            // a tick after its end: the current answers the previous tick's command), slips of
+            // 5 N·m every 40 ms from 60 to 180 ms.
+            let inertia = if ms <= 200 { 9.0 } else { 0.0 };
+            let slip = if (60..=180).contains(&ms) && ms % 40 >= 38 { -5.0 } else { 0.0 };
+            let t = NewtonMetres::from_f64(20.0 + inertia + slip);
+            let x = DetectorInputs {
+                reference: RadiansPerSecond::from_raw(1000 + 300 * ms.min(200)),
+                ..drive(t, "3")
+            };
+            if d.step(&x, &l).slip {
+                slips.push(ms);
+            }
+        }
+        assert_eq!(slips.len(), 3, "{slips:?}");
+        assert!(slips.iter().all(|&ms| ms < 200), "{slips:?}");
+        assert_eq!(d.output().episodes, 1);
+    }
+
+    #[test]
+    fn a_pause_within_the_window_continues_the_episode() {
+        let l = law(FrictionLaw::DRY);
+        let mut d = StickSlipDetector::new(&cfg("0.5"), 1000);
+        let mut onsets = 0;
+        let mut fell = false;
+        for ms in 0..3000u32 {
+            // Stick-slip every 50 ms, a 400 ms pause (the flag falls after 250 ms), again.
+            let t = if (600..1000).contains(&ms) {
+                20.0
+            } else {
+                sawtooth(ms, 50, 20.0, 10.0)
+            };
+            let o = d.step(&drive(NewtonMetres::from_f64(t), "3"), &l);
+            onsets += u32::from(o.onset);
+            fell |= ms > 600 && ms < 1000 && !o.active;
+        }
+        assert!(fell, "the flag fell in the pause");
+        assert!(d.output().active);
+        assert_eq!(onsets, 1);
+        assert_eq!(d.output().episodes, 1);
     }
 
     proptest! {

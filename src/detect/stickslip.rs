@@ -86,7 +86,7 @@ impl StickSlipConfig {
     /// escape at 1.5 rad/s.
     pub const DEFAULT: StickSlipConfig = StickSlipConfig {
         reaction: Reaction::Warn,
-        drop_threshold: NewtonMetres::lit("1.5"),
+        drop_threshold: NewtonMetres::lit("0.5"),
         window_ms: 2000,
         escape_speed: RadiansPerSecond::lit("1.5"),
     };
@@ -126,8 +126,8 @@ pub const SETTLE_MS: u32 = 25;
 /// Tolerance on the reference's second difference that still counts as a constant
 /// acceleration, Q16 rad/s per tick² (the profile's rounding moves it by 1 LSB).
 const ACCEL_TOL: i32 = 2;
-/// A slip's fall is measured over this long after it crossed the threshold; no new slip
-/// starts meanwhile, ms.
+/// A slip lasts until its fall has made no new low for this long; no new slip starts
+/// meanwhile, ms.
 pub const EVENT_MS: u32 = 8;
 /// The flag holds at least this long after the last slip, ms.
 pub const MIN_HOLD_MS: u32 = 250;
@@ -202,7 +202,7 @@ pub struct StickSlipDetector {
 const NOISE_SHIFT: u32 = 6;
 /// The slip threshold is at least this many times the noise level (|second difference| of white
 /// noise averages 1.95 σ; the 4-tick mean has σ/2, so 2× is ≈ 8 σ of the mean).
-const NOISE_GAIN: i32 = 3;
+const NOISE_GAIN: i32 = 2;
 
 impl StickSlipDetector {
     /// A detector for a validated configuration at a tick of `tick_us` µs (100…10 000).
@@ -318,11 +318,18 @@ impl StickSlipDetector {
                 self.falling = falling_branch(law, x.reference);
                 self.out.falling_branch = self.falling;
             }
-            self.peak = self.peak.saturating_sub(self.leak).max(mean);
+            // The peak holds during a slip (no leak) and the slip lasts until the torque has not
+            // made a new low for EVENT_MS: a large unwinding (40 N·m over 10 ms) is one slip.
+            let leak = if self.in_event > 0 { 0 } else { self.leak };
+            self.peak = self.peak.saturating_sub(leak).max(mean);
             let drop = self.peak.saturating_sub(mean);
             if self.in_event > 0 {
-                self.event_drop = self.event_drop.max(drop);
-                self.in_event += 1;
+                if drop > self.event_drop {
+                    self.event_drop = drop;
+                    self.in_event = 1;
+                } else {
+                    self.in_event += 1;
+                }
                 if self.in_event > self.event_ticks {
                     self.in_event = 0;
                     self.out.amplitude = NewtonMetres::from_raw(self.event_drop);
@@ -495,17 +502,22 @@ mod tests {
                 self.peak = mean;
                 self.in_event = 0;
             } else {
-                self.peak = (self.peak - self.leak).max(mean);
+                let leak = if self.in_event > 0 { 0.0 } else { self.leak };
+                self.peak = (self.peak - leak).max(mean);
                 let drop = self.peak - mean;
                 if self.in_event > 0 {
-                    self.event_drop = self.event_drop.max(drop);
-                    self.in_event += 1;
+                    if drop > self.event_drop {
+                        self.event_drop = drop;
+                        self.in_event = 1;
+                    } else {
+                        self.in_event += 1;
+                    }
                     if self.in_event > self.event {
                         self.in_event = 0;
                         self.amplitude = self.event_drop;
                         self.peak = mean;
                     }
-                } else if drop >= self.thr.max(3.0 * self.noise) {
+                } else if drop >= self.thr.max(2.0 * self.noise) {
                     slip = true;
                     self.in_event = 1;
                     self.event_drop = drop;
@@ -751,7 +763,7 @@ mod tests {
                 // The Q16 mean truncates by < 1 LSB: skip cases that land that close to ties.
                 // The noise EWMA rounds (≤ ½ LSB per tick, ≤ 32 LSB in steady state, plus the
                 // clipping of its input): skip cases within that of the threshold.
-                let thr = twin.thr.max(3.0 * twin.noise);
+                let thr = twin.thr.max(2.0 * twin.noise);
                 let near_tie = (twin.peak - twin.ring.iter().sum::<f64>() / 4.0 - thr).abs() < 80.0 / 65536.0;
                 if near_tie { return Ok(()); }
                 prop_assert_eq!(o.slip, slip, "tick {}", ms);

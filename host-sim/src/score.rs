@@ -292,8 +292,6 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
     } else {
         Command::Down
     };
-    let trace_id: Option<usize> = std::env::var("SS_TRACE").ok().and_then(|v| v.parse().ok());
-    let sid = s.id;
     let driver = Driver::Custom(Box::new(move |t: f64, inputs: &Inputs| {
         let mut g = inner.lock().unwrap_or_else(|p| p.into_inner());
         let (c, log, sent) = &mut *g;
@@ -317,10 +315,6 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
         if log.moved && !moving && log.motion_end.is_none() {
             log.motion_end = Some(t);
         }
-        if trace_id == Some(sid) {
-            let o = c.stick_slip_output();
-            eprintln!("TR {:.4} {:.3} {:.3} {} {} {:.3}", t, c.estimate().measured_screw_torque.to_f64(), c.estimate().screw_speed.to_f64(), u8::from(o.slip), u8::from(o.active), c.stick_slip_noise());
-        }
         out.bridge
     }));
     let mut sim = match Sim::new(cfg, driver) {
@@ -334,11 +328,6 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
         g.1.motion_end.unwrap_or(stop_at).min(stop_at)
     };
     let labels = truth::label(&sim.trace.phases, k, (0.0, motion_end), &sc.truth);
-    if trace_id == Some(sid) {
-        for p in &sim.trace.phases {
-            eprintln!("PH {:.5} {:?} {:.4}", p.t, p.phase, p.twist * k);
-        }
-    }
     drop(sim);
     let g = shared.lock().unwrap_or_else(|p| p.into_inner());
     RunResult {

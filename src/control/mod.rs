@@ -594,11 +594,6 @@ impl Controller {
     }
 
     /// The stick-slip detector's report of the last tick.
-    /// TEMP
-    pub fn stick_slip_noise(&self) -> f64 {
-        self.stick_slip.noise_f64()
-    }
-
     pub fn stick_slip_output(&self) -> &crate::detect::stickslip::StickSlipOutput {
         self.stick_slip.output()
     }

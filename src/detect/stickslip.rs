@@ -237,11 +237,6 @@ impl StickSlipDetector {
         }
     }
 
-    /// TEMP
-    pub fn noise_f64(&self) -> f64 {
-        f64::from(self.noise) / 65536.0
-    }
-
     /// The last report.
     pub fn output(&self) -> &StickSlipOutput {
         &self.out

@@ -546,6 +546,48 @@ mod tests {
         episodes: u32,
         last: [f64; 2],
         noise: f64,
+        per: PerTwin,
+        per_run: u32,
+        per_min: f64,
+    }
+
+    /// The float64 twin of [`Periodicity`].
+    #[derive(Clone, Default)]
+    struct PerTwin {
+        x: [f64; 3],
+        hist: Vec<f64>,
+        filled: usize,
+        seen: u32,
+        c0: f64,
+        c: [f64; LAG_MAX - LAG_MIN + 1],
+    }
+
+    impl PerTwin {
+        fn step(&mut self, x: f64, min_power: f64) -> bool {
+            let d = (x - self.x[0] - self.x[1] + self.x[2]).clamp(-64.0, 64.0);
+            self.x = [x, self.x[0], self.x[1]];
+            if self.filled < 3 {
+                self.filled += 1;
+                return false;
+            }
+            self.hist.insert(0, d);
+            self.hist.truncate(LAG_MAX + 1);
+            if self.filled <= LAG_MAX + 3 {
+                self.filled += 1;
+                return false;
+            }
+            self.c0 += (d * d - self.c0) / 256.0;
+            for (k, c) in self.c.iter_mut().enumerate() {
+                *c += (d * self.hist[LAG_MIN + k] - *c) / 256.0;
+            }
+            self.seen += 1;
+            let best = self.best();
+            self.seen >= 256 && best >= min_power && best * 10.0 >= 3.0 * self.c0
+        }
+
+        fn best(&self) -> f64 {
+            self.c.iter().copied().fold(f64::MIN, f64::max)
+        }
     }
 
     impl Twin {
@@ -579,6 +621,21 @@ mod tests {
                 episodes: 0,
                 last: [0.0; 2],
                 noise: 0.0,
+                per: PerTwin::default(),
+                per_run: 0,
+                per_min: {
+                    let t = ((thr * 65536.0).round() as i64) * 2 / 5;
+                    ((t * t) >> 16).max(1) as f64 / 65536.0
+                },
+            }
+        }
+
+        fn raise(&mut self) {
+            if !self.active {
+                self.active = true;
+                if self.since_fall > self.window {
+                    self.episodes += 1;
+                }
             }
         }
 
@@ -616,7 +673,18 @@ mod tests {
             if self.steady < self.settle || self.filled < 4 {
                 self.peak = mean;
                 self.in_event = 0;
+                self.per = PerTwin::default();
+                self.per_run = 0;
             } else {
+                self.per_run = if self.per.step(torque, self.per_min) {
+                    self.per_run + 1
+                } else {
+                    0
+                };
+                if self.per_run >= PER_TICKS {
+                    self.since = 0;
+                    self.raise();
+                }
                 let leak = if self.in_event > 0 { 0.0 } else { self.leak };
                 self.peak = (self.peak - leak).max(mean);
                 let drop = self.peak - mean;
@@ -645,11 +713,8 @@ mod tests {
                     }
                     self.since = 0;
                     let need = if self.falling { 2 } else { 3 };
-                    if !self.active && self.chain >= need {
-                        self.active = true;
-                        if self.since_fall > self.window {
-                            self.episodes += 1;
-                        }
+                    if self.chain >= need {
+                        self.raise();
                     }
                 }
             }
@@ -847,6 +912,103 @@ mod tests {
         assert!(d.output().active);
         assert_eq!(onsets, 1);
         assert_eq!(d.output().episodes, 1);
+    }
+
+    /// A 7-tick sawtooth of `pp` N·m (6 ticks up, 1 down) plus uniform noise of ±`noise`.
+    fn fast_sawtooth(n: u32, pp: f64, noise: f64, x: &mut u32) -> f64 {
+        *x = x.wrapping_mul(1_103_515_245).wrapping_add(12345);
+        let u = f64::from(*x >> 16) / 65536.0 * 2.0 - 1.0;
+        let ph = n % 7;
+        let saw = if ph == 6 { 0.0 } else { pp * f64::from(ph) / 6.0 };
+        20.0 + saw + noise * u
+    }
+
+    #[test]
+    fn periodicity_finds_a_fast_sawtooth_in_noise() {
+        let mut p = Periodicity::default();
+        let mut x: u32 = 7;
+        let min = 2621; // 0.04 N·m²
+        let first = (0..2000u32)
+            .position(|n| p.step(NewtonMetres::from_f64(fast_sawtooth(n, 0.8, 0.15, &mut x)).bits(), min))
+            .expect("periodic");
+        // The EWMAs decide after 256 ticks.
+        assert!((259..400).contains(&first), "{first}");
+    }
+
+    #[test]
+    fn periodicity_ignores_noise_ramps_and_two_code_dither() {
+        let min = 2621;
+        let mut x: u32 = 99;
+        let mut p = Periodicity::default();
+        for n in 0..20_000u32 {
+            // Uniform noise of ±0.3 N·m on a ramp that changes slope every 300 ticks.
+            x = x.wrapping_mul(1_103_515_245).wrapping_add(12345);
+            let u = f64::from(x >> 16) / 65536.0 * 0.6 - 0.3;
+            let slope = if (n / 300) % 2 == 0 { 0.4 } else { -0.1 };
+            let t = 30.0 + slope * f64::from(n % 300) + u;
+            assert!(!p.step(NewtonMetres::from_f64(t).bits(), min), "noise at {n}");
+        }
+        let mut p = Periodicity::default();
+        for n in 0..5000u32 {
+            // The current dithering between two codes (0.066 N·m apart) every tick.
+            let t = 47.4 + 0.066 * f64::from(n % 2);
+            assert!(!p.step(NewtonMetres::from_f64(t).bits(), min), "dither at {n}");
+        }
+    }
+
+    #[test]
+    fn fast_stick_slip_below_the_drop_threshold_raises_the_flag() {
+        let l = law(FrictionLaw::DRY);
+        let mut d = StickSlipDetector::new(&cfg("0.5"), 1000);
+        let mut x: u32 = 3;
+        let mut onset = None;
+        for n in 0..1000u32 {
+            let t = fast_sawtooth(n, 0.8, 0.1, &mut x);
+            let o = d.step(&drive(NewtonMetres::from_f64(t), "2"), &l);
+            assert!(!o.slip, "no slip at {n}: the ripple is below the drop threshold");
+            if o.onset {
+                onset = Some(n);
+            }
+        }
+        let n = onset.expect("an onset");
+        assert!((280..450).contains(&n), "{n}");
+        assert_eq!(d.output().episodes, 1);
+    }
+
+    proptest! {
+        /// The fixed-point periodicity test agrees with its float64 twin: the autocorrelations
+        /// within their budget (each EWMA step floors twice, ≤ 2 LSB of Q16; with the 1/256
+        /// decay that bounds the error at 512 LSB, 0.0078 N·m²), and the decision wherever the
+        /// twin is not within that budget of a threshold.
+        #[test]
+        fn periodicity_matches_its_float_twin(
+            steps in proptest::collection::vec((-2.0f64..2.0, 0u8..7), 300..1200),
+            period in 5u32..17,
+        ) {
+            let mut p = Periodicity::default();
+            let mut twin = PerTwin::default();
+            let min = 2621i64;
+            let mut t = 0.0;
+            for (n, (noise, kind)) in steps.into_iter().enumerate() {
+                // A sawtooth of the drawn period plus noise, sometimes a jump.
+                let saw = f64::from(n as u32 % period) * 0.15;
+                t = if kind == 0 { t + noise * 10.0 } else { t * 0.99 };
+                let tq = NewtonMetres::from_f64(20.0 + saw + noise * 0.1 + t.clamp(-100.0, 100.0));
+                let a = p.step(tq.bits(), min);
+                let b = twin.step(tq.to_f64(), min as f64 / 65536.0);
+                let budget = 512.0 / 65536.0;
+                prop_assert!((p.c0 as f64 / 65536.0 - twin.c0).abs() <= budget);
+                for k in 0..p.c.len() {
+                    prop_assert!((p.c[k] as f64 / 65536.0 - twin.c[k]).abs() <= budget);
+                }
+                let best = twin.best();
+                let near = (best - min as f64 / 65536.0).abs() <= budget
+                    || (best * 10.0 - 3.0 * twin.c0).abs() <= 13.0 * budget;
+                if !near {
+                    prop_assert_eq!(a, b, "tick {}", n);
+                }
+            }
+        }
     }
 
     proptest! {

@@ -352,7 +352,11 @@ mod tests {
                 .map(|r| (r.position - (i64::from(to) << 32)) * dir)
                 .max()
                 .unwrap();
-            assert!(worst <= 1 << 28, "passed the target by {} counts", worst >> 32);
+            assert!(
+                worst <= 1 << 28,
+                "passed the target by {} counts",
+                worst >> 32
+            );
             assert!(refs.iter().all(|r| r.speed * dir >= 0), "moved backwards");
         }
     }

@@ -255,9 +255,8 @@ impl Periodicity {
     /// once the history holds 3 torques and LAG_MAX filtered values, and decide after
     /// 2^PER_SHIFT ticks).
     pub fn step(&mut self, x: i32, min_power: i64) -> bool {
-        let d = (i64::from(x) - i64::from(self.x[0]) - i64::from(self.x[1])
-            + i64::from(self.x[2]))
-        .clamp(-DIFF_CLIP, DIFF_CLIP);
+        let d = (i64::from(x) - i64::from(self.x[0]) - i64::from(self.x[1]) + i64::from(self.x[2]))
+            .clamp(-DIFF_CLIP, DIFF_CLIP);
         self.x = [x, self.x[0], self.x[1]];
         if self.filled < 3 {
             self.filled += 1;
@@ -410,9 +409,7 @@ impl StickSlipDetector {
             self.periodicity.reset();
             self.periodic_run = 0;
         } else {
-            let periodic = self
-                .periodicity
-                .step(p, self.per_min);
+            let periodic = self.periodicity.step(p, self.per_min);
             self.periodic_run = if periodic {
                 self.periodic_run.saturating_add(1)
             } else {
@@ -876,7 +873,11 @@ mod tests {
             // a tick after its end: the current answers the previous tick's command), slips of
             // 5 N·m every 40 ms from 60 to 180 ms.
             let inertia = if ms <= 200 { 9.0 } else { 0.0 };
-            let slip = if (60..=180).contains(&ms) && ms % 40 >= 38 { -5.0 } else { 0.0 };
+            let slip = if (60..=180).contains(&ms) && ms % 40 >= 38 {
+                -5.0
+            } else {
+                0.0
+            };
             let t = NewtonMetres::from_f64(20.0 + inertia + slip);
             let x = DetectorInputs {
                 reference: RadiansPerSecond::from_raw(1000 + 300 * ms.min(200)),
@@ -919,7 +920,11 @@ mod tests {
         *x = x.wrapping_mul(1_103_515_245).wrapping_add(12345);
         let u = f64::from(*x >> 16) / 65536.0 * 2.0 - 1.0;
         let ph = n % 7;
-        let saw = if ph == 6 { 0.0 } else { pp * f64::from(ph) / 6.0 };
+        let saw = if ph == 6 {
+            0.0
+        } else {
+            pp * f64::from(ph) / 6.0
+        };
         20.0 + saw + noise * u
     }
 
@@ -929,7 +934,12 @@ mod tests {
         let mut x: u32 = 7;
         let min = 2621; // 0.04 N·m²
         let first = (0..2000u32)
-            .position(|n| p.step(NewtonMetres::from_f64(fast_sawtooth(n, 0.8, 0.15, &mut x)).bits(), min))
+            .position(|n| {
+                p.step(
+                    NewtonMetres::from_f64(fast_sawtooth(n, 0.8, 0.15, &mut x)).bits(),
+                    min,
+                )
+            })
             .expect("periodic");
         // The EWMAs decide after 256 ticks.
         assert!((259..400).contains(&first), "{first}");
@@ -946,13 +956,19 @@ mod tests {
             let u = f64::from(x >> 16) / 65536.0 * 0.6 - 0.3;
             let slope = if (n / 300) % 2 == 0 { 0.4 } else { -0.1 };
             let t = 30.0 + slope * f64::from(n % 300) + u;
-            assert!(!p.step(NewtonMetres::from_f64(t).bits(), min), "noise at {n}");
+            assert!(
+                !p.step(NewtonMetres::from_f64(t).bits(), min),
+                "noise at {n}"
+            );
         }
         let mut p = Periodicity::default();
         for n in 0..5000u32 {
             // The current dithering between two codes (0.066 N·m apart) every tick.
             let t = 47.4 + 0.066 * f64::from(n % 2);
-            assert!(!p.step(NewtonMetres::from_f64(t).bits(), min), "dither at {n}");
+            assert!(
+                !p.step(NewtonMetres::from_f64(t).bits(), min),
+                "dither at {n}"
+            );
         }
     }
 
@@ -965,7 +981,10 @@ mod tests {
         for n in 0..1000u32 {
             let t = fast_sawtooth(n, 0.8, 0.1, &mut x);
             let o = d.step(&drive(NewtonMetres::from_f64(t), "2"), &l);
-            assert!(!o.slip, "no slip at {n}: the ripple is below the drop threshold");
+            assert!(
+                !o.slip,
+                "no slip at {n}: the ripple is below the drop threshold"
+            );
             if o.onset {
                 onset = Some(n);
             }

@@ -268,11 +268,13 @@ impl Periodicity {
             self.filled += 1;
             return false;
         }
-        self.c0 += ((d * d >> 16) - self.c0) >> PER_SHIFT;
+        // |d| ≤ 2^22: every product is one 32 × 32 → 64-bit multiply.
+        let d32 = d as i32;
+        self.c0 += ((i64::from(d32) * i64::from(d32) >> 16) - self.c0) >> PER_SHIFT;
         let mut best = i64::MIN;
         for (k, c) in self.c.iter_mut().enumerate() {
             let old = self.hist[(self.head + LAG_MAX + 1 - (LAG_MIN + k)) % (LAG_MAX + 1)];
-            *c += ((d * i64::from(old) >> 16) - *c) >> PER_SHIFT;
+            *c += ((i64::from(d32) * i64::from(old) >> 16) - *c) >> PER_SHIFT;
             best = best.max(*c);
         }
         self.seen = self.seen.saturating_add(1);
@@ -347,7 +349,9 @@ impl StickSlipDetector {
         self.prev_reference = 0;
         self.prev_accel = 0;
         self.since_fall = u32::MAX;
-        self.periodicity.reset();
+        if self.periodicity.filled != 0 {
+            self.periodicity.reset();
+        }
         self.periodic_run = 0;
         self.last = [0; 2];
         self.steady = 0;
@@ -406,7 +410,9 @@ impl StickSlipDetector {
         if self.steady < self.settle_ticks || self.filled < MEAN_LEN {
             self.peak = mean;
             self.in_event = 0;
-            self.periodicity.reset();
+            if self.periodicity.filled != 0 {
+                self.periodicity.reset();
+            }
             self.periodic_run = 0;
         } else {
             let periodic = self.periodicity.step(p, self.per_min);

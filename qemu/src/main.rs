@@ -377,6 +377,8 @@ fn cruise_inputs(k: usize) -> Inputs {
     let (_, m) = motion(k);
     Inputs {
         encoder_count: m.position_counts as u16,
+        // Edges timed to the tick (a board without the capture): the same work as a real age.
+        encoder_edge_age: 0,
         current_raw: 2048 + 621, // 20 A at 32.227 mA per code
         supply_raw: 2820,        // 12.6 V at 4.468 mV per code
         switches: Switches(0),

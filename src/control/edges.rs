@@ -27,7 +27,7 @@
 //! A board without edge capture passes an age of 0: the edges are then timed to the tick
 //! (1 ms), still far better than the bare count while creeping (one tick in eleven).
 //!
-//! Integer only: Q16 counts, µs; one 64-bit division per tick on which the count changed.
+//! Integer only: Q16 counts, µs; one 32-bit division per tick on which the count changed.
 
 use crate::units::Instant;
 
@@ -36,8 +36,13 @@ use crate::units::Instant;
 pub const SPAN_US: u32 = 100_000;
 /// Edge events kept (the newest and 4 before it).
 const EVENTS: usize = 5;
-/// Largest |slope|, Q32 counts per µs (16 counts per µs: far beyond any motor).
-const SLOPE_MAX: i64 = 1 << 36;
+/// Largest count change over the slope's span: a glitch cannot overflow the slope (at the
+/// fastest drive, ≈ 2.3 counts per tick, 4 intervals span ≈ 10 counts).
+const SPAN_COUNTS_MAX: i64 = 255;
+/// Fraction bits of the slope, counts per µs (Q23: 255 counts · 2^23 fits an i32, so the
+/// slope is one 32-bit division; its truncation, < 2^−23 counts/µs, is 2^−7 LSB of the Q16
+/// position per µs of extrapolation).
+const SLOPE_FRAC: u32 = 23;
 /// Largest age used for the extrapolation, µs (the clamp bounds the result anyway).
 const AGE_MAX: u32 = 1 << 20;
 
@@ -60,8 +65,8 @@ pub struct EdgeInterpolator {
     valid: usize,
     /// Direction of the valid events: +1 counting up, −1 down.
     dir: i32,
-    /// Slope through the valid events, Q32 counts per µs.
-    slope: i64,
+    /// Slope through the valid events, Q23 counts per µs.
+    slope: i32,
     /// Count and time of the previous sample.
     last: Option<(i32, Instant)>,
 }
@@ -123,7 +128,8 @@ impl EdgeInterpolator {
         }
         let newest = self.events[self.head];
         let age = now.0.wrapping_sub(newest.t).min(AGE_MAX);
-        let p = (i64::from(newest.at) << 16) + ((self.slope * i64::from(age)) >> 16);
+        let p = (i64::from(newest.at) << 16)
+            + ((i64::from(self.slope) * i64::from(age)) >> (SLOPE_FRAC - 16));
         p.clamp(base, base + 0xFFFF)
     }
 
@@ -148,10 +154,12 @@ impl EdgeInterpolator {
         }
         self.slope = match oldest {
             Some(o) => {
-                let dt = i64::from(e.t.wrapping_sub(o.t));
-                let dp = i64::from(e.at) - i64::from(o.at);
+                // dt ≤ SPAN_US < 2^31 (the search above).
+                let dt = e.t.wrapping_sub(o.t) as i32;
+                let dp = (i64::from(e.at) - i64::from(o.at))
+                    .clamp(-SPAN_COUNTS_MAX, SPAN_COUNTS_MAX) as i32;
                 if dt > 0 {
-                    ((dp << 32) / dt).clamp(-SLOPE_MAX, SLOPE_MAX)
+                    (dp << SLOPE_FRAC) / dt
                 } else {
                     0
                 }
@@ -348,7 +356,8 @@ mod tests {
         /// The fixed-point interpolator agrees with its float64 twin on any sequence of counts
         /// and ages (random walks, reversals, stale ages, the µs clock wrapping) within its
         /// error budget: 1 LSB of Q16 for the final truncation, plus the slope's truncation
-        /// (< 2^−32 counts/µs) times the age, i.e. 1 LSB per 65.5 ms since the last edge.
+        /// (< 2^−23 counts/µs) times the age, i.e. 1 LSB per 128 µs since the last edge (a
+        /// 0.001-count error after 11 ms, the longest edge interval when creeping).
         #[test]
         fn interpolator_matches_float_twin(
             steps in proptest::collection::vec((-3i32..=3, 0u16..=3000, 500u32..=1500), 1..300),
@@ -365,7 +374,7 @@ mod tests {
                 let p = e.update(Instant((t as u64 % (1u64 << 32)) as u32), count, age);
                 let q = twin.update(t, count, f64::from(age));
                 let since = twin.events.last().map_or(0.0, |&(_, te)| t - te);
-                let budget = (1.0 + since / 65536.0 + 0.5) / 65536.0;
+                let budget = (1.0 + since / 128.0 + 0.5) / 65536.0;
                 prop_assert!((p as f64 / 65536.0 - q).abs() <= budget,
                     "{} vs {}", p as f64 / 65536.0, q);
             }

@@ -232,9 +232,10 @@ impl Monitors {
         // The margin is a fraction of the model torque's size: lowering an overhauling load the
         // projected model torque is negative, and scaling it by (1 + margin) moved the limit
         // below the model, so a motor holding back *less* than the model tripped "overload".
-        let limit = s
-            .model_torque
-            .sat_add(qmul::<_, _, NewtonMetres>(s.model_torque.sat_abs(), l.overload_margin));
+        let limit = s.model_torque.sat_add(qmul::<_, _, NewtonMetres>(
+            s.model_torque.sat_abs(),
+            l.overload_margin,
+        ));
         let over =
             s.overload_armed && s.measured_torque > limit.sat_add(const { NewtonMetres::lit("2") });
         if count(&mut self.overload, over) >= l.overload_ticks {

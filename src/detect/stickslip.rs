@@ -236,14 +236,20 @@ const PER_TICKS: u32 = 32;
 pub struct Periodicity {
     /// The last three torques, newest first.
     x: [i32; 3],
-    hist: [i32; LAG_MAX + 1],
+    /// Filtered values, a power-of-two ring (index by mask, no division), newest at `head`.
+    hist: [i32; HIST_LEN],
     head: usize,
     filled: usize,
     /// Ticks the EWMAs have run: no decision before they have settled (2^PER_SHIFT).
     seen: u32,
-    c0: i64,
-    c: [i64; LAG_MAX - LAG_MIN + 1],
+    /// EWMAs of h² and h·h₋ₗ, Q16 N·m²: |h| ≤ 2^22 (the clip), so every product >> 16 and
+    /// every EWMA stays within ±2^28, in i32.
+    c0: i32,
+    c: [i32; LAG_MAX - LAG_MIN + 1],
 }
+
+/// Length of the periodicity history ring (≥ LAG_MAX + 1, a power of two).
+const HIST_LEN: usize = 32;
 
 impl Periodicity {
     /// Forget everything.
@@ -262,23 +268,26 @@ impl Periodicity {
             self.filled += 1;
             return false;
         }
-        self.head = (self.head + 1) % (LAG_MAX + 1);
-        self.hist[self.head] = d as i32;
+        // |d| ≤ 2^22: every product is one 32 × 32 → 64-bit multiply, its >> 16 an i32.
+        let d32 = d as i32;
+        self.head = (self.head + 1) & (HIST_LEN - 1);
+        self.hist[self.head] = d32;
         if self.filled <= LAG_MAX + 3 {
             self.filled += 1;
             return false;
         }
-        // |d| ≤ 2^22: every product is one 32 × 32 → 64-bit multiply.
-        let d32 = d as i32;
-        self.c0 += ((i64::from(d32) * i64::from(d32) >> 16) - self.c0) >> PER_SHIFT;
-        let mut best = i64::MIN;
+        let prod = |a: i32, b: i32| ((i64::from(a) * i64::from(b)) >> 16) as i32;
+        self.c0 += (prod(d32, d32) - self.c0) >> PER_SHIFT;
+        let mut best = i32::MIN;
         for (k, c) in self.c.iter_mut().enumerate() {
-            let old = self.hist[(self.head + LAG_MAX + 1 - (LAG_MIN + k)) % (LAG_MAX + 1)];
-            *c += ((i64::from(d32) * i64::from(old) >> 16) - *c) >> PER_SHIFT;
+            let old = self.hist[self.head.wrapping_sub(LAG_MIN + k) & (HIST_LEN - 1)];
+            *c += (prod(d32, old) - *c) >> PER_SHIFT;
             best = best.max(*c);
         }
         self.seen = self.seen.saturating_add(1);
-        self.seen >= 1 << PER_SHIFT && best >= min_power && best * PER_DEN >= PER_NUM * self.c0
+        self.seen >= 1 << PER_SHIFT
+            && i64::from(best) >= min_power
+            && i64::from(best) * PER_DEN >= PER_NUM * i64::from(self.c0)
     }
 }
 
@@ -321,7 +330,7 @@ impl StickSlipDetector {
             since_fall: u32::MAX,
             periodicity: Periodicity {
                 x: [0; 3],
-                hist: [0; LAG_MAX + 1],
+                hist: [0; HIST_LEN],
                 head: 0,
                 filled: 0,
                 seen: 0,

@@ -36,6 +36,8 @@ use crate::units::Instant;
 pub const SPAN_US: u32 = 100_000;
 /// Edge events kept (the newest and 4 before it).
 const EVENTS: usize = 5;
+/// The events' ring, a power of two ≥ EVENTS (indexed by mask, no division).
+const RING: usize = 8;
 /// Largest count change over the slope's span: a glitch cannot overflow the slope (at the
 /// fastest drive, ≈ 2.3 counts per tick, 4 intervals span ≈ 10 counts).
 const SPAN_COUNTS_MAX: i64 = 255;
@@ -59,7 +61,7 @@ struct EdgeEvent {
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct EdgeInterpolator {
     /// Events, newest at `head`.
-    events: [EdgeEvent; EVENTS],
+    events: [EdgeEvent; RING],
     head: usize,
     /// Valid events in the same direction (0…EVENTS).
     valid: usize,
@@ -75,7 +77,7 @@ impl EdgeInterpolator {
     /// No edges seen yet.
     pub const fn new() -> EdgeInterpolator {
         EdgeInterpolator {
-            events: [EdgeEvent { at: 0, t: 0 }; EVENTS],
+            events: [EdgeEvent { at: 0, t: 0 }; RING],
             head: 0,
             valid: 0,
             dir: 0,
@@ -139,13 +141,13 @@ impl EdgeInterpolator {
             self.valid = 0;
             self.dir = dir;
         }
-        self.head = (self.head + 1) % EVENTS;
+        self.head = (self.head + 1) & (RING - 1);
         self.events[self.head] = e;
         self.valid = (self.valid + 1).min(EVENTS);
         // Oldest valid event within the span.
         let mut oldest = None;
         for k in 1..self.valid {
-            let o = self.events[(self.head + EVENTS - k) % EVENTS];
+            let o = self.events[self.head.wrapping_sub(k) & (RING - 1)];
             if e.t.wrapping_sub(o.t) <= SPAN_US {
                 oldest = Some(o);
             } else {

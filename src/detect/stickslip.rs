@@ -242,8 +242,9 @@ pub struct Periodicity {
     filled: usize,
     /// Ticks the EWMAs have run: no decision before they have settled (2^PER_SHIFT).
     seen: u32,
-    /// EWMAs of h² and h·h₋ₗ, Q16 N·m²: |h| ≤ 2^22 (the clip), so every product >> 16 and
-    /// every EWMA stays within ±2^28, in i32.
+    /// EWMAs of h² and h·h₋ₗ, Q16 N·m², from h kept in Q8 (1/256 N·m, a 17th of one
+    /// current-sense code at the screw): |h| ≤ 2^14 after the clip, so every product is one
+    /// 32-bit multiply and every EWMA stays within ±2^28.
     c0: i32,
     c: [i32; LAG_MAX - LAG_MIN + 1],
 }
@@ -268,20 +269,19 @@ impl Periodicity {
             self.filled += 1;
             return false;
         }
-        // |d| ≤ 2^22: every product is one 32 × 32 → 64-bit multiply, its >> 16 an i32.
-        let d32 = d as i32;
+        let d32 = (d >> 8) as i32; // Q8, |d32| ≤ 2^14
+
         self.head = (self.head + 1) & (HIST_LEN - 1);
         self.hist[self.head] = d32;
         if self.filled <= LAG_MAX + 3 {
             self.filled += 1;
             return false;
         }
-        let prod = |a: i32, b: i32| ((i64::from(a) * i64::from(b)) >> 16) as i32;
-        self.c0 += (prod(d32, d32) - self.c0) >> PER_SHIFT;
+        self.c0 += (d32 * d32 - self.c0) >> PER_SHIFT;
         let mut best = i32::MIN;
         for (k, c) in self.c.iter_mut().enumerate() {
             let old = self.hist[self.head.wrapping_sub(LAG_MIN + k) & (HIST_LEN - 1)];
-            *c += (prod(d32, old) - *c) >> PER_SHIFT;
+            *c += (d32 * old - *c) >> PER_SHIFT;
             best = best.max(*c);
         }
         self.seen = self.seen.saturating_add(1);
@@ -577,6 +577,9 @@ mod tests {
     impl PerTwin {
         fn step(&mut self, x: f64, min_power: f64) -> bool {
             let d = (x - self.x[0] - self.x[1] + self.x[2]).clamp(-64.0, 64.0);
+            // Kept in Q8 like the detector (the quantisation is mirrored, the arithmetic
+            // checked).
+            let d = (d * 256.0).floor() / 256.0;
             self.x = [x, self.x[0], self.x[1]];
             if self.filled < 3 {
                 self.filled += 1;
@@ -1011,9 +1014,9 @@ mod tests {
 
     proptest! {
         /// The fixed-point periodicity test agrees with its float64 twin: the autocorrelations
-        /// within their budget (each EWMA step floors twice, ≤ 2 LSB of Q16; with the 1/256
-        /// decay that bounds the error at 512 LSB, 0.0078 N·m²), and the decision wherever the
-        /// twin is not within that budget of a threshold.
+        /// within their budget (each EWMA step floors once, < 1 LSB of Q16; with the 1/256
+        /// decay that bounds the error at 256 LSB, 0.0039 N·m²; the budget checked is twice
+        /// that), and the decision wherever the twin is not within the budget of a threshold.
         #[test]
         fn periodicity_matches_its_float_twin(
             steps in proptest::collection::vec((-2.0f64..2.0, 0u8..7), 300..1200),

@@ -10,7 +10,7 @@
 //! | encoder implausible | a jump faster than the motor can turn | the same tick |
 //! | under-voltage | supply below the run threshold while moving, for `supply_ms` | `supply_ms` |
 //! | over-voltage | supply above the maximum, for `supply_ms` | `supply_ms` |
-//! | overload | measured screw torque above the model's at rated load by the margin, for `overload_ms` | `overload_ms` |
+//! | overload | measured screw torque above the model's at rated load by the margin (a fraction of its size), for `overload_ms` | `overload_ms` |
 //! | runaway | travel while stopped beyond `runaway_travel`, or lowering faster than 1.5× the reference + 25 % of cruise for 100 ms | immediate / 100 ms |
 
 use super::config::ProtectionConfig;

@@ -12,18 +12,21 @@
 //! `threshold/16` per tick, so slow falls (the load changing with the arm angle) never count.
 //! A *slip* is a fall of the average below the peak by at least `drop_threshold`, or twice
 //! the torque's noise level if that is more (an EWMA of the clipped |second difference|:
-//! a steady wind-up ramp has none, the ADC noise and the speed loop's jitter do); its size
-//! (the largest fall within the next 8 ms) is the amplitude estimate, the coupling-torque
-//! drop per slip in N·m (divide by k for the twist). Slips closer together than
-//! `window_ms` form a chain; a chain of 2 slips (3 where the model says the operating point is
-//! on a rising branch of μ(θ̇)) raises the flag and counts an episode. The flag falls when
-//! no slip came for four of the last slip intervals (at least 250 ms, at most `window_ms`)
-//! or when the motion ends.
+//! a steady wind-up ramp has none, the ADC noise does); a slip lasts until its fall has made no
+//! new low for 8 ms, and its size is the amplitude estimate, the coupling-torque drop per
+//! slip in N·m (divide by k for the twist). Slips closer together than `window_ms` form a
+//! chain; a chain of 2 slips (3 where the model says the operating point is on a rising branch
+//! of μ(θ̇)) raises the flag and counts an episode. Fast stick-slip (periods of 5–16 ms), whose
+//! ripple the motor's electromechanical lag shrinks below any safe drop threshold, is found by
+//! its periodicity instead ([`Periodicity`]). The flag falls when no slip came for four of the
+//! last slip intervals (at least 250 ms, at most `window_ms`) or when the motion ends; a chain
+//! within `window_ms` of that fall raises it again as the same episode (no new onset).
 //!
-//! **When.** Only while the bridge drives a motion at a steady reference speed, from 50 ms
-//! after the reference stopped changing: a speed ramp moves the motor current by the rotor's
-//! inertia torque (≈ 9 N·m at the screw for the default 60 ms ramp to 3 rad/s), and the
-//! braking at the end of a move drops it to zero; neither is a slip.
+//! **When.** Only while the bridge drives a motion, from 25 ms after the reference's
+//! acceleration last changed: the start and the end of a ramp move the motor current by the
+//! rotor's inertia torque (≈ 9 N·m at the screw for the default 60 ms ramp to 3 rad/s), and the
+//! braking at the end of a move drops it to zero; neither is a slip. A constant-acceleration
+//! ramp is watched.
 //!
 //! **The model's part.** On the falling branch of μ(θ̇) (dμ/dθ̇ < 0 at the reference speed) the
 //! friction adds negative damping and sliding is unstable: two slips suffice. On a rising
@@ -31,7 +34,7 @@
 //! believes the current (a lubricant that wore off still shows up, one slip later).
 //!
 //! Everything is integer: Q16 N·m, tick counters; no division on the hot path. The float64
-//! twin and the property test that holds this to it are in this module's tests.
+//! twins and the property tests that hold this to them are in this module's tests.
 
 use crate::check_range as range;
 use crate::model::friction::CompiledLaw;
@@ -80,8 +83,8 @@ pub struct StickSlipConfig {
 }
 
 impl StickSlipConfig {
-    /// Warn; 1.5 N·m (above the 1–2 N·m torque ripple the speed loop makes at
-    /// encoder-limited speeds, docs/stick-slip.md); a 2 s chain window (the slowest
+    /// Warn; 0.5 N·m (tuned on the scored set's tuning seed, once the speed loop's ripple at
+    /// encoder-limited speeds was gone, docs/stick-slip.md); a 2 s chain window (the slowest
     /// stick-slip seen in host-sim, dry at 0.3 rad/s and rated load, cycles every 0.8 s);
     /// escape at 1.5 rad/s.
     pub const DEFAULT: StickSlipConfig = StickSlipConfig {

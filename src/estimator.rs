@@ -304,6 +304,14 @@ impl Estimator {
     /// which then builds the estimate in place instead of copying 100 bytes out of a temporary.
     #[inline]
     pub fn step(&mut self, now: Instant, m: &Measurements) -> Estimate {
+        self.step_at(now, m, 0)
+    }
+
+    /// One estimator tick with the speed filter fed the position between counts: `fraction`
+    /// (Q16 of a count, from the encoder's edge times: `crate::control::edges`) above
+    /// `m.position_counts`. `step` is this with 0, the bare count.
+    #[inline]
+    pub fn step_at(&mut self, now: Instant, m: &Measurements, fraction: u16) -> Estimate {
         let mut flags = 0u8;
         match self.last {
             None => self.reset(m.position_counts),
@@ -314,17 +322,20 @@ impl Estimator {
             }
         }
         self.last = Some(now);
-        // α-β-γ: predict one tick, correct with the measured count. The filter's position is
-        // kept relative to the last count (q = p − count·2^16), so the whole state is i32:
-        // residual r = count·2^16 − (p + v + a/2), then p ← p + α·r, i.e. q ← α·r − r.
+        // α-β-γ: predict one tick, correct with the measured position. The filter's position
+        // is kept relative to the last count (q = p − count·2^16), so the whole state is i32:
+        // residual r = count·2^16 + fraction − (p + v + a/2), then p ← p + α·r, i.e.
+        // q ← α·r − r + fraction.
         // The residual is saturated to i32 (±32 768 counts per tick, beyond any drive), so
         // each correction is one 32×32→64 product and the gains (≤ 1 in Q28) keep it in i32.
         let moved = i64::from(m.position_counts) - i64::from(self.last_counts);
         self.last_counts = m.position_counts;
         let predicted = i64::from(self.q) + i64::from(self.v) + i64::from(self.a >> 1);
-        let r = sat32((moved << 16) - predicted);
+        let r = sat32((moved << 16) + i64::from(fraction) - predicted);
         let correction = |g: i32| ((i64::from(r) * i64::from(g)) >> 28) as i32;
-        self.q = correction(self.gains[0]).saturating_sub(r);
+        self.q = correction(self.gains[0])
+            .saturating_sub(r)
+            .saturating_add(i32::from(fraction));
         self.v = self
             .v
             .saturating_add(self.a)

@@ -44,6 +44,7 @@ impl Bench {
             t: 0,
             inputs: Inputs {
                 encoder_count: 0,
+                encoder_edge_age: 0,
                 current_raw: 2048,
                 supply_raw: SUPPLY_OK,
                 switches: Default::default(),

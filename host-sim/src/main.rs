@@ -99,6 +99,9 @@ struct StickslipArgs {
     /// Integration step, s.
     #[arg(long, default_value_t = 4e-6)]
     dt: f64,
+    /// Override the detector's slip threshold `stickslip.drop`, N·m (for tuning).
+    #[arg(long)]
+    drop: Option<f64>,
     /// Parallel jobs [default: one per core].
     #[arg(long)]
     jobs: Option<usize>,
@@ -730,6 +733,7 @@ fn stickslip(a: &StickslipArgs) -> Result<(), Box<dyn std::error::Error>> {
     let wall = WallClock::now();
     let sc = ScoreConfig {
         dt: a.dt,
+        drop_threshold: a.drop,
         ..ScoreConfig::default()
     };
     let set = if a.quick {

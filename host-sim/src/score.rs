@@ -17,10 +17,10 @@ use crate::physics::{Geometry, Lubricant};
 use crate::sim::{Driver, Sim, SimConfig};
 use crate::truth::{self, Labels, TruthParams};
 use liftfw::control::config::ControlConfig;
-use liftfw::control::{Command, Controller, Event, Inputs};
+use liftfw::control::{Command, Controller, Event, Inputs, State};
 use liftfw::detect::stickslip::Reaction;
 use liftfw::model::friction::FrictionLaw;
-use liftfw::units::{Instant, Metres, RadiansPerSecond};
+use liftfw::units::{Instant, Metres, NewtonMetres, RadiansPerSecond};
 use rand::{RngExt, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use std::fmt;
@@ -199,6 +199,8 @@ pub struct ScoreConfig {
     pub truth: TruthParams,
     /// The detector's escape speed for the `speed` reaction, rad/s.
     pub escape_speed: f64,
+    /// The detector's slip threshold (`stickslip.drop`), N·m; `None`: the default.
+    pub drop_threshold: Option<f64>,
 }
 
 impl Default for ScoreConfig {
@@ -207,6 +209,7 @@ impl Default for ScoreConfig {
             dt: 4e-6,
             truth: TruthParams::default(),
             escape_speed: 1.5,
+            drop_threshold: None,
         }
     }
 }
@@ -226,6 +229,10 @@ pub struct RunResult {
     pub flagged: f64,
     /// When STOP was sent, s.
     pub stop_at: f64,
+    /// When the commanded motion ended (STOP, or earlier: a fault or a limit switch), s: the
+    /// end of the scored window. While the bridge does not drive, the current sense reads 0 A
+    /// and the board sees nothing of the screw.
+    pub motion_end: f64,
     /// Mean screw speed over the run's second half (truth), rad/s.
     pub late_speed: f64,
     /// Simulation wall time, s.
@@ -245,6 +252,9 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
     control.limits.upper = Metres::from_f64(0.414);
     control.stick_slip.reaction = s.reaction;
     control.stick_slip.escape_speed = RadiansPerSecond::from_f64(sc.escape_speed);
+    if let Some(d) = sc.drop_threshold {
+        control.stick_slip.drop_threshold = NewtonMetres::from_f64(d);
+    }
     let mut cfg = SimConfig::paper(s.lubricant.law(), 0.3, s.start_deg);
     cfg.plant.load = s.load;
     cfg.duration = s.duration;
@@ -272,6 +282,8 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
         onsets: Vec<(f64, f64)>,
         slips: usize,
         flagged_ticks: usize,
+        moved: bool,
+        motion_end: Option<f64>,
     }
     let shared = Arc::new(Mutex::new((controller, Log::default(), 0u8)));
     let inner = Arc::clone(&shared);
@@ -298,6 +310,11 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
         let st = c.status();
         log.flagged_ticks += usize::from(st.stick_slip);
         log.slips += usize::from(c.stick_slip_output().slip);
+        let moving = matches!(c.state(), State::Lifting | State::Lowering);
+        log.moved |= moving;
+        if log.moved && !moving && log.motion_end.is_none() {
+            log.motion_end = Some(t);
+        }
         out.bridge
     }));
     let mut sim = match Sim::new(cfg, driver) {
@@ -306,7 +323,11 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
     };
     let summary = sim.run();
     let k = sim.cfg.plant.screw.coupling;
-    let labels = truth::label(&sim.trace.phases, k, (0.0, stop_at), &sc.truth);
+    let motion_end = {
+        let g = shared.lock().unwrap_or_else(|p| p.into_inner());
+        g.1.motion_end.unwrap_or(stop_at).min(stop_at)
+    };
+    let labels = truth::label(&sim.trace.phases, k, (0.0, motion_end), &sc.truth);
     drop(sim);
     let g = shared.lock().unwrap_or_else(|p| p.into_inner());
     RunResult {
@@ -316,6 +337,7 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
         slips: g.1.slips,
         flagged: g.1.flagged_ticks as f64 / 1000.0,
         stop_at,
+        motion_end,
         late_speed: summary.late_screw_speed,
         wall: wall.elapsed().as_secs_f64(),
     }
@@ -556,7 +578,11 @@ pub fn run_line(r: &RunResult) -> String {
         m.on_micro,
         m.spurious,
         r.wall
-    )
+    ) + &if r.motion_end < r.stop_at - 1e-3 {
+        format!(" | motion ended at {:.3} s, before STOP", r.motion_end)
+    } else {
+        String::new()
+    }
 }
 
 /// The mitigation comparison of one scenario: the same run with reaction `log` and `speed`.

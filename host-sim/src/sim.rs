@@ -791,6 +791,7 @@ impl Sim {
 
     fn observe(&mut self, t: f64, h: f64) {
         let y = self.state;
+        self.sensors.observe_encoder(t, y.motor_angle);
         let (theta_i, _) = self.input(t, &y);
         let twist = y.theta - theta_i;
         for w in &mut self.windows {
@@ -878,7 +879,7 @@ impl Sim {
         let h = self.cfg.plant.loads(y.theta).height;
         let inputs = self
             .sensors
-            .sample(y.motor_angle, y.current, bus, sensing, h);
+            .sample(t, y.motor_angle, y.current, bus, sensing, h);
         let cmd = match &mut self.driver {
             Driver::Paper(_) => return,
             Driver::Core(c) => {

@@ -343,6 +343,19 @@ fn count_instructions() {
     }
     s_det.report();
 
+    // The encoder-edge interpolator (`control::edges`, every tick) on a shaft creeping at
+    // 0.09 counts per tick (0.2 rad/s of screw), the edge age as the capture timer gives it.
+    let mut edges = liftfw::control::edges::EdgeInterpolator::new();
+    let mut s_edges = Stats::new("edges.update fixed");
+    for k in 0..N {
+        let x = k as u64 * 917; // position in 1/10 000 count
+        let count = (x / 10_000) as i32;
+        let age = ((x % 10_000) * 1000 / 917) as u16;
+        let now = liftfw::units::Instant(k as u32 * 1000);
+        s_edges.push(ticks((now, count, age), |a| edges.update(a.0, a.1, a.2)), overhead);
+    }
+    s_edges.report();
+
     println!(
         "ICOUNT-GOAL estimator.step fixed median {} (goal <= 400: {}), f32 median {} ({})",
         fixed_median,
@@ -364,6 +377,8 @@ fn cruise_inputs(k: usize) -> Inputs {
     let (_, m) = motion(k);
     Inputs {
         encoder_count: m.position_counts as u16,
+        // Edges timed to the tick (a board without the capture): the same work as a real age.
+        encoder_edge_age: 0,
         current_raw: 2048 + 621, // 20 A at 32.227 mA per code
         supply_raw: 2820,        // 12.6 V at 4.468 mV per code
         switches: Switches(0),

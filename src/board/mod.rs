@@ -105,6 +105,7 @@ impl Board {
             encoder_timer: p.TIM4,
             encoder_a: p.PB6,
             encoder_b: p.PB7,
+            edge_timer: p.TIM3,
             current_adc: p.ADC1,
             current_right: p.PA0,
             current_left: p.PA1,

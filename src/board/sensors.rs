@@ -4,9 +4,14 @@
 use embassy_stm32::adc::{Adc, AdcChannel, AnyAdcChannel, Exten, InjectedAdc, SampleTime};
 use embassy_stm32::gpio::{Input, Pull};
 use embassy_stm32::peripherals::{
-    ADC1, ADC2, PA0, PA1, PA4, PB10, PB11, PB14, PB15, PB5, PB6, PB7, TIM4,
+    ADC1, ADC2, PA0, PA1, PA4, PB10, PB11, PB14, PB15, PB5, PB6, PB7, TIM3, TIM4,
+};
+use embassy_stm32::time::Hertz;
+use embassy_stm32::timer::low_level::{
+    InputCaptureMode, InputTISelection, MasterMode, SlaveMode, Timer, TriggerSource,
 };
 use embassy_stm32::timer::qei::{Qei, QeiMode};
+use embassy_stm32::timer::Channel;
 use embassy_stm32::triggers::TIM1_CC4;
 use embassy_stm32::Peri;
 use liftfw::control::{Inputs, Switches};
@@ -27,6 +32,8 @@ pub struct SensorPeripherals {
     pub encoder_a: Peri<'static, PB6>,
     /// Encoder channel B.
     pub encoder_b: Peri<'static, PB7>,
+    /// Free-running 1 MHz timer that timestamps every encoder count (no pins).
+    pub edge_timer: Peri<'static, TIM3>,
     /// ADC for current sense (injected conversions triggered by TIM1 CC4).
     pub current_adc: Peri<'static, ADC1>,
     /// BTS7960 R_IS (lifting half-bridge).
@@ -52,6 +59,7 @@ pub struct SensorPeripherals {
 /// The board's sensors, sampled once per control tick.
 pub struct Sensors {
     encoder: Qei<'static, TIM4>,
+    edge_timer: Timer<'static, TIM3>,
     current: InjectedAdc<'static, ADC1, 2>,
     supply_adc: Adc<'static, ADC2>,
     supply: AnyAdcChannel<'static, ADC2>,
@@ -75,6 +83,23 @@ impl Sensors {
             },
         );
 
+        // Edge timestamps for the core's sub-count position (`liftfw::control::edges`): TIM4
+        // puts its encoder clock (one pulse per count, either direction) on TRGO; TIM3 counts
+        // free at 1 MHz and captures its counter into CCR1 on that trigger (CC1 input = TRC,
+        // trigger ITR3 = tim4_trgo, RM0440 "TIMx internal trigger connection").
+        embassy_stm32::pac::TIM4
+            .cr2()
+            .modify(|w| w.set_mms(MasterMode::ENCODER_CLOCK_OUTPUT));
+        let mut edge_timer = Timer::new(p.edge_timer);
+        edge_timer.set_tick_freq(Hertz(1_000_000));
+        edge_timer.set_max_compare_value(u16::MAX);
+        edge_timer.set_trigger_source(TriggerSource::ITR3);
+        edge_timer.set_slave_mode(SlaveMode::DISABLED);
+        edge_timer.set_input_ti_selection(Channel::Ch1, InputTISelection::TRC);
+        edge_timer.set_input_capture_mode(Channel::Ch1, InputCaptureMode::Rising);
+        edge_timer.enable_channel(Channel::Ch1, true);
+        edge_timer.start();
+
         // Both ADCs before any conversion starts: ADC1 and ADC2 share their clock and reset.
         let current_adc = Adc::new(p.current_adc, Default::default());
         let supply_adc = Adc::new(p.supply_adc, Default::default());
@@ -93,6 +118,7 @@ impl Sensors {
 
         Self {
             encoder,
+            edge_timer,
             current,
             supply_adc,
             supply: p.supply.degrade_adc(),
@@ -111,8 +137,19 @@ impl Sensors {
     /// Samples every input for one control tick (≈10 µs, dominated by the supply conversion).
     pub fn sample(&mut self) -> Inputs {
         let [right, left] = self.current.read_injected_samples();
+        // Count and capture must belong together: an edge between the reads would pair the
+        // old count with the new edge time, so read the capture around the count.
+        let (encoder_count, edge) = loop {
+            let edge = self.edge_timer.get_capture_value(Channel::Ch1);
+            let count = self.encoder.count();
+            if self.edge_timer.get_capture_value(Channel::Ch1) == edge {
+                break (count, edge);
+            }
+        };
+        let now = self.edge_timer.regs_core().cnt().read().cnt();
         Inputs {
-            encoder_count: self.encoder.count(),
+            encoder_count,
+            encoder_edge_age: now.wrapping_sub(edge),
             // Only the conducting high side sources IS current; the idle one reads ≈ 0,
             // so the larger code is the active side's. 12-bit codes, as the core expects.
             current_raw: right.max(left),

@@ -21,6 +21,7 @@
 //! millimetre short of it.
 
 pub mod config;
+pub mod edges;
 mod hold;
 pub mod park;
 pub mod profile;
@@ -36,6 +37,7 @@ use crate::units::{
 };
 use crate::ConfigError;
 use config::{ButtonMode, ControlConfig};
+use edges::EdgeInterpolator;
 use profile::Profile;
 pub use protect::FaultKind;
 use protect::{Limits, Monitors, Sample};
@@ -48,6 +50,11 @@ use speed::{SpeedGains, SpeedInputs, SpeedLoop};
 pub struct Inputs {
     /// Free-running 16-bit quadrature counter of the motor encoder (timer CNT register).
     pub encoder_count: u16,
+    /// µs from the latest change of `encoder_count` to the moment it was sampled, from a
+    /// 1 MHz capture timer (16-bit, wrapping; the core reads it only on ticks where the count
+    /// changed, so the wrap never matters). 0 on a board without edge capture: edges are then
+    /// timed to the tick. See [`edges`].
+    pub encoder_edge_age: u16,
     /// Motor current ADC code (12-bit, right aligned), sampled mid-PWM-period.
     pub current_raw: u16,
     /// Supply voltage ADC code (12-bit, right aligned) from the battery divider.
@@ -335,6 +342,8 @@ pub struct Controller {
     est: Estimator,
     adc: Adc,
     enc: EncoderTracker,
+    /// Sub-count position from the encoder's edge times, for the speed filter.
+    edges: EdgeInterpolator,
     debounce: Debouncer,
     profile: Profile,
     gains: SpeedGains,
@@ -475,6 +484,7 @@ impl Controller {
             est,
             adc: Adc::new(&cfg.sensing),
             enc: EncoderTracker::new(position),
+            edges: EdgeInterpolator::new(),
             debounce: Debouncer::new(debounce_ticks),
             profile: Profile::new(position, cruise_q32, ramp_ticks, cfg.motion.ramp_shape),
             speed: SpeedLoop::default(),
@@ -548,6 +558,8 @@ impl Controller {
     }
 
     fn set_position(&mut self, position: i32) {
+        self.edges
+            .shift(position.saturating_sub(self.enc.position()));
         self.enc.rebase(position);
         self.est.reset(position);
         self.hold_position = position;
@@ -844,15 +856,21 @@ impl Controller {
             State::Lowering => -1,
             _ => 0,
         };
-        // 2. Estimate at rated load.
-        self.estimate = self.est.step(
+        // 2. Estimate at rated load; the speed filter gets the position between counts.
+        let position = self.enc.position();
+        let between = self
+            .edges
+            .update(now, position, inputs.encoder_edge_age)
+            .saturating_sub(i64::from(position) << 16);
+        self.estimate = self.est.step_at(
             now,
             &Measurements {
-                position_counts: self.enc.position(),
+                position_counts: position,
                 motor_current: self.current,
                 load: self.cfg.rated_load,
                 commanded_dir: dir,
             },
+            between.clamp(0, 0xFFFF) as u16,
         );
         self.last_tick = Some(now);
         if moving {

@@ -242,18 +242,6 @@ impl Profile {
         self.entry_acc += self.v;
         self.tick_in_entry += 1;
         let n = SMOOTH_LEN as i64 * i64::from(self.ticks_per_entry);
-        // Output position advances by the mean over the whole window (entries + partial).
-        // A power-of-two window (ramps up to 128 ticks) divides by a shift rounded toward
-        // zero, exactly as `/` does, instead of a 64-bit division routine.
-        let total = self.sum + self.entry_acc;
-        let out_v = if n.count_ones() == 1 {
-            let k = n.trailing_zeros();
-            (total + ((total >> 63) & (n - 1))) >> k
-        } else {
-            total / n
-        };
-        self.out_v = out_v;
-        self.out_p = self.out_p.saturating_add(out_v);
         if self.tick_in_entry >= self.ticks_per_entry {
             let old = self.window[self.head];
             self.window[self.head] = self.entry_acc;
@@ -262,6 +250,22 @@ impl Profile {
             self.tick_in_entry = 0;
             self.entry_acc = 0;
         }
+        // Output speed: the mean over the completed entries. Every entry stays in the window
+        // for exactly n ticks, so the output covers the trapezoid's distance, no more (adding
+        // the partial entry as well counted each speed (n + ticks_per_entry)/n times: with one
+        // tick per entry the reference ran 65/64 fast and ended 37 counts past a 5000-count
+        // move's target before snapping back).
+        // A power-of-two window (ramps up to 128 ticks) divides by a shift rounded toward
+        // zero, exactly as `/` does, instead of a 64-bit division routine.
+        let total = self.sum;
+        let out_v = if n.count_ones() == 1 {
+            let k = n.trailing_zeros();
+            (total + ((total >> 63) & (n - 1))) >> k
+        } else {
+            total / n
+        };
+        self.out_v = out_v;
+        self.out_p = self.out_p.saturating_add(out_v);
         // Rounding leaves the output a few LSB off the trapezoid at rest: snap once both rest.
         if self.done && self.sum == 0 && self.entry_acc == 0 {
             self.out_p = self.p;
@@ -333,6 +337,28 @@ mod tests {
         assert!(max_dv <= 2 * trap + trap / 10, "{max_dv} vs {trap}");
         let first_dv = (refs[1].speed - refs[0].speed).abs();
         assert!(first_dv < trap, "S-curve starts gently: {first_dv}");
+    }
+
+    #[test]
+    fn s_curve_reaches_the_target_without_passing_it() {
+        for &(from, to, ramp) in &[(0, 50_000, 60), (183_489, 178_227, 120), (0, -9_000, 500)] {
+            let refs = run(RampShape::SCurve, from, to, 1.375, ramp);
+            let last = refs.last().unwrap();
+            assert_eq!(last.counts(), to);
+            let dir = i64::from((to - from).signum());
+            // Within the snap's few LSB of rounding, never past the target.
+            let worst = refs
+                .iter()
+                .map(|r| (r.position - (i64::from(to) << 32)) * dir)
+                .max()
+                .unwrap();
+            assert!(
+                worst <= 1 << 28,
+                "passed the target by {} counts",
+                worst >> 32
+            );
+            assert!(refs.iter().all(|r| r.speed * dir >= 0), "moved backwards");
+        }
     }
 
     #[test]

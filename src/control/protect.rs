@@ -10,7 +10,7 @@
 //! | encoder implausible | a jump faster than the motor can turn | the same tick |
 //! | under-voltage | supply below the run threshold while moving, for `supply_ms` | `supply_ms` |
 //! | over-voltage | supply above the maximum, for `supply_ms` | `supply_ms` |
-//! | overload | measured screw torque above the model's at rated load by the margin, for `overload_ms` | `overload_ms` |
+//! | overload | measured screw torque above the model's at rated load by the margin (a fraction of its size), for `overload_ms` | `overload_ms` |
 //! | runaway | travel while stopped beyond `runaway_travel`, or lowering faster than 1.5× the reference + 25 % of cruise for 100 ms | immediate / 100 ms |
 
 use super::config::ProtectionConfig;
@@ -90,8 +90,8 @@ pub struct Limits {
     pub supply_max: Volts,
     /// Ticks.
     pub supply_ticks: u32,
-    /// 1 + overload margin.
-    pub overload_factor: Ratio,
+    /// Overload margin, a fraction of the model's torque.
+    pub overload_margin: Ratio,
     /// Ticks.
     pub overload_ticks: u32,
     /// Uncommanded travel, counts.
@@ -127,7 +127,7 @@ impl Limits {
             supply_run_min: p.supply_run_min,
             supply_max: p.supply_max,
             supply_ticks: ticks(p.supply_ms),
-            overload_factor: Ratio::ONE.sat_add(p.overload_margin),
+            overload_margin: p.overload_margin,
             overload_ticks: ticks(p.overload_ms),
             runaway_counts: sat32(runaway_counts).max(1),
             runaway_ticks: ticks(100),
@@ -229,7 +229,13 @@ impl Monitors {
         if count(&mut self.still, no_count && pushing && !turning) >= l.stall_ticks {
             return Some(FaultKind::Stall);
         }
-        let limit: NewtonMetres = qmul(s.model_torque, l.overload_factor);
+        // The margin is a fraction of the model torque's size: lowering an overhauling load the
+        // projected model torque is negative, and scaling it by (1 + margin) moved the limit
+        // below the model, so a motor holding back *less* than the model tripped "overload".
+        let limit = s.model_torque.sat_add(qmul::<_, _, NewtonMetres>(
+            s.model_torque.sat_abs(),
+            l.overload_margin,
+        ));
         let over =
             s.overload_armed && s.measured_torque > limit.sat_add(const { NewtonMetres::lit("2") });
         if count(&mut self.overload, over) >= l.overload_ticks {

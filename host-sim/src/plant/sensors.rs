@@ -12,6 +12,13 @@
 //!   18.3 V full scale.
 //!
 //! Noise is Gaussian (in volts at the ADC pin) before quantisation; codes saturate at 0 and 4095.
+//!
+//! **Encoder edge times** (docs/board.md): the board's TIM3 runs free at 1 MHz and captures its
+//! counter on every count of the encoder timer (TIM4's encoder clock on TRGO); at the sample the
+//! board reads TIM3's counter too, and passes the difference, 16-bit wrapping, as
+//! `encoder_edge_age`. Here [`Sensors::observe_encoder`] watches the motor angle after every
+//! integration step, locates the last edge crossed in the step by linear interpolation and
+//! latches ⌊t_edge · 1 MHz⌋ mod 2^16, the capture register's value.
 
 use liftfw::control::{Inputs, Switches};
 use rand::{RngExt, SeedableRng};
@@ -73,12 +80,19 @@ fn quantise(volts: f64) -> u16 {
         .clamp(0.0, ADC_CODES - 1.0) as u16
 }
 
+/// The edge-capture timer's rate, Hz (TIM3 at 1 MHz).
+pub const CAPTURE_HZ: f64 = 1e6;
+
 /// The sensors, with their seeded noise source.
 #[derive(Clone, Debug)]
 pub struct Sensors {
     /// Configuration.
     pub params: SensorParams,
     rng: Xoshiro256PlusPlus,
+    /// Last observed time (s), continuous count and count.
+    seen: Option<(f64, f64, i64)>,
+    /// The capture register: the 1 MHz timer at the latest count change.
+    capture: u16,
 }
 
 impl Sensors {
@@ -87,7 +101,35 @@ impl Sensors {
         Self {
             params,
             rng: Xoshiro256PlusPlus::seed_from_u64(seed),
+            seen: None,
+            capture: 0,
         }
+    }
+
+    /// The free-running 1 MHz capture timer's counter at time `t`, s.
+    fn capture_timer(t: f64) -> u16 {
+        ((t * CAPTURE_HZ + 1e-6).floor() as i64).rem_euclid(1 << 16) as u16
+    }
+
+    /// Watch the motor angle `theta_m` (rad) at time `t` (s), after every integration step:
+    /// a count change latches the capture timer at the last edge crossed since the previous
+    /// call (its time by linear interpolation over the step).
+    pub fn observe_encoder(&mut self, t: f64, theta_m: f64) {
+        let cont = theta_m / std::f64::consts::TAU * self.params.counts_per_rev;
+        let count = cont.floor() as i64;
+        if let Some((t0, c0, n0)) = self.seen {
+            if count != n0 {
+                // Counting up the count becomes n at the edge n; down, at the edge n + 1.
+                let edge = if count > n0 { count } else { count + 1 } as f64;
+                let s = if cont != c0 {
+                    ((edge - c0) / (cont - c0)).clamp(0.0, 1.0)
+                } else {
+                    1.0
+                };
+                self.capture = Self::capture_timer(t0 + s * (t - t0));
+            }
+        }
+        self.seen = Some((t, cont, count));
     }
 
     /// One standard normal sample (Box–Muller).
@@ -103,9 +145,10 @@ impl Sensors {
         (counts as i64).rem_euclid(1 << 16) as u16
     }
 
-    /// Sample everything the board reads at the start of a control tick.
+    /// Sample everything the board reads at the start of a control tick at time `t`, s.
     pub fn sample(
         &mut self,
+        t: f64,
         theta_m: f64,
         current: f64,
         bus: f64,
@@ -124,6 +167,7 @@ impl Sensors {
         }
         Inputs {
             encoder_count: self.encoder_count(theta_m),
+            encoder_edge_age: Self::capture_timer(t).wrapping_sub(self.capture),
             current_raw: quantise(vi),
             supply_raw: quantise(vs),
             switches: Switches(sw),
@@ -146,6 +190,26 @@ mod tests {
     }
 
     #[test]
+    fn edge_age_is_the_capture_timer_since_the_last_count_change() {
+        let mut s = Sensors::new(SensorParams::with_limits(0.0, 1.0), 1);
+        let per_count = std::f64::consts::TAU / 48.0;
+        // 0.25 counts per 4 µs step from count 2.5: the edge at 3 is crossed at 8 µs.
+        for k in 0..=5 {
+            let t = 0.1 + f64::from(k) * 4e-6;
+            s.observe_encoder(t, (2.5 + 0.25 * f64::from(k)) * per_count);
+        }
+        let inp = s.sample(0.1 + 20e-6, 3.75 * per_count, 0.0, 12.0, true, 0.5);
+        assert_eq!(inp.encoder_count, 3);
+        assert_eq!(inp.encoder_edge_age, 12);
+        // Counting down, the count 2 begins at the edge 3.
+        s.observe_encoder(0.1 + 24e-6, 3.25 * per_count);
+        s.observe_encoder(0.1 + 28e-6, 2.75 * per_count);
+        let inp = s.sample(0.1 + 1028e-6, 2.75 * per_count, 0.0, 12.0, true, 0.5);
+        assert_eq!(inp.encoder_count, 2);
+        assert_eq!(inp.encoder_edge_age, 1002);
+    }
+
+    #[test]
     fn adc_scaling_round_trips_within_one_code() {
         let mut s = Sensors::new(
             SensorParams {
@@ -156,13 +220,13 @@ mod tests {
             1,
         );
         for (i, v) in [(0.0, 12.0), (37.0, 11.5), (-20.0, 13.8)] {
-            let inp = s.sample(0.0, i, v, true, 0.5);
+            let inp = s.sample(0.0, 0.0, i, v, true, 0.5);
             assert!(
                 (current_of_code(inp.current_raw) - i).abs() <= 0.0323,
                 "{i}"
             );
             assert!((supply_of_code(inp.supply_raw) - v).abs() <= 0.0045, "{v}");
         }
-        assert_eq!(s.sample(0.0, 30.0, 12.0, false, 0.5).current_raw, 2048);
+        assert_eq!(s.sample(0.0, 0.0, 30.0, 12.0, false, 0.5).current_raw, 2048);
     }
 }

@@ -15,6 +15,7 @@
 #![warn(missing_docs)]
 
 pub mod ballscrew;
+pub mod cli;
 pub mod lift;
 pub mod paper;
 pub mod physics;

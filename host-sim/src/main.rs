@@ -1,6 +1,7 @@
 //! `host-sim`: run the lift's digital twin from the command line.
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use host_sim::cli::Lube;
 use host_sim::paper::{self, CaseResult, MatrixConfig, Steady};
 use host_sim::physics::Lubricant;
 use host_sim::plant::{SpeedProfile, StructureDamping};
@@ -128,27 +129,6 @@ struct BallscrewArgs {
     /// Also time the solver (one 78-ball case; a 100-point sweep) and print the report.
     #[arg(long)]
     bench: bool,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum, Deserialize, PartialEq)]
-#[serde(rename_all = "lowercase")]
-enum Lube {
-    /// Dry/boundary friction (Eq 13).
-    Dry,
-    /// PTFE dry spray (Eq 14).
-    Ptfe,
-    /// Lithium grease (Eq 11, our reading).
-    Lithium,
-}
-
-impl From<Lube> for Lubricant {
-    fn from(l: Lube) -> Self {
-        match l {
-            Lube::Dry => Lubricant::Dry,
-            Lube::Ptfe => Lubricant::Ptfe,
-            Lube::Lithium => Lubricant::Lithium,
-        }
-    }
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum, Deserialize, PartialEq)]

@@ -14,7 +14,7 @@
 
 use crate::physics::Lubricant;
 use crate::sim::{Driver, Sim, SimConfig};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use embassy_futures::block_on;
 use liftfw::config::sim_flash::{SimFlash, ERASE_SIZE};
 use liftfw::config::store::{ConfigStore, Loaded};
@@ -38,25 +38,7 @@ pub const FLASH_SIZE: usize = 4 * ERASE_SIZE;
 pub type Flash = SimFlash<FLASH_SIZE>;
 
 /// Plant lubricant (the core's configuration comes from the flash, factory: dry).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum Lube {
-    /// Dry/boundary friction.
-    Dry,
-    /// PTFE dry spray.
-    Ptfe,
-    /// Lithium grease.
-    Lithium,
-}
-
-impl From<Lube> for Lubricant {
-    fn from(l: Lube) -> Self {
-        match l {
-            Lube::Dry => Lubricant::Dry,
-            Lube::Ptfe => Lubricant::Ptfe,
-            Lube::Lithium => Lubricant::Lithium,
-        }
-    }
-}
+pub use crate::cli::Lube;
 
 /// `host-sim serve` options.
 #[derive(Args, Clone, Debug)]

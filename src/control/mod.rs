@@ -417,27 +417,19 @@ impl Controller {
         let est = Estimator::new(&cfg.estimator)?;
         let geometry = est.geometry();
         cfg.validate(geometry)?;
-        let lower_counts =
+        // `validate` checked these heights against the geometry already; a refusal here
+        // would only name the field.
+        let counts = |h: Metres, field: &'static str| {
             geometry
-                .counts_for_height(cfg.limits.lower)
+                .counts_for_height(h)
                 .ok_or(ConfigError::OutOfRange {
-                    field: "limits.lower",
+                    field,
                     range: "the mechanism's height range",
-                })?;
-        let upper_counts =
-            geometry
-                .counts_for_height(cfg.limits.upper)
-                .ok_or(ConfigError::OutOfRange {
-                    field: "limits.upper",
-                    range: "the mechanism's height range",
-                })?;
-        let switch_counts =
-            geometry
-                .counts_for_height(cfg.limits.switch_lower)
-                .ok_or(ConfigError::OutOfRange {
-                    field: "limits.switch_lower",
-                    range: "the mechanism's height range",
-                })?;
+                })
+        };
+        let lower_counts = counts(cfg.limits.lower, "limits.lower")?;
+        let upper_counts = counts(cfg.limits.upper, "limits.upper")?;
+        let switch_counts = counts(cfg.limits.switch_lower, "limits.switch_lower")?;
         let tick_us = cfg.estimator.tick_us;
         let tick_hz = i128::from(1_000_000 / tick_us);
         let rad_per_count = geometry.screw_rad_per_count(); // counts → Q16 rad

@@ -15,9 +15,8 @@
 //!   instead of dropping it, whatever is wrong with the sensors.
 
 use super::config::ScrewKind;
-use super::speed::SpeedInputs;
 use super::{Bridge, Controller, FaultKind, State};
-use crate::units::{Radians, RadiansPerSecond, Q};
+use crate::units::RadiansPerSecond;
 
 impl Controller {
     /// Whether this lift must be held at rest (ball screw).
@@ -41,21 +40,7 @@ impl Controller {
     /// Speed loop at zero speed with the position error to `hold_target`.
     fn hold_bridge(&mut self) -> Bridge {
         let error_counts = self.hold_target.saturating_sub(self.enc.position());
-        let duty = self.speed.step(
-            &self.gains,
-            &SpeedInputs {
-                reference: RadiansPerSecond::ZERO,
-                position_error: Radians::from_raw(self.rad_per_count.apply32(error_counts)),
-                measured: self.estimate.screw_speed,
-                model_motor_torque: self.estimate.model_motor_torque,
-                supply: self.supply,
-                current_headroom: self.current_headroom,
-                current: self.current,
-                current_limit: self.cfg.protection.current_limit,
-                resistance: self.cfg.estimator.motor.resistance,
-            },
-        );
-        Bridge::Drive(duty)
+        Bridge::Drive(self.speed_duty(RadiansPerSecond::ZERO, error_counts))
     }
 
     /// Whether the speed loop's integrator is kept across a change of state: always for a

@@ -1076,7 +1076,13 @@ impl Controller {
                 return self.at_rest_bridge();
             }
         }
-        let duty = self.speed.step(
+        Bridge::Drive(self.speed_duty(reference, error_counts))
+    }
+
+    /// One step of the speed loop toward `reference` with `error_counts` of position error:
+    /// the duty for moving and, for a ball screw, for holding at rest (`hold.rs`).
+    fn speed_duty(&mut self, reference: RadiansPerSecond, error_counts: i32) -> i16 {
+        self.speed.step(
             &self.gains,
             &SpeedInputs {
                 reference,
@@ -1089,8 +1095,7 @@ impl Controller {
                 current_limit: self.cfg.protection.current_limit,
                 resistance: self.cfg.estimator.motor.resistance,
             },
-        );
-        Bridge::Drive(duty)
+        )
     }
 
     /// The bridge at rest: short the motor (dynamic brake) once it turns slowly enough that the

@@ -27,7 +27,7 @@ use core::pin::{pin, Pin};
 use core::task::{Context, Poll};
 use defmt::{error, info, warn};
 use embassy_embedded_hal::adapter::BlockingAsync;
-use embassy_executor::{SpawnError, SpawnToken, Spawner};
+use embassy_executor::Spawner;
 use embassy_futures::select::{select, Either};
 use embassy_stm32::flash::{Blocking, Flash};
 use embassy_stm32::peripherals::FLASH;
@@ -231,23 +231,16 @@ fn spawn_tasks(
     );
     let store_ok = boot.store.is_some();
     if let Some(store) = boot.store {
-        spawn_or_halt(spawner, storage(store));
+        spawner.spawn(defmt::unwrap!(storage(store)));
     }
     let park = ParkLog::new(parked.map(Parked::At));
-    spawn_or_halt(spawner, control(board, park));
-    spawn_or_halt(
-        spawner,
-        console_task(console, boot.config, boot.source, store_ok),
-    );
-}
-
-/// Spawns a task. Each task has a pool of one and is spawned once, so a refusal is a bug:
-/// halt (the watchdog is not running yet; a probe shows the message).
-fn spawn_or_halt<S>(spawner: Spawner, token: Result<SpawnToken<S>, SpawnError>) {
-    match token {
-        Ok(token) => spawner.spawn(token),
-        Err(_) => defmt::panic!("task spawned twice"),
-    }
+    spawner.spawn(defmt::unwrap!(control(board, park)));
+    spawner.spawn(defmt::unwrap!(console_task(
+        console,
+        boot.config,
+        boot.source,
+        store_ok
+    )));
 }
 
 /// Builds the controller in [`CONTROLLER`] from the running configuration (the factory one if
@@ -475,18 +468,6 @@ impl Lift for SharedLift {
     }
 }
 
-/// What went wrong on the console UART, for the defmt log (embassy-stm32 is built without
-/// its `defmt` feature: BENCHMARKS.md "Firmware footprint").
-fn uart_error(e: usart::Error) -> &'static str {
-    match e {
-        usart::Error::Framing => "framing",
-        usart::Error::Noise => "noise",
-        usart::Error::Overrun => "overrun",
-        usart::Error::Parity => "parity",
-        _ => "other",
-    }
-}
-
 /// USART2 console: one line in, the core's reply out (CRLF line ends).
 #[embassy_executor::task]
 async fn console_task(
@@ -510,8 +491,8 @@ async fn console_task(
         config,
     ) {
         Ok(uart) => uart,
-        Err(_) => {
-            warn!("console disabled: USART2 rejected its configuration");
+        Err(e) => {
+            warn!("console disabled: USART2 config rejected: {}", e);
             return;
         }
     };
@@ -536,7 +517,7 @@ async fn console_task(
             Either::First(Ok(n)) => n,
             // Framing/noise/overrun: drop the bytes and keep listening.
             Either::First(Err(e)) => {
-                warn!("console read error: {=str}", uart_error(e));
+                warn!("console read error: {}", e);
                 continue;
             }
             Either::Second(event) => {

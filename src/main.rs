@@ -67,9 +67,8 @@ bind_interrupts!(struct Irqs {
 type StoreFlash = BlockingAsync<Flash<'static, Blocking>>;
 
 /// The controller's storage: zero-initialised RAM (a `static` holding the controller itself
-/// would carry a 2 KiB initial image in flash). It holds the constructor's `Result` so that
-/// the 2 KiB controller is built where it stays, never on the boot task's stack (see
-/// [`install_controller`]).
+/// would carry a 2 KiB initial image in flash). It holds the constructor's `Result`, written
+/// in one move (see [`install_controller`]).
 static CONTROLLER: StaticCell<Result<Controller, ConfigError>> = StaticCell::new();
 
 /// The controller, shared by the control and console tasks.
@@ -102,7 +101,7 @@ static SAVED: Signal<CriticalSectionRawMutex, Result<u32, StoreError>> = Signal:
 /// Boot, in steps that each keep their temporaries in their own frame: the boot task's poll
 /// holds only what crosses the one `await` (the store load). Inlined into one poll, the HAL
 /// bring-up, the store, the controller and the spawned tasks' futures all had slots in one
-/// 9 KiB frame (scripts/fw-build prints the bound; BENCHMARKS.md "Stack").
+/// 9.5 KiB frame (scripts/fw-build prints the bound; BENCHMARKS.md "Stack").
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
     let (board, console, flash, watchdog_reset) = bring_up();

@@ -21,13 +21,18 @@ mod board;
 
 use board::{Board, ConsolePins, CONSOLE_BAUD, STORE_RANGE};
 use core::cell::RefCell;
+use core::future::{poll_fn, Future};
+use core::mem::MaybeUninit;
+use core::pin::{pin, Pin};
+use core::task::{Context, Poll};
 use defmt::{error, info, warn};
 use embassy_embedded_hal::adapter::BlockingAsync;
 use embassy_executor::Spawner;
 use embassy_futures::select::{select, Either};
 use embassy_stm32::flash::{Blocking, Flash};
+use embassy_stm32::peripherals::FLASH;
 use embassy_stm32::usart::{self, BufferedUart};
-use embassy_stm32::{bind_interrupts, peripherals};
+use embassy_stm32::{bind_interrupts, peripherals, Peri};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;
@@ -42,7 +47,8 @@ use liftfw::control::park::ParkLog;
 use liftfw::control::{Bridge, Command, Controller, Event, Fault, Refusal, State, Status};
 use liftfw::detect::stickslip::Reaction;
 use liftfw::units::Instant;
-use static_cell::StaticCell;
+use liftfw::ConfigError;
+use static_cell::{ConstStaticCell, StaticCell};
 use {defmt_rtt as _, panic_probe as _};
 
 /// Control-loop rate. The one place it is set; the core reads elapsed time from `now`.
@@ -61,12 +67,21 @@ bind_interrupts!(struct Irqs {
 type StoreFlash = BlockingAsync<Flash<'static, Blocking>>;
 
 /// The controller's storage: zero-initialised RAM (a `static` holding the controller itself
-/// would carry a 1.6 KiB initial image in flash).
-static CONTROLLER: StaticCell<Controller> = StaticCell::new();
+/// would carry a 2 KiB initial image in flash). It holds the constructor's `Result`, written
+/// in one move (see [`install_controller`]).
+static CONTROLLER: StaticCell<Result<Controller, ConfigError>> = StaticCell::new();
 
 /// The controller, shared by the control and console tasks.
 static LIFT: Mutex<CriticalSectionRawMutex, RefCell<Option<&'static mut Controller>>> =
     Mutex::new(RefCell::new(None));
+
+/// The console's UART ring buffers and reply, in statics rather than in the console task's
+/// future: spawning a task builds its future on the boot task's stack and copies it into the
+/// task's storage, so 4.4 KiB of buffers in the future were 4.4 KiB more boot stack.
+static CONSOLE_TX: ConstStaticCell<[u8; 256]> = ConstStaticCell::new([0; 256]);
+static CONSOLE_RX: ConstStaticCell<[u8; 64]> = ConstStaticCell::new([0; 64]);
+static CONSOLE_REPLY: ConstStaticCell<heapless::String<REPLY_LEN>> =
+    ConstStaticCell::new(heapless::String::new());
 
 /// Work for the storage task.
 enum StoreRequest {
@@ -83,28 +98,78 @@ static STORE_REQUESTS: Channel<CriticalSectionRawMutex, StoreRequest, 2> = Chann
 static NOTICES: Channel<CriticalSectionRawMutex, Event, 4> = Channel::new();
 static SAVED: Signal<CriticalSectionRawMutex, Result<u32, StoreError>> = Signal::new();
 
+/// Boot, in steps that each keep their temporaries in their own frame: the boot task's poll
+/// holds only what crosses the one `await` (the store load). Inlined into one poll, the HAL
+/// bring-up, the store, the controller and the spawned tasks' futures all had slots in one
+/// 9.5 KiB frame (scripts/fw-build prints the bound; BENCHMARKS.md "Stack").
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
+    let (board, console, flash, watchdog_reset) = bring_up();
+    // Configuration and parked position, before the watchdog runs (a store repair may erase a
+    // page: tens of ms). Any failure leaves the factory configuration and an unhomed lift.
+    let mut load = pin!(load_store(flash));
+    let boot = poll_fn(|cx| poll_outlined(load.as_mut(), cx)).await;
+    let parked = trusted_position(&boot);
+    let controller = install_controller(boot.config.get(), parked);
+    if watchdog_reset {
+        error!("the last reset came from the watchdog: fault latched");
+        controller.report_watchdog_reset(Instant(Clock::now().as_micros() as u32));
+    }
+    LIFT.lock(|c| c.replace(Some(controller)));
+    spawn_tasks(spawner, board, console, boot, parked);
+}
+
+/// Clocks, the board's pins and peripherals (the bridge coasting), and whether the watchdog
+/// caused the last reset.
+#[inline(never)]
+fn bring_up() -> (Board, ConsolePins, Peri<'static, FLASH>, bool) {
     let p = embassy_stm32::init(board::clock_config());
     info!("liftfw {} booting", env!("CARGO_PKG_VERSION"));
     let watchdog_reset = board::Watchdog::caused_last_reset();
-
     let (board, console, flash) = Board::new(p);
+    (board, console, flash, watchdog_reset)
+}
 
-    // Configuration and parked position, before the watchdog runs (a store repair may erase a
-    // page: tens of ms). Any failure leaves the factory configuration and an unhomed lift.
+/// The configuration store, for the storage task (a static rather than in the task's
+/// future: see [`CONSOLE_TX`]).
+static STORE: StaticCell<ConfigStore<StoreFlash>> = StaticCell::new();
+
+/// What boot read from the configuration store.
+struct Boot {
+    /// The store, unless it is unusable.
+    store: Option<&'static mut ConfigStore<StoreFlash>>,
+    /// The running configuration.
+    config: ValidatedConfig,
+    /// Where it came from.
+    source: Source,
+    /// The parked position in encoder counts, if one is recorded.
+    parked: Option<i32>,
+}
+
+/// Opens the store and reads the configuration and the parked position.
+async fn load_store(flash: Peri<'static, FLASH>) -> Boot {
     let flash = BlockingAsync::new(Flash::new_blocking(flash));
-    let (store, config, source, parked) = match ConfigStore::new(flash, STORE_RANGE) {
-        Ok(mut store) => {
+    let boot = match ConfigStore::new(flash, STORE_RANGE) {
+        Ok(store) => {
+            let store = STORE.init(store);
             let loaded = store.load().await;
             let stamp = geometry_stamp(loaded.config.get());
             let parked = store.load_position(stamp).await;
-            (Some(store), loaded.config, loaded.source, parked)
+            Boot {
+                store: Some(store),
+                config: loaded.config,
+                source: loaded.source,
+                parked,
+            }
         }
         Err(e) => {
             error!("configuration store unusable: {}", e);
-            let source = Source::Unreadable(e);
-            (None, ValidatedConfig::factory(), source, None)
+            Boot {
+                store: None,
+                config: ValidatedConfig::factory(),
+                source: Source::Unreadable(e),
+                parked: None,
+            }
         }
     };
     let ecc = board::STORE_ECC_ERRORS.load(core::sync::atomic::Ordering::Relaxed);
@@ -114,57 +179,115 @@ async fn main(spawner: Spawner) {
             ecc
         );
     }
-    if source.is_fallback() {
-        warn!("configuration: {}", source);
+    if boot.source.is_fallback() {
+        warn!("configuration: {}", boot.source);
     } else {
-        info!("configuration: {}", source);
+        info!("configuration: {}", boot.source);
     }
-    // A ball screw is not self-locking: with the power off the load may have turned it since
-    // it was parked, so only a lead screw's parked position is trusted (docs/control.md).
-    let parked = if config.get().screw.holds_without_power() {
-        parked
+    boot
+}
+
+/// Polls `future` in a frame of its own (not inlined into the caller's poll).
+#[inline(never)]
+fn poll_outlined<F: Future>(future: Pin<&mut F>, cx: &mut Context<'_>) -> Poll<F::Output> {
+    future.poll(cx)
+}
+
+/// The parked position, if it can be trusted. A ball screw is not self-locking: with the
+/// power off the load may have turned it since it was parked, so only a lead screw's parked
+/// position is trusted (docs/control.md).
+#[inline(never)]
+fn trusted_position(boot: &Boot) -> Option<i32> {
+    let parked = if boot.config.get().screw.holds_without_power() {
+        boot.parked
     } else {
-        if parked.is_some() {
+        if boot.parked.is_some() {
             warn!("ball screw: the parked position is not trusted after a power-off");
         }
         None
     };
-    let made = match parked {
-        Some(counts) => {
-            info!("parked at {} counts", counts);
-            Controller::new(config.get(), counts)
-        }
-        None => {
-            warn!("position unknown: hold DOWN to home on the lower limit switch");
-            Controller::new_unhomed(config.get())
-        }
-    };
-    // The running configuration was validated already; the factory one is the fallback.
-    let mut controller = match made.or_else(|_| Controller::new_unhomed(&ControlConfig::DEFAULT)) {
-        Ok(c) => c,
-        Err(e) => defmt::panic!("factory configuration refused: {}", e),
-    };
-    if watchdog_reset {
-        error!("the last reset came from the watchdog: fault latched");
-        controller.report_watchdog_reset(Instant(Clock::now().as_micros() as u32));
+    match parked {
+        Some(counts) => info!("parked at {} counts", counts),
+        None => warn!("position unknown: hold DOWN to home on the lower limit switch"),
     }
-    let park = ParkLog::new(parked.map(Parked::At));
-    let controller: &'static mut Controller = CONTROLLER.init(controller);
-    LIFT.lock(|c| c.replace(Some(controller)));
+    parked
+}
 
+/// Spawns the tasks (each spawn builds the task's future on this frame and copies it into
+/// the task's storage).
+#[inline(never)]
+fn spawn_tasks(
+    spawner: Spawner,
+    board: Board,
+    console: ConsolePins,
+    boot: Boot,
+    parked: Option<i32>,
+) {
     info!(
         "board up: PWM full scale {} counts, control at {} Hz",
         board.bridge.full_scale(),
         CONTROL_HZ
     );
-    let store_ok = store.is_some();
-    if let Some(store) = store {
+    let store_ok = boot.store.is_some();
+    if let Some(store) = boot.store {
         spawner.spawn(defmt::unwrap!(storage(store)));
     }
+    let park = ParkLog::new(parked.map(Parked::At));
     spawner.spawn(defmt::unwrap!(control(board, park)));
     spawner.spawn(defmt::unwrap!(console_task(
-        console, config, source, store_ok
+        console,
+        boot.config,
+        boot.source,
+        store_ok
     )));
+}
+
+/// Builds the controller in [`CONTROLLER`] from the running configuration (the factory one if
+/// that is refused) at the parked position, or unhomed.
+///
+/// Built by value in the boot task, every move of the 2 KiB controller (the constructor's
+/// `Result`, the fallback, the `StaticCell`) took its own slot in the boot task's frame. Here
+/// [`construct_at`] and [`construct_unhomed`] each get the static's storage: the constructor
+/// returns into one temporary in that function's frame, copied once into the static.
+/// (LLVM cannot hand the static to the constructor as its return slot: that needs a
+/// destination it knows to be writable, which a `&mut` argument is not marked as.)
+#[inline(never)]
+fn install_controller(config: &ControlConfig, parked: Option<i32>) -> &'static mut Controller {
+    // Opaque to the optimiser, so that the constructors are not specialised to the static's
+    // address: 328 B less flash, measured with scripts/fw-build.
+    let slot = core::hint::black_box(CONTROLLER.uninit());
+    let refused = match parked {
+        Some(counts) => construct_at(slot, config, counts).is_err(),
+        None => construct_unhomed(slot, config).is_err(),
+    };
+    // The running configuration was validated already; the factory one is the fallback.
+    if refused {
+        construct_unhomed(slot, &ControlConfig::DEFAULT);
+    }
+    // Note(unsafe): every path above wrote `slot` (`construct_*` always do).
+    match unsafe { slot.assume_init_mut() } {
+        Ok(controller) => controller,
+        Err(e) => defmt::panic!("factory configuration refused: {}", e),
+    }
+}
+
+/// Writes the controller for `config` at `counts` (homed) into `slot`.
+#[inline(never)]
+fn construct_at<'a>(
+    slot: &'a mut MaybeUninit<Result<Controller, ConfigError>>,
+    config: &ControlConfig,
+    counts: i32,
+) -> &'a mut Result<Controller, ConfigError> {
+    slot.write(Controller::new(config, counts))
+}
+
+/// Writes the unhomed controller for `config` into `slot`.
+#[inline(never)]
+fn construct_unhomed<'a>(
+    slot: &'a mut MaybeUninit<Result<Controller, ConfigError>>,
+    config: &ControlConfig,
+) -> &'a mut Result<Controller, ConfigError> {
+    slot.write(Controller::new_unhomed(config))
 }
 
 /// The fixed-rate control loop: sample → `step` → apply. If a tick is late, embassy's
@@ -255,7 +378,7 @@ async fn control(mut board: Board, mut park: ParkLog) {
 /// asks for a configuration save only while the lift is at rest; the position record is a
 /// few double words as a motion starts and once it has settled.
 #[embassy_executor::task]
-async fn storage(mut store: ConfigStore<StoreFlash>) {
+async fn storage(store: &'static mut ConfigStore<StoreFlash>) {
     loop {
         match STORE_REQUESTS.receive().await {
             StoreRequest::Config(cfg) => {
@@ -349,14 +472,12 @@ async fn console_task(
 
     let mut config = usart::Config::default();
     config.baudrate = CONSOLE_BAUD;
-    let mut tx_buffer = [0u8; 256];
-    let mut rx_buffer = [0u8; 64];
     let mut uart = match BufferedUart::new(
         pins.usart,
         pins.rx,
         pins.tx,
-        &mut tx_buffer,
-        &mut rx_buffer,
+        CONSOLE_TX.take(),
+        CONSOLE_RX.take(),
         Irqs,
         config,
     ) {
@@ -366,10 +487,10 @@ async fn console_task(
             return;
         }
     };
-    let mut reply: heapless::String<REPLY_LEN> = heapless::String::new();
+    let reply = CONSOLE_REPLY.take();
     let mut lift = SharedLift;
     // Greeting: protocol version, where the configuration came from, whether to home.
-    let _ = service::write_version(&mut reply);
+    let _ = service::write_version(reply);
     let _ = write!(reply, "\r\n{source}\r\n");
     if !lift.status().homed {
         let _ = write!(reply, "{}\r\n", Refusal::NotHomed);
@@ -392,7 +513,7 @@ async fn console_task(
             }
             Either::Second(event) => {
                 reply.clear();
-                let _ = write_notice(&mut reply, &event);
+                let _ = write_notice(reply, &event);
                 let _ = reply.write_str("\r\n");
                 if uart.write_all(reply.as_bytes()).await.is_err() {
                     warn!("console write failed");
@@ -406,7 +527,7 @@ async fn console_task(
                 continue;
             }
             reply.clear();
-            let outcome = service::handle_feed(feed, &mut lift, &mut running, &mut reply);
+            let outcome = service::handle_feed(feed, &mut lift, &mut running, reply);
             match outcome.action {
                 Action::None => {}
                 Action::Reconfigured => info!("configuration changed (not saved)"),
@@ -422,7 +543,7 @@ async fn console_task(
                     } else {
                         SAVED.reset();
                         STORE_REQUESTS.send(StoreRequest::Config(running)).await;
-                        let _ = service::write_saved(&mut reply, SAVED.wait().await);
+                        let _ = service::write_saved(reply, SAVED.wait().await);
                     }
                 }
             }

@@ -4,6 +4,9 @@
     stack-bound.py OBJDUMP ELF ROOT_SUBSTRING [ROOT_SUBSTRING...]
     stack-bound.py OBJDUMP ELF --entry MAIN --task POLL [--task POLL ...] [--isr HANDLER ...]
 
+`--path` (either form) also prints, indented, the call chain that gives each root its bound
+(frame and bound of every function on it): where to look when a bound grows.
+
 The second form also prints each task's worst case on the main stack (embassy's thread-mode
 executor polls every task on it, one at a time): the entry's bound (main and the executor loop)
 + the task's poll + for each interrupt handler its bound and an exception frame with the FPU
@@ -105,7 +108,21 @@ def bound(funcs, addr, memo, stack, notes):
     return memo[addr]
 
 
-def report(funcs, root):
+def worst_path(funcs, addr, memo):
+    """The call chain that gives `addr` its bound (after `bound` filled `memo`)."""
+    path, seen = [], set()
+    while addr in funcs and addr not in seen:
+        seen.add(addr)
+        f = funcs[addr]
+        path.append((f["frame"], memo.get(addr, f["frame"]), f["name"]))
+        callees = [c for c in f["calls"] if c != addr and c in memo and c not in seen]
+        if not callees:
+            break
+        addr = max(callees, key=lambda c: memo[c])
+    return path
+
+
+def report(funcs, root, show_path=False):
     """Bound of every function whose name contains `root` (printed); the largest, or None."""
     hits = [a for a, f in funcs.items() if root in f["name"]]
     if not hits:
@@ -114,9 +131,13 @@ def report(funcs, root):
     best = 0
     for a in hits:
         notes = set()
-        b = bound(funcs, a, {}, set(), notes)
+        memo = {}
+        b = bound(funcs, a, memo, set(), notes)
         best = max(best, b)
         print(f"stack bound {b} B: {funcs[a]['name'][:110]}")
+        if show_path:
+            for frame, total, name in worst_path(funcs, a, memo):
+                print(f"    frame {frame:5} B, bound {total:5} B: {name[:120]}")
         for n in sorted(notes)[:8]:
             print(f"    not followed: {n}")
         if len(notes) > 8:
@@ -133,9 +154,11 @@ def main():
         print(__doc__, file=sys.stderr)
         return 2
     objdump, elf, rest = args[0], args[1], args[2:]
+    show_path = "--path" in rest
+    rest = [r for r in rest if r != "--path"]
     funcs = parse(objdump, elf)
     if "--task" not in rest:
-        return 0 if all(report(funcs, r) is not None for r in rest) else 1
+        return 0 if all(report(funcs, r, show_path) is not None for r in rest) else 1
     entry, tasks, isrs = None, [], []
     it = iter(rest)
     for flag in it:
@@ -146,8 +169,8 @@ def main():
             tasks.append(value)
         elif flag == "--isr":
             isrs.append(value)
-    base = [report(funcs, r) for r in [entry] + isrs if r is not None]
-    polls = [(t, report(funcs, t)) for t in tasks]
+    base = [report(funcs, r, show_path) for r in [entry] + isrs if r is not None]
+    polls = [(t, report(funcs, t, show_path)) for t in tasks]
     if any(p is None for p in base) or any(b is None for _, b in polls):
         return 1
     extra = sum(base) + EXCEPTION_FRAME_FPU * len(isrs)

@@ -162,6 +162,24 @@ unsafe fn NonMaskableInt() {
     cortex_m::peripheral::SCB::sys_reset();
 }
 
+/// Every fault exception ends here, and so does every panic when core is built with
+/// `-Cpanic=immediate-abort` (scripts/fw-build's default on the Debian route; panic-probe's
+/// handler also ends in a HardFault). The bridge's enables go low at once (BTS7960 R_EN =
+/// PB12, L_EN = PB13: both half-bridges off, the motor coasts) instead of the last duty running
+/// on until the watchdog resets the chip (up to [`WATCHDOG_TIMEOUT_US`]); then wait for that
+/// reset (or for a probe, which halts on the HardFault).
+#[cortex_m_rt::exception(trampoline = false)]
+unsafe fn HardFault() -> ! {
+    // Atomic set/reset register: touches only these two pins' outputs.
+    embassy_stm32::pac::GPIOB.bsrr().write(|w| {
+        w.set_br(12, true);
+        w.set_br(13, true);
+    });
+    loop {
+        core::hint::spin_loop();
+    }
+}
+
 /// The IWDG, fed only on the core's say-so ([`liftfw::control::Outputs::feed_watchdog`]).
 pub struct Watchdog {
     iwdg: IndependentWatchdog<'static, embassy_stm32::peripherals::IWDG>,

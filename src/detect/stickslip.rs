@@ -38,7 +38,7 @@
 
 use crate::check_range as range;
 use crate::model::friction::CompiledLaw;
-use crate::units::{sat32, NewtonMetres, RadiansPerSecond, Q};
+use crate::units::{NewtonMetres, RadiansPerSecond, Q};
 use crate::ConfigError;
 
 /// What the controller does when an episode starts.
@@ -223,7 +223,10 @@ const LAGS: usize = LAG_MAX - LAG_FAST + 1;
 /// constant at half the cost.
 const PER_SHIFT: u32 = 8;
 /// |filtered torque| clip, Q16 N·m (64 N·m), so the products stay in i32 (h kept in Q8).
-const DIFF_CLIP: i64 = 64 << 16;
+const DIFF_CLIP: i32 = 64 << 16;
+/// Torque clip of the periodicity filter, Q16 N·m (±8192 N·m: 80× the motor's largest torque at
+/// the screw; nothing real is clipped).
+const X_CLIP: i32 = (1 << 29) - 1;
 /// Periodic: the best lag's autocorrelation of the filtered torque is at least PER_NUM/PER_DEN
 /// of its power (white noise in the scored sets reaches 0.20–0.28)…
 const PER_NUM: i32 = 3;
@@ -271,6 +274,8 @@ pub struct Periodicity {
     odd: bool,
     /// The last decision (held over the tick that does not decide).
     periodic: bool,
+    /// The best of the lags updated on the even tick (the odd tick adds its own and decides).
+    best_even: i32,
     /// EWMAs of h² and h·h₋ₗ (c[0]: lag LAG_FAST), Q16 N·m², from h kept in Q8 (1/256 N·m, a
     /// 17th of one current-sense code at the screw): |h| ≤ 2^14 after the clip, so every
     /// product is one 32-bit multiply and every EWMA stays within ±2^28.
@@ -298,6 +303,7 @@ impl Periodicity {
             seen: 0,
             odd: false,
             periodic: false,
+            best_even: i32::MIN,
             c0: 0,
             c: [0; LAGS],
         }
@@ -312,8 +318,9 @@ impl Periodicity {
     /// once the history holds 3 torques and LAG_MAX filtered values, and decide after
     /// 2^PER_SHIFT ticks).
     pub fn step(&mut self, x: i32, min_power: i64) -> bool {
-        let d = (i64::from(x) - i64::from(self.x[0]) - i64::from(self.x[1]) + i64::from(self.x[2]))
-            .clamp(-DIFF_CLIP, DIFF_CLIP);
+        // Torques clipped to ±X_CLIP, so the filter is exact in i32 (|h| < 4 · 2^29).
+        let x = x.clamp(-X_CLIP, X_CLIP);
+        let d = (x - self.x[0] - self.x[1] + self.x[2]).clamp(-DIFF_CLIP, DIFF_CLIP);
         self.x = [x, self.x[0], self.x[1]];
         if self.filled < 3 {
             self.filled += 1;
@@ -334,25 +341,30 @@ impl Periodicity {
         let Some(w) = self.hist.get(at..=at + LAG_MAX) else {
             return false;
         };
-        // Constant indices into `w` and `c` in both halves (unrolled, no bounds checks).
+        // Constant indices into `w` and `c` in both halves (no bounds checks); each half
+        // returns the best of its lags from LAG_MIN on.
         let mut half = |first: usize| {
+            let mut best = i32::MIN;
             for k in (first..LAGS).step_by(2) {
                 let old = w.get(LAG_MAX - LAG_FAST - k).copied().unwrap_or(0);
                 self.c[k] += (h * old - self.c[k]) >> (PER_SHIFT - 1);
+                if k > 0 {
+                    best = best.max(self.c[k]);
+                }
             }
+            best
         };
         self.odd = !self.odd;
         if self.odd {
-            half(1);
+            let best = half(1).max(self.best_even);
             self.seen = self.seen.saturating_add(2);
-            let best = self.c[1..].iter().copied().fold(i32::MIN, i32::max);
             self.periodic = self.seen >= 1 << PER_SHIFT
                 && i64::from(best) >= min_power
                 && i64::from(best) * i64::from(PER_DEN) >= i64::from(PER_NUM) * i64::from(self.c0)
                 && self.c[0] < self.c[1]
                 && self.c[0].saturating_mul(FAST_VETO) < best;
         } else {
-            half(0);
+            self.best_even = half(0);
         }
         self.periodic
     }
@@ -452,12 +464,16 @@ impl StickSlipDetector {
         // Noise level from the second difference (a steady ramp — the coupling winding up while
         // stuck — has none); the first samples of a motion only fill the history.
         if self.filled >= 2 {
-            let d2 = i64::from(p) - 2 * i64::from(self.last[0]) + i64::from(self.last[1]);
-            let cap = 4 * i64::from(self.noise).max(i64::from(self.threshold) / 4);
-            let d2 = d2.abs().min(cap);
-            self.noise = sat32(
-                i64::from(self.noise)
-                    + ((d2 - i64::from(self.noise) + (1 << (NOISE_SHIFT - 1))) >> NOISE_SHIFT),
+            // In i32 (saturating: exact for torques within ±8192 N·m, far beyond the motor's).
+            let d2 = p
+                .saturating_sub(self.last[0])
+                .saturating_sub(self.last[0].saturating_sub(self.last[1]))
+                .saturating_abs();
+            let cap = self.noise.max(self.threshold / 4).saturating_mul(4);
+            let d2 = d2.min(cap);
+            // 0 ≤ noise, d2 < 2^31: the step stays in i32.
+            self.noise = self.noise.saturating_add(
+                (d2 - self.noise).saturating_add(1 << (NOISE_SHIFT - 1)) >> NOISE_SHIFT,
             );
         }
         self.last = [p, self.last[0]];

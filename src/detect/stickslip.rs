@@ -338,25 +338,31 @@ impl Periodicity {
         self.c0 += (h * h - self.c0) >> PER_SHIFT;
         // w[LAG_MAX - l] = h₋ₗ for l = 0…LAG_MAX (head + HIST_LEN − LAG_MAX ≥ 16: in range).
         let at = self.head + HIST_LEN - LAG_MAX;
-        let Some(w) = self.hist.get(at..=at + LAG_MAX) else {
+        let Some(w) = self
+            .hist
+            .get(at..=at + LAG_MAX)
+            .and_then(|w| <&[i32; LAG_MAX + 1]>::try_from(w).ok())
+        else {
             return false;
         };
-        // Constant indices into `w` and `c` in both halves (no bounds checks); each half
-        // returns the best of its lags from LAG_MIN on.
-        let mut half = |first: usize| {
-            let mut best = i32::MIN;
-            for k in (first..LAGS).step_by(2) {
-                let old = w.get(LAG_MAX - LAG_FAST - k).copied().unwrap_or(0);
-                self.c[k] += (h * old - self.c[k]) >> (PER_SHIFT - 1);
-                if k > 0 {
-                    best = best.max(self.c[k]);
-                }
-            }
-            best
+        // One lag's EWMA (index k: lag LAG_FAST + k), its new value. Written out per lag below:
+        // constant indices, no loop.
+        let c = &mut self.c;
+        let mut lag = |k: usize| {
+            let v = c[k] + ((h * w[LAG_MAX - LAG_FAST - k] - c[k]) >> (PER_SHIFT - 1));
+            c[k] = v;
+            v
         };
         self.odd = !self.odd;
         if self.odd {
-            let best = half(1).max(self.best_even);
+            // Lags 5, 7, …, 15, with the best of the even tick's 6, 8, …, 16.
+            let best = lag(1)
+                .max(lag(3))
+                .max(lag(5))
+                .max(lag(7))
+                .max(lag(9))
+                .max(lag(11))
+                .max(self.best_even);
             self.seen = self.seen.saturating_add(2);
             self.periodic = self.seen >= 1 << PER_SHIFT
                 && i64::from(best) >= min_power
@@ -364,7 +370,14 @@ impl Periodicity {
                 && self.c[0] < self.c[1]
                 && self.c[0].saturating_mul(FAST_VETO) < best;
         } else {
-            self.best_even = half(0);
+            // Lag 4 (the veto's), then 6, 8, …, 16.
+            lag(0);
+            self.best_even = lag(2)
+                .max(lag(4))
+                .max(lag(6))
+                .max(lag(8))
+                .max(lag(10))
+                .max(lag(12));
         }
         self.periodic
     }

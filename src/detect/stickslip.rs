@@ -326,7 +326,7 @@ impl Periodicity {
             self.filled += 1;
             return false;
         }
-        let h = (d >> 8) as i32; // Q8, |h| ≤ 2^14
+        let h = d >> 8; // Q8, |h| ≤ 2^14
 
         self.head = (self.head + 1) & (HIST_LEN - 1);
         self.hist[self.head] = h;

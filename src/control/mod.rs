@@ -852,8 +852,7 @@ impl Controller {
         let position = self.enc.position();
         let between = self
             .edges
-            .update(now, position, inputs.encoder_edge_age)
-            .saturating_sub(i64::from(position) << 16);
+            .update_fraction(now, position, inputs.encoder_edge_age);
         self.estimate = self.est.step_at(
             now,
             &Measurements {
@@ -862,7 +861,7 @@ impl Controller {
                 load: self.cfg.rated_load,
                 commanded_dir: dir,
             },
-            between.clamp(0, 0xFFFF) as u16,
+            between,
         );
         self.last_tick = Some(now);
         if moving {

@@ -122,8 +122,10 @@ pub struct Setting {
     pub kind: Kind,
     /// Accepted range, for messages (the text of the validation that checks it).
     pub range: &'static str,
-    /// One line of help.
-    pub about: &'static str,
+    /// One line of help, for a person on a host: empty unless the `help-text` feature is on
+    /// (liftctl and host-sim turn it on; the firmware leaves the ≈ 3 KiB of text out and its
+    /// `help <key>` gives unit and range). Read it through [`Setting::about`].
+    about: &'static str,
     /// Part of the flash record (false only for derived settings such as `friction.law`).
     pub stored: bool,
     get: fn(&ControlConfig) -> i64,
@@ -137,6 +139,11 @@ impl core::fmt::Debug for Setting {
 }
 
 impl Setting {
+    /// The one line of help, if this build has the help texts (feature `help-text`).
+    pub fn about(&self) -> Option<&'static str> {
+        Some(self.about).filter(|a| !a.is_empty())
+    }
+
     /// The field's raw bits in `cfg`.
     pub fn get(&self, cfg: &ControlConfig) -> i64 {
         (self.get)(cfg)
@@ -229,6 +236,21 @@ bits32!(
     I16F16
 );
 
+/// A setting's help line: the text with the `help-text` feature, empty without it (so the
+/// firmware does not carry it).
+#[cfg(feature = "help-text")]
+macro_rules! about {
+    ($t:expr) => {
+        $t
+    };
+}
+#[cfg(not(feature = "help-text"))]
+macro_rules! about {
+    ($t:expr) => {
+        ""
+    };
+}
+
 const fn num(frac: u32, unit: &'static Unit) -> Kind {
     Kind::Number {
         frac,
@@ -250,7 +272,7 @@ macro_rules! setting {
     // A fixed-point field stored as 32 raw bits.
     ($key:literal, $kind:expr, $range:literal, $about:literal, q32 $($f:ident).+) => {
         Setting {
-            key: $key, kind: $kind, range: $range, about: $about, stored: true,
+            key: $key, kind: $kind, range: $range, about: about!($about), stored: true,
             get: |c| i64::from(Bits32::bits(c.$($f).+)),
             set: |c, v| match i32::try_from(v) {
                 Ok(b) => { c.$($f).+ = Bits32::with_bits(b); true }
@@ -261,7 +283,7 @@ macro_rules! setting {
     // An I32F32 field stored as its 64 raw bits.
     ($key:literal, $kind:expr, $range:literal, $about:literal, q64 $($f:ident).+) => {
         Setting {
-            key: $key, kind: $kind, range: $range, about: $about, stored: true,
+            key: $key, kind: $kind, range: $range, about: about!($about), stored: true,
             get: |c| c.$($f).+.to_bits(),
             set: |c, v| { c.$($f).+ = I32F32::from_bits(v); true },
         }
@@ -269,7 +291,7 @@ macro_rules! setting {
     // An integer field.
     ($key:literal, $kind:expr, $range:literal, $about:literal, int $t:ty, $($f:ident).+) => {
         Setting {
-            key: $key, kind: $kind, range: $range, about: $about, stored: true,
+            key: $key, kind: $kind, range: $range, about: about!($about), stored: true,
             get: |c| i64::from(c.$($f).+),
             set: |c, v| match <$t>::try_from(v) {
                 Ok(b) => { c.$($f).+ = b; true }
@@ -306,7 +328,7 @@ pub static SETTINGS: [Setting; 55] = [
         key: "motion.ramp_shape",
         kind: Kind::Choice(&["trapezoid", "scurve"]),
         range: "trapezoid or scurve",
-        about: "speed ramp: constant acceleration or jerk-limited",
+        about: about!("speed ramp: constant acceleration or jerk-limited"),
         stored: true,
         get: |c| match c.motion.ramp_shape {
             RampShape::Trapezoid => 0,
@@ -325,7 +347,7 @@ pub static SETTINGS: [Setting; 55] = [
         key: "motion.buttons",
         kind: Kind::Choice(&["hold", "latched"]),
         range: "hold or latched",
-        about: "UP/DOWN buttons: hold-to-run or latched until STOP",
+        about: about!("UP/DOWN buttons: hold-to-run or latched until STOP"),
         stored: true,
         get: |c| match c.motion.buttons {
             ButtonMode::HoldToRun => 0,
@@ -394,7 +416,7 @@ pub static SETTINGS: [Setting; 55] = [
         key: "drive.screw",
         kind: Kind::Choice(&["lead", "ball"]),
         range: "lead or ball",
-        about: "screw type: lead (self-locking) or ball (held actively at rest)",
+        about: about!("screw type: lead (self-locking) or ball (held actively at rest)"),
         stored: true,
         get: |c| match c.screw {
             ScrewKind::Lead => 0,
@@ -423,7 +445,7 @@ pub static SETTINGS: [Setting; 55] = [
         key: "friction.law",
         kind: Kind::Choice(&["dry", "ptfe", "lithium", "ball"]),
         range: "dry, ptfe, lithium or ball",
-        about: "load a preset friction law (shows `custom` after edits)",
+        about: about!("load a preset friction law (shows `custom` after edits)"),
         stored: false,
         get: |c| {
             LAW_PRESETS
@@ -443,7 +465,7 @@ pub static SETTINGS: [Setting; 55] = [
         key: "friction.variable",
         kind: Kind::Choice(&["rate", "speed", "tau"]),
         range: "rate, speed or tau",
-        about: "law variable: screw rate |w| rad/s, sliding speed m/s, or tau",
+        about: about!("law variable: screw rate |w| rad/s, sliding speed m/s, or tau"),
         stored: true,
         get: |c| match c.estimator.law.variable {
             LawVariable::ScrewRate => 0,
@@ -486,8 +508,9 @@ pub static SETTINGS: [Setting; 55] = [
         key: "stickslip.reaction",
         kind: Kind::Choice(&["log", "warn", "speed"]),
         range: "log, warn or speed",
-        about:
-            "on stick-slip: log it, also warn on the console, or also change to the escape speed",
+        about: about!(
+            "on stick-slip: log it, also warn on the console, or also change to the escape speed"
+        ),
         stored: true,
         get: |c| match c.stick_slip.reaction {
             Reaction::Log => 0,

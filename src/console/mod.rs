@@ -378,11 +378,25 @@ pub fn write_limits(out: &mut dyn Write, cfg: &ValidatedConfig) -> fmt::Result {
     write_mechanism(out, cfg)
 }
 
-/// The reply to `help <key>`.
+/// The reply to `help <key>`: the key, its help line (builds with the `help-text` feature:
+/// liftctl, host-sim) and what it takes. The firmware has no help lines (flash) and points to
+/// the host tool that has them instead.
 pub fn write_key_help(out: &mut dyn Write, id: SettingId) -> fmt::Result {
-    let s = id.setting();
-    write!(out, "{}: {}; ", s.key, s.about)?;
-    write_expected(out, id)
+    key_help(out, id, id.setting().about())
+}
+
+fn key_help(out: &mut dyn Write, id: SettingId, about: Option<&str>) -> fmt::Result {
+    write!(out, "{}: ", id.key())?;
+    match about {
+        Some(about) => {
+            write!(out, "{about}; ")?;
+            write_expected(out, id)
+        }
+        None => {
+            write_expected(out, id)?;
+            out.write_str("; described by `liftctl config keys`")
+        }
+    }
 }
 
 /// The reply to `help`.
@@ -575,5 +589,33 @@ impl LineBuffer {
                 Feed::Pending
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    extern crate std;
+    use std::string::String;
+
+    /// Host builds have the help lines (`help-text`, turned on by host-sim and liftctl); the
+    /// firmware's `help <key>` without them still says what the key takes and where the
+    /// description is.
+    #[test]
+    fn key_help_without_the_help_text_gives_unit_range_and_a_pointer() {
+        let id = settings::find("motion.ramp_ms").unwrap();
+        let mut s = String::new();
+        key_help(&mut s, id, None).unwrap();
+        assert_eq!(
+            s,
+            "motion.ramp_ms: expected a duration in ms (or s), range 10..2000 ms; described by \
+             `liftctl config keys`"
+        );
+        let mut s = String::new();
+        key_help(&mut s, id, Some("what it is")).unwrap();
+        assert_eq!(
+            s,
+            "motion.ramp_ms: what it is; expected a duration in ms (or s), range 10..2000 ms"
+        );
     }
 }

@@ -491,7 +491,7 @@ pub static SETTINGS: [Setting; 55] = [
     setting!("friction.slope", num(32, &NUMBER), "-1000..1000",
         "law: viscous slope per unit of the variable", q64 estimator.law.slope),
     setting!("friction.s_max", Kind::Number { frac: 32, pow10: 0, unit: &NUMBER, none_at_max: true },
-        ">0", "law: viscous term flat beyond this (none: never)", q64 estimator.law.s_max),
+        ">0..1e6", "law: viscous term flat beyond this (none: never)", q64 estimator.law.s_max),
     setting!("motor.kt", num(28, &NM_PER_AMP), "0.001..1 Nm/A",
         "motor torque constant", q32 estimator.motor.torque_constant),
     setting!("motor.gear_efficiency", num(28, &RATIO), "0.1..1",

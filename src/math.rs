@@ -4,6 +4,30 @@
 //! Each states its error bound; `tests` below prove it against `f64` over the whole input range.
 //! Trigonometry comes from `idsp` (see [`crate::units::Angle`]).
 
+/// `n / d` for `u128` (`d = 0` gives 0), for the configuration-time arithmetic in 128 bits.
+///
+/// One out-of-line copy on purpose: a 32-bit Arm core has no 128-bit divide and no runtime
+/// routine for it, so the compiler expands every `/` on `i128`/`u128` inline (≈ 0.3–0.5 KiB
+/// of flash each); configuration code (`Estimator::new`, `Controller::new`,
+/// `Scale::from_ratio`, `Angle::cos_sin`) divides through this and [`div128`] instead. Never
+/// on the tick path (a call and the generic loop).
+#[inline(never)]
+pub fn udiv128(n: u128, d: u128) -> u128 {
+    n.checked_div(d).unwrap_or(0)
+}
+
+/// `n / d` truncated toward zero like `/` on `i128` (`d = 0` gives 0, `i128::MIN / −1` wraps),
+/// through the one [`udiv128`].
+#[inline]
+pub fn div128(n: i128, d: i128) -> i128 {
+    let q = udiv128(n.unsigned_abs(), d.unsigned_abs()) as i128;
+    if (n < 0) != (d < 0) {
+        q.wrapping_neg()
+    } else {
+        q
+    }
+}
+
 /// `2^(−k/32)` for k = 0…31 in Q0.32 (k = 0 saturates to `u32::MAX`), generated offline:
 /// `round(2^(32 − k/32))`.
 const EXP2_TABLE: [u32; 32] = {

@@ -233,8 +233,8 @@ impl Angle {
         let x2 = x * x >> 60;
         let mut n: i128 = 1;
         while n < 14 {
-            tc = -(tc * x2 >> 60) / ((2 * n - 1) * (2 * n));
-            ts = -(ts * x2 >> 60) / ((2 * n) * (2 * n + 1));
+            tc = -crate::math::div128(tc * x2 >> 60, (2 * n - 1) * (2 * n));
+            ts = -crate::math::div128(ts * x2 >> 60, (2 * n) * (2 * n + 1));
             c += tc;
             s += ts;
             n += 1;

@@ -146,7 +146,7 @@ impl FrictionLaw {
         let in_max = if self.s_max == I32F32::MAX {
             u32::MAX
         } else {
-            let v = (smax * k_den << in_frac) / (k_num << 32);
+            let v = crate::math::div128(smax * k_den << in_frac, k_num << 32);
             if v > i128::from(u32::MAX) {
                 u32::MAX
             } else {

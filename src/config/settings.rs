@@ -122,9 +122,10 @@ pub struct Setting {
     pub kind: Kind,
     /// Accepted range, for messages (the text of the validation that checks it).
     pub range: &'static str,
-    /// One line of help, for a person on a host: empty unless the `help-text` feature is on
-    /// (liftctl and host-sim turn it on; the firmware leaves the ≈ 3 KiB of text out and its
-    /// `help <key>` gives unit and range). Read it through [`Setting::about`].
+    /// One line of help, for a person on a host: only with the `help-text` feature (liftctl
+    /// and host-sim turn it on; the firmware leaves the ≈ 3 KiB of text and this field out and
+    /// its `help <key>` gives unit and range). Read it through [`Setting::about`].
+    #[cfg(feature = "help-text")]
     about: &'static str,
     /// Part of the flash record (false only for derived settings such as `friction.law`).
     pub stored: bool,
@@ -140,8 +141,15 @@ impl core::fmt::Debug for Setting {
 
 impl Setting {
     /// The one line of help, if this build has the help texts (feature `help-text`).
+    #[cfg(feature = "help-text")]
     pub fn about(&self) -> Option<&'static str> {
-        Some(self.about).filter(|a| !a.is_empty())
+        Some(self.about)
+    }
+
+    /// The one line of help, if this build has the help texts (feature `help-text`).
+    #[cfg(not(feature = "help-text"))]
+    pub fn about(&self) -> Option<&'static str> {
+        None
     }
 
     /// The field's raw bits in `cfg`.
@@ -236,21 +244,6 @@ bits32!(
     I16F16
 );
 
-/// A setting's help line: the text with the `help-text` feature, empty without it (so the
-/// firmware does not carry it).
-#[cfg(feature = "help-text")]
-macro_rules! about {
-    ($t:expr) => {
-        $t
-    };
-}
-#[cfg(not(feature = "help-text"))]
-macro_rules! about {
-    ($t:expr) => {
-        ""
-    };
-}
-
 const fn num(frac: u32, unit: &'static Unit) -> Kind {
     Kind::Number {
         frac,
@@ -272,7 +265,7 @@ macro_rules! setting {
     // A fixed-point field stored as 32 raw bits.
     ($key:literal, $kind:expr, $range:literal, $about:literal, q32 $($f:ident).+) => {
         Setting {
-            key: $key, kind: $kind, range: $range, about: about!($about), stored: true,
+            key: $key, kind: $kind, range: $range, #[cfg(feature = "help-text")] about: $about, stored: true,
             get: |c| i64::from(Bits32::bits(c.$($f).+)),
             set: |c, v| match i32::try_from(v) {
                 Ok(b) => { c.$($f).+ = Bits32::with_bits(b); true }
@@ -283,7 +276,7 @@ macro_rules! setting {
     // An I32F32 field stored as its 64 raw bits.
     ($key:literal, $kind:expr, $range:literal, $about:literal, q64 $($f:ident).+) => {
         Setting {
-            key: $key, kind: $kind, range: $range, about: about!($about), stored: true,
+            key: $key, kind: $kind, range: $range, #[cfg(feature = "help-text")] about: $about, stored: true,
             get: |c| c.$($f).+.to_bits(),
             set: |c, v| { c.$($f).+ = I32F32::from_bits(v); true },
         }
@@ -291,7 +284,7 @@ macro_rules! setting {
     // An integer field.
     ($key:literal, $kind:expr, $range:literal, $about:literal, int $t:ty, $($f:ident).+) => {
         Setting {
-            key: $key, kind: $kind, range: $range, about: about!($about), stored: true,
+            key: $key, kind: $kind, range: $range, #[cfg(feature = "help-text")] about: $about, stored: true,
             get: |c| i64::from(c.$($f).+),
             set: |c, v| match <$t>::try_from(v) {
                 Ok(b) => { c.$($f).+ = b; true }
@@ -328,7 +321,8 @@ pub static SETTINGS: [Setting; 55] = [
         key: "motion.ramp_shape",
         kind: Kind::Choice(&["trapezoid", "scurve"]),
         range: "trapezoid or scurve",
-        about: about!("speed ramp: constant acceleration or jerk-limited"),
+        #[cfg(feature = "help-text")]
+        about: "speed ramp: constant acceleration or jerk-limited",
         stored: true,
         get: |c| match c.motion.ramp_shape {
             RampShape::Trapezoid => 0,
@@ -347,7 +341,8 @@ pub static SETTINGS: [Setting; 55] = [
         key: "motion.buttons",
         kind: Kind::Choice(&["hold", "latched"]),
         range: "hold or latched",
-        about: about!("UP/DOWN buttons: hold-to-run or latched until STOP"),
+        #[cfg(feature = "help-text")]
+        about: "UP/DOWN buttons: hold-to-run or latched until STOP",
         stored: true,
         get: |c| match c.motion.buttons {
             ButtonMode::HoldToRun => 0,
@@ -416,7 +411,8 @@ pub static SETTINGS: [Setting; 55] = [
         key: "drive.screw",
         kind: Kind::Choice(&["lead", "ball"]),
         range: "lead or ball",
-        about: about!("screw type: lead (self-locking) or ball (held actively at rest)"),
+        #[cfg(feature = "help-text")]
+        about: "screw type: lead (self-locking) or ball (held actively at rest)",
         stored: true,
         get: |c| match c.screw {
             ScrewKind::Lead => 0,
@@ -445,7 +441,8 @@ pub static SETTINGS: [Setting; 55] = [
         key: "friction.law",
         kind: Kind::Choice(&["dry", "ptfe", "lithium", "ball"]),
         range: "dry, ptfe, lithium or ball",
-        about: about!("load a preset friction law (shows `custom` after edits)"),
+        #[cfg(feature = "help-text")]
+        about: "load a preset friction law (shows `custom` after edits)",
         stored: false,
         get: |c| {
             LAW_PRESETS
@@ -465,7 +462,8 @@ pub static SETTINGS: [Setting; 55] = [
         key: "friction.variable",
         kind: Kind::Choice(&["rate", "speed", "tau"]),
         range: "rate, speed or tau",
-        about: about!("law variable: screw rate |w| rad/s, sliding speed m/s, or tau"),
+        #[cfg(feature = "help-text")]
+        about: "law variable: screw rate |w| rad/s, sliding speed m/s, or tau",
         stored: true,
         get: |c| match c.estimator.law.variable {
             LawVariable::ScrewRate => 0,
@@ -508,9 +506,9 @@ pub static SETTINGS: [Setting; 55] = [
         key: "stickslip.reaction",
         kind: Kind::Choice(&["log", "warn", "speed"]),
         range: "log, warn or speed",
-        about: about!(
-            "on stick-slip: log it, also warn on the console, or also change to the escape speed"
-        ),
+        #[cfg(feature = "help-text")]
+        about:
+            "on stick-slip: log it, also warn on the console, or also change to the escape speed",
         stored: true,
         get: |c| match c.stick_slip.reaction {
             Reaction::Log => 0,

@@ -11,9 +11,40 @@
 /// of flash each); configuration code (`Estimator::new`, `Controller::new`,
 /// `Scale::from_ratio`, `Angle::cos_sin`) divides through this and [`div128`] instead. Never
 /// on the tick path (a call and the generic loop).
+///
+/// Written out rather than `n / d`, whose generic expansion is 0.8 KiB: a divisor below 2^32
+/// (the Taylor terms of `Angle::cos_sin`) takes four 64-by-32-bit steps; a larger one is
+/// shift-and-subtract over the quotient's bits only (≤ 96 steps).
 #[inline(never)]
 pub fn udiv128(n: u128, d: u128) -> u128 {
-    n.checked_div(d).unwrap_or(0)
+    if d == 0 || n < d {
+        return 0;
+    }
+    if let Ok(d32) = u32::try_from(d) {
+        // Schoolbook division by one 32-bit limb: each partial remainder is below d32, so
+        // `r·2^32 + limb` fits u64.
+        let d64 = u64::from(d32);
+        let (mut q, mut r) = (0u128, 0u64);
+        for k in (0..4).rev() {
+            let cur = (r << 32) | ((n >> (32 * k)) as u32 as u64);
+            q |= u128::from(cur / d64) << (32 * k);
+            r = cur % d64;
+        }
+        return q;
+    }
+    // d ≤ n: align d's top bit with n's (no overflow: same leading zeros), then one quotient
+    // bit per step.
+    let shift = d.leading_zeros() - n.leading_zeros();
+    let (mut n, mut d, mut q) = (n, d << shift, 0u128);
+    for _ in 0..=shift {
+        q <<= 1;
+        if n >= d {
+            n -= d;
+            q |= 1;
+        }
+        d >>= 1;
+    }
+    q
 }
 
 /// `n / d` truncated toward zero like `/` on `i128` (`d = 0` gives 0, `i128::MIN / −1` wraps),
@@ -284,6 +315,53 @@ pub fn first_quadrant_angle(c_q31: u32, s_q31: u32) -> i32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn udiv128_is_division() {
+        let cases: [(u128, u128); 10] = [
+            (0, 1),
+            (5, 0),
+            (u128::MAX, 1),
+            (u128::MAX, u128::MAX),
+            (u128::MAX, 3),
+            (u128::MAX, u128::from(u32::MAX)),
+            (u128::MAX, u128::from(u32::MAX) + 1),
+            (1 << 127, (1 << 127) - 1),
+            (1 << 72, 7 << 40),
+            (12345, 12346),
+        ];
+        for (n, d) in cases {
+            assert_eq!(udiv128(n, d), n.checked_div(d).unwrap_or(0), "{n} / {d}");
+        }
+        for (n, d) in [
+            (-7i128, 2i128),
+            (7, -2),
+            (-7, -2),
+            (i128::MIN, -1),
+            (i128::MIN, 3),
+        ] {
+            assert_eq!(div128(n, d), n.wrapping_div(d), "{n} / {d}");
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn udiv128_matches_native_division(
+            n in proptest::prelude::any::<u128>(),
+            d in proptest::prelude::any::<u128>(),
+            dshift in 0u32..128,
+            nshift in 0u32..128,
+        ) {
+            // Spread both over every magnitude (uniform u128s are almost all ~2^127).
+            let (n, d) = (n >> nshift, d >> dshift);
+            proptest::prop_assert_eq!(udiv128(n, d), n.checked_div(d).unwrap_or(0));
+            let (sn, sd) = (n as i128, d as i128);
+            proptest::prop_assert_eq!(
+                div128(sn, sd),
+                if sd == 0 { 0 } else { sn.wrapping_div(sd) }
+            );
+        }
+    }
 
     #[test]
     fn exp_neg_is_within_1e8_over_its_whole_range() {

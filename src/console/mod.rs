@@ -105,7 +105,12 @@ const HEIGHT: Kind = Kind::Number {
 fn word(s: &str) -> (&str, &str) {
     let s = s.trim_start();
     match s.find(|c: char| c.is_ascii_whitespace()) {
-        Some(i) => (&s[..i], s[i..].trim_start()),
+        // `split_at_checked`, not `[..i]`: `find` gives a char boundary, and the firmware then
+        // links no slicing panic (whose message formatting costs ≈ 2 KiB of flash).
+        Some(i) => match s.split_at_checked(i) {
+            Some((w, rest)) => (w, rest.trim_start()),
+            None => (s, ""),
+        },
         None => (s, ""),
     }
 }
@@ -291,7 +296,11 @@ struct Clip<'a>(&'a str);
 impl fmt::Display for Clip<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self.0.char_indices().nth(24) {
-            Some((i, _)) => write!(f, "{}...", &self.0[..i]),
+            Some((i, _)) => {
+                // A char boundary from `char_indices` (checked, so that no panic is linked).
+                f.write_str(self.0.get(..i).unwrap_or(self.0))?;
+                f.write_str("...")
+            }
             None => f.write_str(self.0),
         }
     }

@@ -129,8 +129,49 @@ pub struct Setting {
     about: &'static str,
     /// Part of the flash record (false only for derived settings such as `friction.law`).
     pub stored: bool,
+    /// The raw bits' integer type: [`Setting::set`] refuses what it cannot hold, so the
+    /// per-setting `set` functions only store.
+    width: Width,
     get: fn(&ControlConfig) -> i64,
     set: fn(&mut ControlConfig, i64) -> bool,
+}
+
+/// The integer type a setting's raw bits are stored in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Width {
+    I32,
+    U32,
+    U16,
+    /// Any `i64` (I32F32 fields; choices check their index themselves).
+    I64,
+}
+
+impl Width {
+    fn holds(self, raw: i64) -> bool {
+        match self {
+            Width::I32 => i32::try_from(raw).is_ok(),
+            Width::U32 => u32::try_from(raw).is_ok(),
+            Width::U16 => u16::try_from(raw).is_ok(),
+            Width::I64 => true,
+        }
+    }
+}
+
+/// The [`Width`] of an integer field type.
+trait FieldInt {
+    const WIDTH: Width;
+}
+
+impl FieldInt for i32 {
+    const WIDTH: Width = Width::I32;
+}
+
+impl FieldInt for u32 {
+    const WIDTH: Width = Width::U32;
+}
+
+impl FieldInt for u16 {
+    const WIDTH: Width = Width::U16;
 }
 
 impl core::fmt::Debug for Setting {
@@ -160,7 +201,7 @@ impl Setting {
     /// Write raw bits into the field; false (and `cfg` unchanged) if they do not fit its type.
     /// No range check: see [`apply`].
     pub fn set(&self, cfg: &mut ControlConfig, raw: i64) -> bool {
-        (self.set)(cfg, raw)
+        self.width.holds(raw) && (self.set)(cfg, raw)
     }
 }
 
@@ -266,17 +307,17 @@ macro_rules! setting {
     ($key:literal, $kind:expr, $range:literal, $about:literal, q32 $($f:ident).+) => {
         Setting {
             key: $key, kind: $kind, range: $range, #[cfg(feature = "help-text")] about: $about, stored: true,
+            width: Width::I32,
             get: |c| i64::from(Bits32::bits(c.$($f).+)),
-            set: |c, v| match i32::try_from(v) {
-                Ok(b) => { c.$($f).+ = Bits32::with_bits(b); true }
-                Err(_) => false,
-            },
+            // `Setting::set` checked that the bits fit i32.
+            set: |c, v| { c.$($f).+ = Bits32::with_bits(v as i32); true },
         }
     };
     // An I32F32 field stored as its 64 raw bits.
     ($key:literal, $kind:expr, $range:literal, $about:literal, q64 $($f:ident).+) => {
         Setting {
             key: $key, kind: $kind, range: $range, #[cfg(feature = "help-text")] about: $about, stored: true,
+            width: Width::I64,
             get: |c| c.$($f).+.to_bits(),
             set: |c, v| { c.$($f).+ = I32F32::from_bits(v); true },
         }
@@ -285,11 +326,10 @@ macro_rules! setting {
     ($key:literal, $kind:expr, $range:literal, $about:literal, int $t:ty, $($f:ident).+) => {
         Setting {
             key: $key, kind: $kind, range: $range, #[cfg(feature = "help-text")] about: $about, stored: true,
+            width: <$t as FieldInt>::WIDTH,
             get: |c| i64::from(c.$($f).+),
-            set: |c, v| match <$t>::try_from(v) {
-                Ok(b) => { c.$($f).+ = b; true }
-                Err(_) => false,
-            },
+            // `Setting::set` checked that the value fits the field's type.
+            set: |c, v| { c.$($f).+ = v as $t; true },
         }
     };
 }
@@ -324,6 +364,7 @@ pub static SETTINGS: [Setting; 55] = [
         #[cfg(feature = "help-text")]
         about: "speed ramp: constant acceleration or jerk-limited",
         stored: true,
+        width: Width::I64,
         get: |c| match c.motion.ramp_shape {
             RampShape::Trapezoid => 0,
             RampShape::SCurve => 1,
@@ -344,6 +385,7 @@ pub static SETTINGS: [Setting; 55] = [
         #[cfg(feature = "help-text")]
         about: "UP/DOWN buttons: hold-to-run or latched until STOP",
         stored: true,
+        width: Width::I64,
         get: |c| match c.motion.buttons {
             ButtonMode::HoldToRun => 0,
             ButtonMode::Latched => 1,
@@ -414,6 +456,7 @@ pub static SETTINGS: [Setting; 55] = [
         #[cfg(feature = "help-text")]
         about: "screw type: lead (self-locking) or ball (held actively at rest)",
         stored: true,
+        width: Width::I64,
         get: |c| match c.screw {
             ScrewKind::Lead => 0,
             ScrewKind::Ball => 1,
@@ -444,6 +487,7 @@ pub static SETTINGS: [Setting; 55] = [
         #[cfg(feature = "help-text")]
         about: "load a preset friction law (shows `custom` after edits)",
         stored: false,
+        width: Width::I64,
         get: |c| {
             LAW_PRESETS
                 .iter()
@@ -465,6 +509,7 @@ pub static SETTINGS: [Setting; 55] = [
         #[cfg(feature = "help-text")]
         about: "law variable: screw rate |w| rad/s, sliding speed m/s, or tau",
         stored: true,
+        width: Width::I64,
         get: |c| match c.estimator.law.variable {
             LawVariable::ScrewRate => 0,
             LawVariable::SlidingSpeed => 1,
@@ -510,6 +555,7 @@ pub static SETTINGS: [Setting; 55] = [
         about:
             "on stick-slip: log it, also warn on the console, or also change to the escape speed",
         stored: true,
+        width: Width::I64,
         get: |c| match c.stick_slip.reaction {
             Reaction::Log => 0,
             Reaction::Warn => 1,

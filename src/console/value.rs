@@ -318,7 +318,7 @@ fn write_shortest(out: &mut dyn Write, raw: i64, frac: u32, pow10: i32) -> fmt::
         out.write_char('-')?;
     }
     write!(out, "{ip}")?;
-    while n > 0 && digits % 10 == 0 {
+    while n > 0 && digits.is_multiple_of(10) {
         digits /= 10;
         n -= 1;
     }

@@ -35,7 +35,7 @@ impl Scale {
         let mut shift = 0u32;
         let mag = num.unsigned_abs();
         let den_u = den as u128;
-        let limit = (den_u.leading_zeros() >= 31).then(|| den_u << 31);
+        let limit = (den_u.leading_zeros() >= 31).then_some(den_u << 31);
         while shift < 62 && limit.is_none_or(|l| (mag << (shift + 1)) < l) {
             shift += 1;
         }

@@ -101,10 +101,11 @@ unit!(
 pub enum Kind {
     /// `raw / 2^frac` in the field's base unit, shown as that times `10^pow10` in `unit.display`.
     Number {
-        /// Fractional bits of the field's Q format (0 for integers).
-        frac: u32,
+        /// Fractional bits of the field's Q format (0 for integers). (`u8`/`i8` keep each
+        /// registry entry 4 bytes smaller on the board.)
+        frac: u8,
         /// Display unit per base unit as a power of ten (mm per m: 3).
-        pow10: i32,
+        pow10: i8,
         /// Unit for parsing and display.
         unit: &'static Unit,
         /// The field's largest value means "no limit" (typed and shown as `none`).
@@ -285,7 +286,7 @@ bits32!(
     I16F16
 );
 
-const fn num(frac: u32, unit: &'static Unit) -> Kind {
+const fn num(frac: u8, unit: &'static Unit) -> Kind {
     Kind::Number {
         frac,
         pow10: 0,

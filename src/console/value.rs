@@ -225,8 +225,8 @@ pub fn parse(kind: &Kind, text: &str) -> Result<i64, ValueError> {
             let (d, unit_text) = parse_decimal(text)?;
             let p = unit_pow(unit, unit_text).ok_or(ValueError::WrongUnit)?;
             // raw = mant·10^(exp + p − pow10)·2^frac
-            let (mag, exact) =
-                to_raw(d.mant, d.exp + p - pow10, *frac).ok_or(ValueError::TooLarge)?;
+            let (mag, exact) = to_raw(d.mant, d.exp + p - i32::from(*pow10), u32::from(*frac))
+                .ok_or(ValueError::TooLarge)?;
             if *frac == 0 && !exact {
                 return Err(ValueError::NotWhole);
             }
@@ -256,7 +256,7 @@ pub fn format(out: &mut dyn Write, kind: &Kind, raw: i64) -> fmt::Result {
             if *none_at_max && raw == i64::MAX {
                 return out.write_str("none");
             }
-            write_shortest(out, raw, *frac, *pow10)?;
+            write_shortest(out, raw, u32::from(*frac), i32::from(*pow10))?;
             if !unit.display.is_empty() {
                 out.write_char(' ')?;
                 out.write_str(unit.display)?;
@@ -620,7 +620,7 @@ mod tests {
         }
         let (d, unit_text) = reference::parse_decimal(text)?;
         let p = unit_pow(unit, unit_text).ok_or(ValueError::WrongUnit)?;
-        reference::parse(*frac, *pow10, p, d)
+        reference::parse(u32::from(*frac), i32::from(*pow10), p, d)
     }
 
     /// Number settings only, by registry index.
@@ -686,6 +686,7 @@ mod tests {
         ) {
             let s = &SETTINGS[index];
             let Kind::Number { frac, pow10, .. } = s.kind else { unreachable!() };
+            let (frac, pow10) = (u32::from(frac), i32::from(pow10));
             let raw = match width {
                 0 => i64::from(bits as i32),
                 1 => i64::from(bits as u32),

@@ -249,9 +249,9 @@ impl Estimator {
         let gamma2 = (om * om >> 28) * om >> 28;
         // Screw rad/s (Q16) from counts/tick (Q16): × rad/count × ticks/s.
         let rpc = geometry.screw_rad_per_count(); // counts → Q16 rad
-        let speed_scale = scale_mul(rpc, i128::from(tick_hz), 1 << 16);
+        let speed_scale = rpc.times(i128::from(tick_hz), 1 << 16);
         // Screw rad/s² (Q8) from counts/tick² (Q16): × rad/count × ticks²/s² / 2^8.
-        let accel_scale = scale_mul(rpc, i128::from(tick_hz) * i128::from(tick_hz), 1 << 24);
+        let accel_scale = rpc.times(i128::from(tick_hz) * i128::from(tick_hz), 1 << 24);
         Ok(Estimator {
             geometry,
             screw,
@@ -427,11 +427,4 @@ impl Estimator {
             flags: EstimateFlags(flags),
         }
     }
-}
-
-/// `base · num / den` as a new scale.
-fn scale_mul(base: Scale, num: i128, den: i128) -> Scale {
-    // base = mant·2^−shift; recover it exactly through to_f64-free integer parts.
-    let (mant, shift) = base.parts();
-    Scale::from_ratio(i128::from(mant) * num, den << shift)
 }

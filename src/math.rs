@@ -12,25 +12,14 @@
 /// `Scale::from_ratio`, `Angle::cos_sin`) divides through this and [`div128`] instead. Never
 /// on the tick path (a call and the generic loop).
 ///
-/// Written out rather than `n / d`, whose generic expansion is 0.8 KiB: a divisor below 2^32
-/// (the Taylor terms of `Angle::cos_sin`) takes four 64-by-32-bit steps; a larger one is
-/// shift-and-subtract over the quotient's bits only (≤ 96 steps).
+/// Written out rather than `n / d`, whose generic expansion is 0.8 KiB: shift-and-subtract
+/// over the quotient's bits only (at most 128 steps of a compare, a subtract and two shifts:
+/// a few thousand instructions at worst, at configuration time), calling nothing, so it adds
+/// only its own frame to the stack of the configuration path.
 #[inline(never)]
 pub fn udiv128(n: u128, d: u128) -> u128 {
     if d == 0 || n < d {
         return 0;
-    }
-    if let Ok(d32) = u32::try_from(d) {
-        // Schoolbook division by one 32-bit limb: each partial remainder is below d32, so
-        // `r·2^32 + limb` fits u64.
-        let d64 = u64::from(d32);
-        let (mut q, mut r) = (0u128, 0u64);
-        for k in (0..4).rev() {
-            let cur = (r << 32) | ((n >> (32 * k)) as u32 as u64);
-            q |= u128::from(cur / d64) << (32 * k);
-            r = cur % d64;
-        }
-        return q;
     }
     // d ≤ n: align d's top bit with n's (no overflow: same leading zeros), then one quotient
     // bit per step.

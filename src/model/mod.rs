@@ -88,9 +88,7 @@ impl Scale {
         }
     }
 
-    /// This constant times `num/den` (exact integer arithmetic, configuration time only; one
-    /// out-of-line copy for the estimator's and the controller's speed scales).
-    #[inline(never)]
+    /// This constant times `num/den` (exact integer arithmetic, configuration time only).
     pub fn times(self, num: i128, den: i128) -> Scale {
         Scale::from_ratio(i128::from(self.mant) * num, den << self.shift)
     }

@@ -10,7 +10,7 @@
 //! and its bandwidth `f_b` (default 40 Hz at a 1 kHz tick) trades count-quantisation noise against
 //! lag. docs/model.md gives the design and the measured step response.
 
-use crate::math::exp_neg_q16;
+use crate::math::{div128, exp_neg_q16};
 use crate::model::friction::{CompiledLaw, FrictionLaw};
 use crate::model::geometry::{DriveConfig, Geometry, GeometryConfig, Pose};
 use crate::model::screw::{Contact, MechanicsConfig, ScrewModel};
@@ -233,9 +233,9 @@ impl Estimator {
         let n = i128::from(cfg.drive.gear_ratio.to_bits()); // Q16
         let eta = i128::from(m.gear_efficiency.bits()); // Q28
         let n_eta = Factor::from_raw(((n * eta) >> 28) as i32);
-        let n_over_eta = Factor::from_raw(((n << 28) / eta) as i32);
-        let eta_over_n = Ratio::from_raw(((eta << 16) / n) as i32);
-        let inv_n_eta = Ratio::from_raw(((1i128 << 72) / (n * eta)) as i32);
+        let n_over_eta = Factor::from_raw(div128(n << 28, eta) as i32);
+        let eta_over_n = Ratio::from_raw(div128(eta << 16, n) as i32);
+        let inv_n_eta = Ratio::from_raw(div128(1i128 << 72, n * eta) as i32);
 
         // Fading-memory α-β-γ gains, θ = e^(−2π f_b T), in Q28.
         const TWO_PI_Q16: u64 = 411_775;
@@ -249,9 +249,9 @@ impl Estimator {
         let gamma2 = (om * om >> 28) * om >> 28;
         // Screw rad/s (Q16) from counts/tick (Q16): × rad/count × ticks/s.
         let rpc = geometry.screw_rad_per_count(); // counts → Q16 rad
-        let speed_scale = scale_mul(rpc, i128::from(tick_hz), 1 << 16);
+        let speed_scale = rpc.times(i128::from(tick_hz), 1 << 16);
         // Screw rad/s² (Q8) from counts/tick² (Q16): × rad/count × ticks²/s² / 2^8.
-        let accel_scale = scale_mul(rpc, i128::from(tick_hz) * i128::from(tick_hz), 1 << 24);
+        let accel_scale = rpc.times(i128::from(tick_hz) * i128::from(tick_hz), 1 << 24);
         Ok(Estimator {
             geometry,
             screw,
@@ -427,11 +427,4 @@ impl Estimator {
             flags: EstimateFlags(flags),
         }
     }
-}
-
-/// `base · num / den` as a new scale.
-fn scale_mul(base: Scale, num: i128, den: i128) -> Scale {
-    // base = mant·2^−shift; recover it exactly through to_f64-free integer parts.
-    let (mant, shift) = base.parts();
-    Scale::from_ratio(i128::from(mant) * num, den << shift)
 }

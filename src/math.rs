@@ -4,6 +4,50 @@
 //! Each states its error bound; `tests` below prove it against `f64` over the whole input range.
 //! Trigonometry comes from `idsp` (see [`crate::units::Angle`]).
 
+/// `n / d` for `u128` (`d = 0` gives 0), for the configuration-time arithmetic in 128 bits.
+///
+/// One out-of-line copy on purpose: a 32-bit Arm core has no 128-bit divide and no runtime
+/// routine for it, so the compiler expands every `/` on `i128`/`u128` inline (≈ 0.3–0.5 KiB
+/// of flash each); configuration code (`Estimator::new`, `Controller::new`,
+/// `Scale::from_ratio`, `Angle::cos_sin`) divides through this and [`div128`] instead. Never
+/// on the tick path (a call and the generic loop).
+///
+/// Written out rather than `n / d`, whose generic expansion is 0.8 KiB: shift-and-subtract
+/// over the quotient's bits only (at most 128 steps of a compare, a subtract and two shifts:
+/// a few thousand instructions at worst, at configuration time), calling nothing, so it adds
+/// only its own frame to the stack of the configuration path.
+#[inline(never)]
+pub fn udiv128(n: u128, d: u128) -> u128 {
+    if d == 0 || n < d {
+        return 0;
+    }
+    // d ≤ n: align d's top bit with n's (no overflow: same leading zeros), then one quotient
+    // bit per step.
+    let shift = d.leading_zeros() - n.leading_zeros();
+    let (mut n, mut d, mut q) = (n, d << shift, 0u128);
+    for _ in 0..=shift {
+        q <<= 1;
+        if n >= d {
+            n -= d;
+            q |= 1;
+        }
+        d >>= 1;
+    }
+    q
+}
+
+/// `n / d` truncated toward zero like `/` on `i128` (`d = 0` gives 0, `i128::MIN / −1` wraps),
+/// through the one [`udiv128`].
+#[inline]
+pub fn div128(n: i128, d: i128) -> i128 {
+    let q = udiv128(n.unsigned_abs(), d.unsigned_abs()) as i128;
+    if (n < 0) != (d < 0) {
+        q.wrapping_neg()
+    } else {
+        q
+    }
+}
+
 /// `2^(−k/32)` for k = 0…31 in Q0.32 (k = 0 saturates to `u32::MAX`), generated offline:
 /// `round(2^(32 − k/32))`.
 const EXP2_TABLE: [u32; 32] = {
@@ -260,6 +304,53 @@ pub fn first_quadrant_angle(c_q31: u32, s_q31: u32) -> i32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn udiv128_is_division() {
+        let cases: [(u128, u128); 10] = [
+            (0, 1),
+            (5, 0),
+            (u128::MAX, 1),
+            (u128::MAX, u128::MAX),
+            (u128::MAX, 3),
+            (u128::MAX, u128::from(u32::MAX)),
+            (u128::MAX, u128::from(u32::MAX) + 1),
+            (1 << 127, (1 << 127) - 1),
+            (1 << 72, 7 << 40),
+            (12345, 12346),
+        ];
+        for (n, d) in cases {
+            assert_eq!(udiv128(n, d), n.checked_div(d).unwrap_or(0), "{n} / {d}");
+        }
+        for (n, d) in [
+            (-7i128, 2i128),
+            (7, -2),
+            (-7, -2),
+            (i128::MIN, -1),
+            (i128::MIN, 3),
+        ] {
+            assert_eq!(div128(n, d), n.wrapping_div(d), "{n} / {d}");
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn udiv128_matches_native_division(
+            n in proptest::prelude::any::<u128>(),
+            d in proptest::prelude::any::<u128>(),
+            dshift in 0u32..128,
+            nshift in 0u32..128,
+        ) {
+            // Spread both over every magnitude (uniform u128s are almost all ~2^127).
+            let (n, d) = (n >> nshift, d >> dshift);
+            proptest::prop_assert_eq!(udiv128(n, d), n.checked_div(d).unwrap_or(0));
+            let (sn, sd) = (n as i128, d as i128);
+            proptest::prop_assert_eq!(
+                div128(sn, sd),
+                if sd == 0 { 0 } else { sn.wrapping_div(sd) }
+            );
+        }
+    }
 
     #[test]
     fn exp_neg_is_within_1e8_over_its_whole_range() {

@@ -212,34 +212,38 @@ impl Angle {
         I16F16::from_bits(((i64::from(self.0) * 360) >> 16) as i32)
     }
 
-    /// (cos, sin) of the angle, exact to the last bit of [`Ratio`] (Taylor series in `i128`).
+    /// (cos, sin) of the angle, exact to the last bit of [`Ratio`] (Taylor series in Q60).
     ///
     /// Meant for configuration time (lead angle, α₀): a few hundred instructions, never per tick.
+    /// Every term and partial sum is below 2^61, so they live in `i64`; only the products are
+    /// widened (a 64×64-bit multiply, no 128-bit division).
     pub fn cos_sin(self) -> (Ratio, Ratio) {
         // |angle| in [0, π], as radians in Q60: turns·2π.
-        const PI_Q60: i128 = 3_622_009_729_038_561_421; // π·2^60
+        const PI_Q60: i64 = 3_622_009_729_038_561_421; // π·2^60
         let neg = self.0 < 0;
-        let mag = i128::from(self.0).abs(); // ≤ 2^31, 2^31 = π
-        let x = mag * PI_Q60 >> 31;
-        // Fold to [0, π/2]: cos(π − x) = −cos x, sin(π − x) = sin x.
+        let mag = u128::from(self.0.unsigned_abs()); // ≤ 2^31, 2^31 = π
+        let x = (mag * PI_Q60 as u128 >> 31) as i64; // ≤ π·2^60 < 2^62
+                                                     // Fold to [0, π/2]: cos(π − x) = −cos x, sin(π − x) = sin x.
         let (x, cos_sign) = if x > PI_Q60 / 2 {
             (PI_Q60 - x, -1)
         } else {
             (x, 1)
         };
-        let one: i128 = 1 << 60;
+        // a·b/2^60 for |a|, |b| ≤ 2^61: the result is below 2^62.
+        let mul = |a: i64, b: i64| (i128::from(a) * i128::from(b) >> 60) as i64;
+        let one: i64 = 1 << 60;
         let (mut c, mut s) = (one, x);
         let (mut tc, mut ts) = (one, x);
-        let x2 = x * x >> 60;
-        let mut n: i128 = 1;
+        let x2 = mul(x, x);
+        let mut n: i64 = 1;
         while n < 14 {
-            tc = -(tc * x2 >> 60) / ((2 * n - 1) * (2 * n));
-            ts = -(ts * x2 >> 60) / ((2 * n) * (2 * n + 1));
+            tc = -mul(tc, x2) / ((2 * n - 1) * (2 * n));
+            ts = -mul(ts, x2) / ((2 * n) * (2 * n + 1));
             c += tc;
             s += ts;
             n += 1;
         }
-        let q28 = |v: i128| Ratio::from_bits(((v + (1 << 31)) >> 32) as i32);
+        let q28 = |v: i64| Ratio::from_bits(((v + (1 << 31)) >> 32) as i32);
         (q28(c * cos_sign), q28(if neg { -s } else { s }))
     }
 
@@ -364,6 +368,53 @@ mod tests {
         assert_eq!(t, NewtonMetres::MIN);
         let q: Ratio = qdiv(Newtons::lit("1"), Newtons::ZERO);
         assert_eq!(q, Ratio::MAX);
+    }
+
+    /// The i128 series `cos_sin` used before its terms moved to i64: same results, bit for
+    /// bit, over every 2^12-th angle of the circle and around the fold points.
+    #[test]
+    fn cos_sin_matches_its_i128_form_bit_for_bit() {
+        fn old(a: Angle) -> (Ratio, Ratio) {
+            const PI_Q60: i128 = 3_622_009_729_038_561_421;
+            let neg = a.0 < 0;
+            let mag = i128::from(a.0).abs();
+            let x = mag * PI_Q60 >> 31;
+            let (x, cos_sign) = if x > PI_Q60 / 2 {
+                (PI_Q60 - x, -1)
+            } else {
+                (x, 1)
+            };
+            let one: i128 = 1 << 60;
+            let (mut c, mut s) = (one, x);
+            let (mut tc, mut ts) = (one, x);
+            let x2 = x * x >> 60;
+            let mut n: i128 = 1;
+            while n < 14 {
+                tc = -(tc * x2 >> 60) / ((2 * n - 1) * (2 * n));
+                ts = -(ts * x2 >> 60) / ((2 * n) * (2 * n + 1));
+                c += tc;
+                s += ts;
+                n += 1;
+            }
+            let q28 = |v: i128| Ratio::from_bits(((v + (1 << 31)) >> 32) as i32);
+            (q28(c * cos_sign), q28(if neg { -s } else { s }))
+        }
+        let special = [
+            i32::MIN,
+            i32::MIN + 1,
+            -1,
+            0,
+            1,
+            i32::MAX,
+            1 << 30,
+            (1 << 30) + 1,
+            (1 << 30) - 1,
+            -(1 << 30),
+        ];
+        for bits in (i32::MIN..=i32::MAX).step_by(1 << 12).chain(special) {
+            let a = Angle(bits);
+            assert_eq!(a.cos_sin(), old(a), "{bits}");
+        }
     }
 
     #[test]

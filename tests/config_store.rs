@@ -90,10 +90,13 @@ fn everything_changed() -> ValidatedConfig {
                 raw.saturating_add(1),
                 raw.saturating_sub(2),
                 raw.saturating_add(3),
+                // `friction.s_max` at `none` (the largest value) has no valid neighbour: 1.0.
+                1 << 32,
             ],
         };
         let next = candidates
             .iter()
+            .filter(|&&c| c != raw)
             .find_map(|&c| settings::apply(&cfg, id, c).ok())
             .unwrap_or_else(|| panic!("no valid change of {}", s.key));
         cfg = next;

@@ -368,13 +368,15 @@ proptest! {
         width in 0..3u8,
     ) {
         let s = &SETTINGS[index];
-        // Any value the field can hold: 32-bit fields get i32 or u32 patterns, I32F32 any i64.
+        // Any value the field can hold: 32-bit fields get i32 or u32 patterns, I32F32 any value
+        // below 10⁷ (the console takes 18 significant digits: 7 integer and the 10 fractional
+        // ones 2^−32 needs; every valid I32F32 setting is at most 10⁶ or `none`).
         let raw = match s.kind {
             Kind::Choice(names) => bits.rem_euclid(names.len() as i64),
             Kind::Number { .. } => match width {
                 0 => i64::from(bits as i32),
                 1 => i64::from(bits as u32),
-                _ => bits,
+                _ => bits % (10_000_000i64 << 32),
             },
         };
         let mut cfg = ControlConfig::DEFAULT;
@@ -421,6 +423,7 @@ fn value_errors_have_messages() {
         ValueError::WrongUnit,
         ValueError::NotWhole,
         ValueError::TooLarge,
+        ValueError::TooManyDigits,
         ValueError::NotAChoice,
     ] {
         assert!(!format!("{e}").is_empty());

@@ -114,6 +114,12 @@ enum ConfigCmd {
         #[arg(long)]
         save: bool,
     },
+    /// Describe settings: key, meaning, unit and range (all if no key is given). Needs no
+    /// board: the firmware's own registry, with the help lines the board leaves out.
+    Keys {
+        /// Keys, e.g. limits.upper motion.cruise_speed.
+        keys: Vec<String>,
+    },
     /// Store the running settings in the board's flash.
     Save,
     /// Write the running settings as TOML (to stdout without FILE).
@@ -195,7 +201,35 @@ fn apply(b: &mut Board, changes: &[Change], save_after: bool) -> Result<(), Erro
     Ok(())
 }
 
+/// `liftctl config keys`: the registry's description of each key, as the console's
+/// `help <key>` words it.
+fn print_keys(keys: &[String]) -> Result<(), Error> {
+    let ids = if keys.is_empty() {
+        liftfw::config::settings::all().collect()
+    } else {
+        keys.iter()
+            .map(|k| {
+                liftfw::config::settings::find(k).ok_or_else(|| {
+                    Error::Local(format!(
+                        "unknown key '{k}'; `liftctl config keys` lists them"
+                    ))
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?
+    };
+    for id in ids {
+        let mut line = String::new();
+        liftfw::console::write_key_help(&mut line, id)
+            .map_err(|_| Error::Local("formatting failed".into()))?;
+        println!("{line}");
+    }
+    Ok(())
+}
+
 fn run(cli: &Cli, stop: &Arc<AtomicBool>) -> Result<(), Error> {
+    if let Cmd::Config(ConfigCmd::Keys { keys }) = &cli.command {
+        return print_keys(keys);
+    }
     let timeout = secs(cli.timeout, "--timeout")?;
     let mut b = board::open(&cli.port, cli.baud, timeout)?;
     match &cli.command {
@@ -279,6 +313,8 @@ fn run(cli: &Cli, stop: &Arc<AtomicBool>) -> Result<(), Error> {
                 .collect::<Result<Vec<_>, _>>()?;
             apply(&mut b, &changes, *save)?;
         }
+        // Handled above, before the board is opened.
+        Cmd::Config(ConfigCmd::Keys { keys }) => print_keys(keys)?,
         Cmd::Config(ConfigCmd::Save) => save(&mut b)?,
         Cmd::Config(ConfigCmd::Export { file }) => {
             b.check_schema()?;

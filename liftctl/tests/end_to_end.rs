@@ -460,3 +460,34 @@ fn over_a_serial_port_the_pseudo_terminal() {
     );
     server.shutdown();
 }
+
+#[test]
+fn config_keys_describes_settings_without_a_board() {
+    // No board at this port: `config keys` never opens it.
+    let r = liftctl_on(
+        "/nonexistent/liftctl-port",
+        &["config", "keys", "motion.ramp_ms"],
+    );
+    assert_eq!(r.code, 0, "stdout: {}\nstderr: {}", r.out, r.err);
+    assert_eq!(
+        r.out,
+        "motion.ramp_ms: time from rest to cruise speed (and back); expected a duration in ms \
+         (or s), range 10..2000 ms\n"
+    );
+    let all = liftctl_on("/nonexistent/liftctl-port", &["config", "keys"]);
+    assert_eq!(all.code, 0, "{}", all.err);
+    assert_eq!(
+        all.out.lines().count(),
+        liftfw::config::settings::SETTINGS.len()
+    );
+    let bad = liftctl_on(
+        "/nonexistent/liftctl-port",
+        &["config", "keys", "limits.middle"],
+    );
+    assert_eq!(bad.code, 3);
+    assert!(
+        bad.err.contains("unknown key 'limits.middle'"),
+        "{}",
+        bad.err
+    );
+}

@@ -101,10 +101,11 @@ unit!(
 pub enum Kind {
     /// `raw / 2^frac` in the field's base unit, shown as that times `10^pow10` in `unit.display`.
     Number {
-        /// Fractional bits of the field's Q format (0 for integers).
-        frac: u32,
+        /// Fractional bits of the field's Q format (0 for integers). (`u8`/`i8` keep each
+        /// registry entry 4 bytes smaller on the board.)
+        frac: u8,
         /// Display unit per base unit as a power of ten (mm per m: 3).
-        pow10: i32,
+        pow10: i8,
         /// Unit for parsing and display.
         unit: &'static Unit,
         /// The field's largest value means "no limit" (typed and shown as `none`).
@@ -122,12 +123,56 @@ pub struct Setting {
     pub kind: Kind,
     /// Accepted range, for messages (the text of the validation that checks it).
     pub range: &'static str,
-    /// One line of help.
-    pub about: &'static str,
+    /// One line of help, for a person on a host: only with the `help-text` feature (liftctl
+    /// and host-sim turn it on; the firmware leaves the ≈ 3 KiB of text and this field out and
+    /// its `help <key>` gives unit and range). Read it through [`Setting::about`].
+    #[cfg(feature = "help-text")]
+    about: &'static str,
     /// Part of the flash record (false only for derived settings such as `friction.law`).
     pub stored: bool,
+    /// The raw bits' integer type: [`Setting::set`] refuses what it cannot hold, so the
+    /// per-setting `set` functions only store.
+    width: Width,
     get: fn(&ControlConfig) -> i64,
     set: fn(&mut ControlConfig, i64) -> bool,
+}
+
+/// The integer type a setting's raw bits are stored in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Width {
+    I32,
+    U32,
+    U16,
+    /// Any `i64` (I32F32 fields; choices check their index themselves).
+    I64,
+}
+
+impl Width {
+    fn holds(self, raw: i64) -> bool {
+        match self {
+            Width::I32 => i32::try_from(raw).is_ok(),
+            Width::U32 => u32::try_from(raw).is_ok(),
+            Width::U16 => u16::try_from(raw).is_ok(),
+            Width::I64 => true,
+        }
+    }
+}
+
+/// The [`Width`] of an integer field type.
+trait FieldInt {
+    const WIDTH: Width;
+}
+
+impl FieldInt for i32 {
+    const WIDTH: Width = Width::I32;
+}
+
+impl FieldInt for u32 {
+    const WIDTH: Width = Width::U32;
+}
+
+impl FieldInt for u16 {
+    const WIDTH: Width = Width::U16;
 }
 
 impl core::fmt::Debug for Setting {
@@ -137,6 +182,18 @@ impl core::fmt::Debug for Setting {
 }
 
 impl Setting {
+    /// The one line of help, if this build has the help texts (feature `help-text`).
+    #[cfg(feature = "help-text")]
+    pub fn about(&self) -> Option<&'static str> {
+        Some(self.about)
+    }
+
+    /// The one line of help, if this build has the help texts (feature `help-text`).
+    #[cfg(not(feature = "help-text"))]
+    pub fn about(&self) -> Option<&'static str> {
+        None
+    }
+
     /// The field's raw bits in `cfg`.
     pub fn get(&self, cfg: &ControlConfig) -> i64 {
         (self.get)(cfg)
@@ -145,7 +202,7 @@ impl Setting {
     /// Write raw bits into the field; false (and `cfg` unchanged) if they do not fit its type.
     /// No range check: see [`apply`].
     pub fn set(&self, cfg: &mut ControlConfig, raw: i64) -> bool {
-        (self.set)(cfg, raw)
+        self.width.holds(raw) && (self.set)(cfg, raw)
     }
 }
 
@@ -229,7 +286,7 @@ bits32!(
     I16F16
 );
 
-const fn num(frac: u32, unit: &'static Unit) -> Kind {
+const fn num(frac: u8, unit: &'static Unit) -> Kind {
     Kind::Number {
         frac,
         pow10: 0,
@@ -250,18 +307,18 @@ macro_rules! setting {
     // A fixed-point field stored as 32 raw bits.
     ($key:literal, $kind:expr, $range:literal, $about:literal, q32 $($f:ident).+) => {
         Setting {
-            key: $key, kind: $kind, range: $range, about: $about, stored: true,
+            key: $key, kind: $kind, range: $range, #[cfg(feature = "help-text")] about: $about, stored: true,
+            width: Width::I32,
             get: |c| i64::from(Bits32::bits(c.$($f).+)),
-            set: |c, v| match i32::try_from(v) {
-                Ok(b) => { c.$($f).+ = Bits32::with_bits(b); true }
-                Err(_) => false,
-            },
+            // `Setting::set` checked that the bits fit i32.
+            set: |c, v| { c.$($f).+ = Bits32::with_bits(v as i32); true },
         }
     };
     // An I32F32 field stored as its 64 raw bits.
     ($key:literal, $kind:expr, $range:literal, $about:literal, q64 $($f:ident).+) => {
         Setting {
-            key: $key, kind: $kind, range: $range, about: $about, stored: true,
+            key: $key, kind: $kind, range: $range, #[cfg(feature = "help-text")] about: $about, stored: true,
+            width: Width::I64,
             get: |c| c.$($f).+.to_bits(),
             set: |c, v| { c.$($f).+ = I32F32::from_bits(v); true },
         }
@@ -269,12 +326,11 @@ macro_rules! setting {
     // An integer field.
     ($key:literal, $kind:expr, $range:literal, $about:literal, int $t:ty, $($f:ident).+) => {
         Setting {
-            key: $key, kind: $kind, range: $range, about: $about, stored: true,
+            key: $key, kind: $kind, range: $range, #[cfg(feature = "help-text")] about: $about, stored: true,
+            width: <$t as FieldInt>::WIDTH,
             get: |c| i64::from(c.$($f).+),
-            set: |c, v| match <$t>::try_from(v) {
-                Ok(b) => { c.$($f).+ = b; true }
-                Err(_) => false,
-            },
+            // `Setting::set` checked that the value fits the field's type.
+            set: |c, v| { c.$($f).+ = v as $t; true },
         }
     };
 }
@@ -306,8 +362,10 @@ pub static SETTINGS: [Setting; 55] = [
         key: "motion.ramp_shape",
         kind: Kind::Choice(&["trapezoid", "scurve"]),
         range: "trapezoid or scurve",
+        #[cfg(feature = "help-text")]
         about: "speed ramp: constant acceleration or jerk-limited",
         stored: true,
+        width: Width::I64,
         get: |c| match c.motion.ramp_shape {
             RampShape::Trapezoid => 0,
             RampShape::SCurve => 1,
@@ -325,8 +383,10 @@ pub static SETTINGS: [Setting; 55] = [
         key: "motion.buttons",
         kind: Kind::Choice(&["hold", "latched"]),
         range: "hold or latched",
+        #[cfg(feature = "help-text")]
         about: "UP/DOWN buttons: hold-to-run or latched until STOP",
         stored: true,
+        width: Width::I64,
         get: |c| match c.motion.buttons {
             ButtonMode::HoldToRun => 0,
             ButtonMode::Latched => 1,
@@ -394,8 +454,10 @@ pub static SETTINGS: [Setting; 55] = [
         key: "drive.screw",
         kind: Kind::Choice(&["lead", "ball"]),
         range: "lead or ball",
+        #[cfg(feature = "help-text")]
         about: "screw type: lead (self-locking) or ball (held actively at rest)",
         stored: true,
+        width: Width::I64,
         get: |c| match c.screw {
             ScrewKind::Lead => 0,
             ScrewKind::Ball => 1,
@@ -423,8 +485,10 @@ pub static SETTINGS: [Setting; 55] = [
         key: "friction.law",
         kind: Kind::Choice(&["dry", "ptfe", "lithium", "ball"]),
         range: "dry, ptfe, lithium or ball",
+        #[cfg(feature = "help-text")]
         about: "load a preset friction law (shows `custom` after edits)",
         stored: false,
+        width: Width::I64,
         get: |c| {
             LAW_PRESETS
                 .iter()
@@ -443,8 +507,10 @@ pub static SETTINGS: [Setting; 55] = [
         key: "friction.variable",
         kind: Kind::Choice(&["rate", "speed", "tau"]),
         range: "rate, speed or tau",
+        #[cfg(feature = "help-text")]
         about: "law variable: screw rate |w| rad/s, sliding speed m/s, or tau",
         stored: true,
+        width: Width::I64,
         get: |c| match c.estimator.law.variable {
             LawVariable::ScrewRate => 0,
             LawVariable::SlidingSpeed => 1,
@@ -469,7 +535,7 @@ pub static SETTINGS: [Setting; 55] = [
     setting!("friction.slope", num(32, &NUMBER), "-1000..1000",
         "law: viscous slope per unit of the variable", q64 estimator.law.slope),
     setting!("friction.s_max", Kind::Number { frac: 32, pow10: 0, unit: &NUMBER, none_at_max: true },
-        ">0", "law: viscous term flat beyond this (none: never)", q64 estimator.law.s_max),
+        ">0..1e6", "law: viscous term flat beyond this (none: never)", q64 estimator.law.s_max),
     setting!("motor.kt", num(28, &NM_PER_AMP), "0.001..1 Nm/A",
         "motor torque constant", q32 estimator.motor.torque_constant),
     setting!("motor.gear_efficiency", num(28, &RATIO), "0.1..1",
@@ -486,9 +552,11 @@ pub static SETTINGS: [Setting; 55] = [
         key: "stickslip.reaction",
         kind: Kind::Choice(&["log", "warn", "speed"]),
         range: "log, warn or speed",
+        #[cfg(feature = "help-text")]
         about:
             "on stick-slip: log it, also warn on the console, or also change to the escape speed",
         stored: true,
+        width: Width::I64,
         get: |c| match c.stick_slip.reaction {
             Reaction::Log => 0,
             Reaction::Warn => 1,

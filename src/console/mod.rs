@@ -105,7 +105,12 @@ const HEIGHT: Kind = Kind::Number {
 fn word(s: &str) -> (&str, &str) {
     let s = s.trim_start();
     match s.find(|c: char| c.is_ascii_whitespace()) {
-        Some(i) => (&s[..i], s[i..].trim_start()),
+        // `split_at_checked`, not `[..i]`: `find` gives a char boundary, and the firmware then
+        // links no slicing panic (whose message formatting costs ≈ 2 KiB of flash).
+        Some(i) => match s.split_at_checked(i) {
+            Some((w, rest)) => (w, rest.trim_start()),
+            None => (s, ""),
+        },
         None => (s, ""),
     }
 }
@@ -291,7 +296,11 @@ struct Clip<'a>(&'a str);
 impl fmt::Display for Clip<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self.0.char_indices().nth(24) {
-            Some((i, _)) => write!(f, "{}...", &self.0[..i]),
+            Some((i, _)) => {
+                // A char boundary from `char_indices` (checked, so that no panic is linked).
+                f.write_str(self.0.get(..i).unwrap_or(self.0))?;
+                f.write_str("...")
+            }
             None => f.write_str(self.0),
         }
     }
@@ -378,11 +387,25 @@ pub fn write_limits(out: &mut dyn Write, cfg: &ValidatedConfig) -> fmt::Result {
     write_mechanism(out, cfg)
 }
 
-/// The reply to `help <key>`.
+/// The reply to `help <key>`: the key, its help line (builds with the `help-text` feature:
+/// liftctl, host-sim) and what it takes. The firmware has no help lines (flash) and points to
+/// the host tool that has them instead.
 pub fn write_key_help(out: &mut dyn Write, id: SettingId) -> fmt::Result {
-    let s = id.setting();
-    write!(out, "{}: {}; ", s.key, s.about)?;
-    write_expected(out, id)
+    key_help(out, id, id.setting().about())
+}
+
+fn key_help(out: &mut dyn Write, id: SettingId, about: Option<&str>) -> fmt::Result {
+    write!(out, "{}: ", id.key())?;
+    match about {
+        Some(about) => {
+            write!(out, "{about}; ")?;
+            write_expected(out, id)
+        }
+        None => {
+            write_expected(out, id)?;
+            out.write_str("; described by `liftctl config keys`")
+        }
+    }
 }
 
 /// The reply to `help`.
@@ -575,5 +598,33 @@ impl LineBuffer {
                 Feed::Pending
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    extern crate std;
+    use std::string::String;
+
+    /// Host builds have the help lines (`help-text`, turned on by host-sim and liftctl); the
+    /// firmware's `help <key>` without them still says what the key takes and where the
+    /// description is.
+    #[test]
+    fn key_help_without_the_help_text_gives_unit_range_and_a_pointer() {
+        let id = settings::find("motion.ramp_ms").unwrap();
+        let mut s = String::new();
+        key_help(&mut s, id, None).unwrap();
+        assert_eq!(
+            s,
+            "motion.ramp_ms: expected a duration in ms (or s), range 10..2000 ms; described by \
+             `liftctl config keys`"
+        );
+        let mut s = String::new();
+        key_help(&mut s, id, Some("what it is")).unwrap();
+        assert_eq!(
+            s,
+            "motion.ramp_ms: what it is; expected a duration in ms (or s), range 10..2000 ms"
+        );
     }
 }

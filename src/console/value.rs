@@ -1,7 +1,7 @@
 //! Values with units as a person types them (`410mm`, `0.41 m`, `45A`, `50%`), converted exactly
-//! to a setting's raw bits and back, in integers only (no float code on the board).
+//! to a setting's raw bits and back, in 64-bit integers only (no float or 128-bit code on the board).
 //!
-//! A number is `[+-]digits[.digits][e[+-]digits]`, at most 24 significant digits; the unit
+//! A number is `[+-]digits[.digits][e[+-]digits]`, at most 18 significant digits; the unit
 //! follows, with or without a space, case-insensitive. Conversion rounds to the nearest
 //! raw value (ties away from zero); integer settings refuse fractions. Formatting prints the
 //! shortest decimal that converts back to the same bits, so `get` → `set` is exact.
@@ -23,6 +23,8 @@ pub enum ValueError {
     NotWhole,
     /// Too large or too precise to represent at all.
     TooLarge,
+    /// More than [`MAX_DIGITS`] significant digits.
+    TooManyDigits,
     /// Not one of the setting's choices.
     NotAChoice,
 }
@@ -35,17 +37,23 @@ impl fmt::Display for ValueError {
             ValueError::WrongUnit => "unit not accepted",
             ValueError::NotWhole => "must be a whole number",
             ValueError::TooLarge => "far outside the range",
+            ValueError::TooManyDigits => "more than 18 significant digits",
             ValueError::NotAChoice => "not one of the choices",
         })
     }
 }
 
-/// A decimal `mant·10^exp`.
+/// A decimal `±mant·10^exp`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Decimal {
-    mant: i128,
+    neg: bool,
+    mant: u64,
     exp: i32,
 }
+
+/// Most significant digits a typed number may have (`10^18 − 1` fits the `u64` mantissa with
+/// room for the conversion's doubling).
+pub const MAX_DIGITS: u32 = 18;
 
 /// Split `text` into a decimal and the unit text after it.
 fn parse_decimal(text: &str) -> Result<(Decimal, &str), ValueError> {
@@ -62,8 +70,11 @@ fn parse_decimal(text: &str) -> Result<(Decimal, &str), ValueError> {
         }
         _ => false,
     };
-    let mut mant: i128 = 0;
+    let mut mant: u64 = 0;
     let mut digits = 0u32;
+    // Zeros after the first significant digit, not yet in `mant` (trailing zeros of "400.000"
+    // go to the exponent instead and do not count against MAX_DIGITS).
+    let mut zeros = 0u32;
     let mut exp: i32 = 0;
     let mut seen_digit = false;
     let mut seen_point = false;
@@ -71,15 +82,21 @@ fn parse_decimal(text: &str) -> Result<(Decimal, &str), ValueError> {
         match c {
             b'0'..=b'9' => {
                 seen_digit = true;
-                if mant != 0 || c != b'0' {
-                    digits += 1;
-                }
-                if digits > 24 {
-                    return Err(ValueError::TooLarge);
-                }
-                mant = mant * 10 + i128::from(c - b'0');
                 if seen_point {
                     exp -= 1;
+                }
+                if c == b'0' {
+                    if mant != 0 {
+                        zeros += 1;
+                    }
+                } else {
+                    digits += zeros + 1;
+                    if digits > MAX_DIGITS {
+                        return Err(ValueError::TooManyDigits);
+                    }
+                    // < 10^18 by the digit count: no overflow.
+                    mant = mant * 10u64.pow(zeros + 1) + u64::from(c - b'0');
+                    zeros = 0;
                 }
             }
             b'.' if !seen_point => seen_point = true,
@@ -91,6 +108,8 @@ fn parse_decimal(text: &str) -> Result<(Decimal, &str), ValueError> {
     if !seen_digit {
         return Err(ValueError::NotANumber);
     }
+    // At most 96 characters in a line: no overflow.
+    exp += zeros as i32;
     // Exponent, only if digits follow the `e` (so "1em" is not swallowed; no unit starts with e).
     if matches!(b.get(i), Some(b'e' | b'E')) {
         let mut j = i + 1;
@@ -123,38 +142,46 @@ fn parse_decimal(text: &str) -> Result<(Decimal, &str), ValueError> {
         }
     }
     let unit = text.get(i..).ok_or(ValueError::NotANumber)?.trim();
-    Ok((
-        Decimal {
-            mant: if neg { -mant } else { mant },
-            exp,
-        },
-        unit,
-    ))
+    Ok((Decimal { neg, mant, exp }, unit))
 }
 
-/// `v·10^p`, rounded to nearest (ties away from zero) when `p < 0`; `None` on overflow.
-fn scale10(v: i128, p: i32) -> Option<(i128, bool)> {
-    if p >= 0 {
-        let f = 10i128.checked_pow(p as u32)?;
-        return v.checked_mul(f).map(|r| (r, true));
+/// `floor(m·2^bits / 10^j)` and whether the division was exact, in `u64` (binary long division:
+/// the remainder stays below `10^18`); `None` if the quotient does not fit.
+fn shl_div_pow10(m: u64, bits: u32, j: u32) -> Option<(u64, bool)> {
+    let d = 10u64.pow(j.min(18));
+    let (mut q, mut r) = (m / d, m % d);
+    for _ in 0..bits {
+        q = q.checked_mul(2)?;
+        r *= 2;
+        if r >= d {
+            r -= d;
+            q += 1;
+        }
     }
-    let Some(f) = 10i128.checked_pow(p.unsigned_abs()) else {
-        // Divisor beyond i128: |v| < 10^25 so the quotient rounds to zero.
-        return Some((0, v == 0));
-    };
-    Some(div_round(v, f))
+    if j <= 18 {
+        return Some((q, r == 0));
+    }
+    // floor(floor(x/a)/b) = floor(x/(a·b)).
+    Some(match 10u64.checked_pow(j - 18) {
+        Some(d) => (q / d, r == 0 && q % d == 0),
+        None => (0, r == 0 && q == 0),
+    })
 }
 
-/// `n/d` rounded to nearest, ties away from zero, and whether it was exact (`d > 0`).
-fn div_round(n: i128, d: i128) -> (i128, bool) {
-    let q = n / d;
-    let r = n % d;
-    let exact = r == 0;
-    if r.unsigned_abs() * 2 >= d.unsigned_abs() {
-        (if n < 0 { q - 1 } else { q + 1 }, exact)
-    } else {
-        (q, exact)
+/// `m·10^k·2^frac`, rounded to nearest (ties away from zero) when `k < 0`, and whether that was
+/// exact; `None` if it exceeds `u64`.
+fn to_raw(m: u64, k: i32, frac: u32) -> Option<(u64, bool)> {
+    if m == 0 {
+        return Some((0, true));
     }
+    if k >= 0 {
+        let p = 10u64.checked_pow(k.unsigned_abs())?;
+        let v = m.checked_mul(p)?.checked_mul(1u64.checked_shl(frac)?)?;
+        return Some((v, true));
+    }
+    // round(x) = floor((floor(2x) + 1)/2) for x ≥ 0; x is an integer iff 2x is an even one.
+    let (t, exact) = shl_div_pow10(m, frac + 1, k.unsigned_abs())?;
+    Some((t / 2 + (t & 1), exact && t & 1 == 0))
 }
 
 fn unit_pow(unit: &Unit, text: &str) -> Option<i32> {
@@ -198,16 +225,17 @@ pub fn parse(kind: &Kind, text: &str) -> Result<i64, ValueError> {
             let (d, unit_text) = parse_decimal(text)?;
             let p = unit_pow(unit, unit_text).ok_or(ValueError::WrongUnit)?;
             // raw = mant·10^(exp + p − pow10)·2^frac
-            let k = d.exp + p - pow10;
-            let shifted = d
-                .mant
-                .checked_mul(1i128 << frac)
+            let (mag, exact) = to_raw(d.mant, d.exp + p - i32::from(*pow10), u32::from(*frac))
                 .ok_or(ValueError::TooLarge)?;
-            let (raw, exact) = scale10(shifted, k).ok_or(ValueError::TooLarge)?;
             if *frac == 0 && !exact {
                 return Err(ValueError::NotWhole);
             }
-            i64::try_from(raw).map_err(|_| ValueError::TooLarge)
+            let raw = if d.neg {
+                0i64.checked_sub_unsigned(mag)
+            } else {
+                i64::try_from(mag).ok()
+            };
+            raw.ok_or(ValueError::TooLarge)
         }
     }
 }
@@ -228,7 +256,7 @@ pub fn format(out: &mut dyn Write, kind: &Kind, raw: i64) -> fmt::Result {
             if *none_at_max && raw == i64::MAX {
                 return out.write_str("none");
             }
-            write_shortest(out, raw, *frac, *pow10)?;
+            write_shortest(out, raw, u32::from(*frac), i32::from(*pow10))?;
             if !unit.display.is_empty() {
                 out.write_char(' ')?;
                 out.write_str(unit.display)?;
@@ -238,54 +266,64 @@ pub fn format(out: &mut dyn Write, kind: &Kind, raw: i64) -> fmt::Result {
     }
 }
 
-/// The shortest decimal (0…12 fractional digits) that parses back to `raw`.
+/// The shortest decimal (0…12 fractional digits) that parses back to `raw`, in `u64`: the
+/// integer part, then fraction digits generated one by one from the remainder (`< 2^frac`).
+///
+/// With `s = |raw|·10^pow10` (the value in display units times `2^frac`) split into the integer
+/// part `ip` and `fr < 2^frac`, `n` digits are `D = floor(fr·10^n/2^frac)` with remainder `rem`,
+/// rounded up when `2·rem ≥ 2^frac`. Read back, that decimal is `|raw| + e` raw units with
+/// `e = −rem/10^(n+pow10)` (down) or `(2^frac − rem)/10^(n+pow10)` (up), and the parser's
+/// rounding returns `|raw|` exactly when `−½ ≤ e < ½`.
 fn write_shortest(out: &mut dyn Write, raw: i64, frac: u32, pow10: i32) -> fmt::Result {
-    let raw = i128::from(raw);
-    let one = 1i128 << frac;
-    let mut best = None;
-    for n in 0..=12i32 {
-        // q = round(raw·10^(pow10+n)/2^frac), back = round(q·2^frac/10^(pow10+n)).
-        let Some((scaled, _)) = scale10(raw, pow10 + n) else {
-            break;
-        };
-        let (q, _) = div_round(scaled, one);
-        let Some(qs) = q.checked_mul(one) else {
-            break;
-        };
-        let Some((back, _)) = scale10(qs, -(pow10 + n)) else {
-            break;
-        };
-        best = Some((q, n));
-        if back == raw {
-            break;
-        }
-    }
-    let Some((q, n)) = best else {
+    let Some(s) = u32::try_from(pow10)
+        .ok()
+        .and_then(|p| 10u64.checked_pow(p))
+        .and_then(|p| raw.unsigned_abs().checked_mul(p))
+        .filter(|_| frac <= 40)
+    else {
+        // No registry kind gets here (pow10 ≥ 0, small values): the tests cover every key.
         return out.write_str("?");
     };
-    if q < 0 {
+    let one = 1u64 << frac;
+    let mut ip = s >> frac;
+    let mut rem = s & (one - 1);
+    let mut digits = 0u64;
+    let mut n = 0u32;
+    let mut up;
+    loop {
+        up = 2 * rem >= one;
+        let tol = 10u64.pow(n + pow10 as u32);
+        let fits = if up {
+            2 * (one - rem) < tol
+        } else {
+            2 * rem <= tol
+        };
+        if fits || n == 12 {
+            break;
+        }
+        // rem < 2^frac ≤ 2^40: rem·10 fits.
+        let t = rem * 10;
+        digits = digits * 10 + (t >> frac);
+        rem = t & (one - 1);
+        n += 1;
+    }
+    if up {
+        digits += 1;
+        if digits == 10u64.pow(n) {
+            digits = 0;
+            ip += 1;
+        }
+    }
+    if raw < 0 && (ip != 0 || digits != 0) {
         out.write_char('-')?;
     }
-    let mag = q.unsigned_abs();
-    let div = 10u128.pow(n as u32);
-    write!(out, "{}", mag / div)?;
+    write!(out, "{ip}")?;
+    while n > 0 && digits.is_multiple_of(10) {
+        digits /= 10;
+        n -= 1;
+    }
     if n > 0 {
-        let mut f = mag % div;
-        let mut digits = [b'0'; 12];
-        for k in (0..n as usize).rev() {
-            digits[k] = b'0' + (f % 10) as u8;
-            f /= 10;
-        }
-        let mut len = n as usize;
-        while len > 0 && digits[len - 1] == b'0' {
-            len -= 1;
-        }
-        if len > 0 {
-            out.write_char('.')?;
-            for &d in &digits[..len] {
-                out.write_char(char::from(d))?;
-            }
-        }
+        write!(out, ".{digits:0w$}", w = n as usize)?;
     }
     Ok(())
 }
@@ -297,6 +335,195 @@ mod tests {
     use crate::control::config::ControlConfig;
     extern crate std;
     use std::string::String;
+
+    /// The i128 implementation this module had before it moved to 64-bit arithmetic (24
+    /// significant digits), kept as the twin the 64-bit one is checked against.
+    mod reference {
+        use super::super::ValueError;
+        use core::fmt::{self, Write};
+
+        /// A decimal `mant·10^exp`.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub struct Decimal {
+            pub mant: i128,
+            pub exp: i32,
+        }
+
+        /// Split `text` into a decimal and the unit text after it.
+        pub fn parse_decimal(text: &str) -> Result<(Decimal, &str), ValueError> {
+            let b = text.as_bytes();
+            let mut i = 0;
+            let neg = match b.first() {
+                Some(b'-') => {
+                    i += 1;
+                    true
+                }
+                Some(b'+') => {
+                    i += 1;
+                    false
+                }
+                _ => false,
+            };
+            let mut mant: i128 = 0;
+            let mut digits = 0u32;
+            let mut exp: i32 = 0;
+            let mut seen_digit = false;
+            let mut seen_point = false;
+            while let Some(&c) = b.get(i) {
+                match c {
+                    b'0'..=b'9' => {
+                        seen_digit = true;
+                        if mant != 0 || c != b'0' {
+                            digits += 1;
+                        }
+                        if digits > 24 {
+                            return Err(ValueError::TooLarge);
+                        }
+                        mant = mant * 10 + i128::from(c - b'0');
+                        if seen_point {
+                            exp -= 1;
+                        }
+                    }
+                    b'.' if !seen_point => seen_point = true,
+                    b'_' => {}
+                    _ => break,
+                }
+                i += 1;
+            }
+            if !seen_digit {
+                return Err(ValueError::NotANumber);
+            }
+            // Exponent, only if digits follow the `e` (so "1em" is not swallowed; no unit starts with e).
+            if matches!(b.get(i), Some(b'e' | b'E')) {
+                let mut j = i + 1;
+                let eneg = match b.get(j) {
+                    Some(b'-') => {
+                        j += 1;
+                        true
+                    }
+                    Some(b'+') => {
+                        j += 1;
+                        false
+                    }
+                    _ => false,
+                };
+                let start = j;
+                let mut e: i32 = 0;
+                while let Some(&c) = b.get(j) {
+                    if !c.is_ascii_digit() {
+                        break;
+                    }
+                    e = e.saturating_mul(10).saturating_add(i32::from(c - b'0'));
+                    j += 1;
+                }
+                if j > start {
+                    if e > 60 {
+                        return Err(ValueError::TooLarge);
+                    }
+                    exp += if eneg { -e } else { e };
+                    i = j;
+                }
+            }
+            let unit = text.get(i..).ok_or(ValueError::NotANumber)?.trim();
+            Ok((
+                Decimal {
+                    mant: if neg { -mant } else { mant },
+                    exp,
+                },
+                unit,
+            ))
+        }
+
+        /// `v·10^p`, rounded to nearest (ties away from zero) when `p < 0`; `None` on overflow.
+        pub fn scale10(v: i128, p: i32) -> Option<(i128, bool)> {
+            if p >= 0 {
+                let f = 10i128.checked_pow(p as u32)?;
+                return v.checked_mul(f).map(|r| (r, true));
+            }
+            let Some(f) = 10i128.checked_pow(p.unsigned_abs()) else {
+                // Divisor beyond i128: |v| < 10^25 so the quotient rounds to zero.
+                return Some((0, v == 0));
+            };
+            Some(div_round(v, f))
+        }
+
+        /// `n/d` rounded to nearest, ties away from zero, and whether it was exact (`d > 0`).
+        pub fn div_round(n: i128, d: i128) -> (i128, bool) {
+            let q = n / d;
+            let r = n % d;
+            let exact = r == 0;
+            if r.unsigned_abs() * 2 >= d.unsigned_abs() {
+                (if n < 0 { q - 1 } else { q + 1 }, exact)
+            } else {
+                (q, exact)
+            }
+        }
+
+        pub fn write_shortest(out: &mut dyn Write, raw: i64, frac: u32, pow10: i32) -> fmt::Result {
+            let raw = i128::from(raw);
+            let one = 1i128 << frac;
+            let mut best = None;
+            for n in 0..=12i32 {
+                // q = round(raw·10^(pow10+n)/2^frac), back = round(q·2^frac/10^(pow10+n)).
+                let Some((scaled, _)) = scale10(raw, pow10 + n) else {
+                    break;
+                };
+                let (q, _) = div_round(scaled, one);
+                let Some(qs) = q.checked_mul(one) else {
+                    break;
+                };
+                let Some((back, _)) = scale10(qs, -(pow10 + n)) else {
+                    break;
+                };
+                best = Some((q, n));
+                if back == raw {
+                    break;
+                }
+            }
+            let Some((q, n)) = best else {
+                return out.write_str("?");
+            };
+            if q < 0 {
+                out.write_char('-')?;
+            }
+            let mag = q.unsigned_abs();
+            let div = 10u128.pow(n as u32);
+            write!(out, "{}", mag / div)?;
+            if n > 0 {
+                let mut f = mag % div;
+                let mut digits = [b'0'; 12];
+                for k in (0..n as usize).rev() {
+                    digits[k] = b'0' + (f % 10) as u8;
+                    f /= 10;
+                }
+                let mut len = n as usize;
+                while len > 0 && digits[len - 1] == b'0' {
+                    len -= 1;
+                }
+                if len > 0 {
+                    out.write_char('.')?;
+                    for &d in &digits[..len] {
+                        out.write_char(char::from(d))?;
+                    }
+                }
+            }
+            Ok(())
+        }
+
+        /// The old `parse` of a number (no `none` words).
+        pub fn parse(frac: u32, pow10: i32, p: i32, d: Decimal) -> Result<i64, ValueError> {
+            let k = d.exp + p - pow10;
+            let shifted = d
+                .mant
+                .checked_mul(1i128 << frac)
+                .ok_or(ValueError::TooLarge)?;
+            let (raw, exact) = scale10(shifted, k).ok_or(ValueError::TooLarge)?;
+            if frac == 0 && !exact {
+                return Err(ValueError::NotWhole);
+            }
+            i64::try_from(raw).map_err(|_| ValueError::TooLarge)
+        }
+    }
 
     fn kind(key: &str) -> &'static Kind {
         &find(key).unwrap().setting().kind
@@ -355,6 +582,123 @@ mod tests {
             let mut t = String::new();
             format(&mut t, &s.kind, raw).unwrap();
             assert_eq!(parse(&s.kind, &t), Ok(raw), "{} {t}", s.key);
+        }
+    }
+
+    #[test]
+    fn more_than_18_significant_digits_are_refused_but_zeros_do_not_count() {
+        let k = kind("friction.rate");
+        assert_eq!(
+            parse(k, "1234567.890123456789"),
+            Err(ValueError::TooManyDigits)
+        );
+        assert_eq!(
+            parse(k, "1234567.8901234567"),
+            reference_parse(k, "1234567.8901234567")
+        );
+        let up = kind("limits.upper");
+        let want = crate::units::Metres::lit("0.41").to_bits() as i64;
+        assert_eq!(parse(up, "410.000000000000000000000mm"), Ok(want));
+        assert_eq!(parse(up, "0.000000000000000000000410e24mm"), Ok(want));
+        assert_eq!(
+            format!("{}", ValueError::TooManyDigits),
+            "more than 18 significant digits"
+        );
+    }
+
+    /// The i128 twin's result for `text` (same unit handling as [`parse`]).
+    fn reference_parse(kind: &Kind, text: &str) -> Result<i64, ValueError> {
+        let Kind::Number {
+            frac, pow10, unit, ..
+        } = kind
+        else {
+            return parse(kind, text);
+        };
+        let text = text.trim();
+        if text.is_empty() {
+            return Err(ValueError::Missing);
+        }
+        let (d, unit_text) = reference::parse_decimal(text)?;
+        let p = unit_pow(unit, unit_text).ok_or(ValueError::WrongUnit)?;
+        reference::parse(u32::from(*frac), i32::from(*pow10), p, d)
+    }
+
+    /// Number settings only, by registry index.
+    fn number_kinds() -> std::vec::Vec<usize> {
+        SETTINGS
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| matches!(s.kind, Kind::Number { .. }))
+            .map(|(i, _)| i)
+            .collect()
+    }
+
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 3000, ..ProptestConfig::default() })]
+
+        /// Any number of up to 18 significant digits (with a point anywhere, an exponent, any
+        /// unit the setting takes) converts to the same raw bits, or the same refusal, as the
+        /// i128 twin.
+        #[test]
+        fn parse_matches_the_i128_twin(
+            index in proptest::sample::select(number_kinds()),
+            neg in any::<bool>(),
+            digits in "[0-9]{1,18}",
+            point in 0usize..=18,
+            exp in proptest::option::of(-45i32..45),
+            unit in any::<proptest::sample::Index>(),
+        ) {
+            let k = &SETTINGS[index].kind;
+            let Kind::Number { unit: u, .. } = k else { unreachable!() };
+            let mut t = String::new();
+            if neg {
+                t.push('-');
+            }
+            let point = point.min(digits.len());
+            t.push_str(&digits[..point]);
+            t.push('.');
+            t.push_str(&digits[point..]);
+            if let Some(e) = exp {
+                t.push_str(&format!("e{e}"));
+            }
+            if !u.accepts.is_empty() {
+                t.push_str(u.accepts[unit.index(u.accepts.len())].0);
+            }
+            // Zero is zero at any exponent (the twin overflowed on 0e40).
+            let want = if digits.bytes().all(|b| b == b'0') {
+                Ok(0)
+            } else {
+                reference_parse(k, &t)
+            };
+            prop_assert_eq!(parse(k, &t), want, "{}", t);
+        }
+
+        /// Every value a setting can hold within the console's 18 digits prints as the i128
+        /// twin printed it: 32-bit fields any pattern, the I32F32 ones below 10⁷ (7 integer
+        /// digits and the 10 fractional ones 2^−32 needs), which bounds every valid setting.
+        #[test]
+        fn format_matches_the_i128_twin(
+            index in proptest::sample::select(number_kinds()),
+            bits in any::<i64>(),
+            width in 0..3u8,
+        ) {
+            let s = &SETTINGS[index];
+            let Kind::Number { frac, pow10, .. } = s.kind else { unreachable!() };
+            let (frac, pow10) = (u32::from(frac), i32::from(pow10));
+            let raw = match width {
+                0 => i64::from(bits as i32),
+                1 => i64::from(bits as u32),
+                _ if frac == 32 => bits % (10_000_000i64 << 32),
+                _ => i64::from(bits as i32),
+            };
+            let mut mine = String::new();
+            write_shortest(&mut mine, raw, frac, pow10).unwrap();
+            let mut twin = String::new();
+            reference::write_shortest(&mut twin, raw, frac, pow10).unwrap();
+            prop_assert_eq!(&mine, &twin, "{} raw {}", s.key, raw);
+            prop_assert_eq!(parse(&s.kind, &mine), Ok(raw), "{} {}", s.key, mine);
         }
     }
 }

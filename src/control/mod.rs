@@ -31,6 +31,7 @@ pub mod speed;
 
 use crate::detect::stickslip::{DetectorInputs, Reaction, StickSlipDetector};
 use crate::estimator::{Estimate, Estimator, Measurements};
+use crate::math::div128;
 use crate::model::Scale;
 use crate::units::{
     qmul, sat32, Amperes, Instant, Metres, NewtonMetres, Radians, RadiansPerSecond, Ratio, Volts, Q,
@@ -436,23 +437,25 @@ impl Controller {
         let speed_scale = rad_per_count.times(tick_hz, 1 << 16);
         // counts per screw rad (Q16) = 2^32 / rad_per_count(Q16 value).
         let (mant, shift) = rad_per_count.parts();
-        let counts_per_rad_q16 = ((1i128 << (32 + shift)) / i128::from(mant.max(1))) as i64;
+        let counts_per_rad_q16 = div128(1i128 << (32 + shift), i128::from(mant.max(1))) as i64;
         // Twist counts = T/k · counts/rad: from Q16 N·m.
         let k = i128::from(cfg.estimator.mechanics.coupling_stiffness.bits()); // Q16
         let twist_scale = Scale::from_ratio(i128::from(counts_per_rad_q16), k << 16);
         // Cruise: rad/s → Q32 counts/tick = ω·counts/rad·T·2^32.
-        let cruise_q32 = (i128::from(cfg.motion.cruise_speed.bits())
-            * i128::from(counts_per_rad_q16)
-            * i128::from(tick_us)
-            / 1_000_000) as i64;
-        let escape_q32 = (i128::from(cfg.stick_slip.escape_speed.bits())
-            * i128::from(counts_per_rad_q16)
-            * i128::from(tick_us)
-            / 1_000_000) as i64;
+        let per_tick_q32 = |speed: RadiansPerSecond| {
+            div128(
+                i128::from(speed.bits()) * i128::from(counts_per_rad_q16) * i128::from(tick_us),
+                1_000_000,
+            ) as i64
+        };
+        let cruise_q32 = per_tick_q32(cfg.motion.cruise_speed);
+        let escape_q32 = per_tick_q32(cfg.stick_slip.escape_speed);
         let ramp_ticks = cfg.motion.ramp_ms.saturating_mul(1000) / tick_us;
         let gear_ratio = cfg.estimator.drive.gear_ratio;
-        let counts_per_motor_rad_q16 =
-            (i128::from(counts_per_rad_q16) << 16) / i128::from(gear_ratio.to_bits().max(1));
+        let counts_per_motor_rad_q16 = div128(
+            i128::from(counts_per_rad_q16) << 16,
+            i128::from(gear_ratio.to_bits().max(1)),
+        );
         // Nut metres per count in Q40: the travel of 2^16 counts in Q24.
         let nut_q40 =
             i64::from(geometry.travel(1 << 16).bits()) - i64::from(geometry.travel(0).bits());

@@ -86,7 +86,9 @@ fn braking_speed(accel: i64, a2_4: i128, room: i64) -> i64 {
 /// `(cruise + δ)²/a + cruise + δ + 1`, saturated.
 fn cruise_room(cruise: i64, accel: i64) -> i64 {
     let c = i128::from(cruise) + (1 << 14);
-    let room = c * c / i128::from(accel.max(1)) + c + 1;
+    // One shared 128-bit division (crate::math::div128), not an inline expansion: this runs
+    // when a motion is planned, not per tick.
+    let room = crate::math::div128(c * c, i128::from(accel.max(1))) + c + 1;
     i64::try_from(room).unwrap_or(i64::MAX)
 }
 
@@ -142,7 +144,8 @@ impl Profile {
     pub fn stop(&mut self) {
         let v = self.v.unsigned_abs() as i128;
         // v²/(2a) + v/2 (the discrete ramp covers half a step more than the continuous one).
-        let dist = (v * v / (2 * self.accel.max(1) as i128) + v / 2) as i64;
+        // (Once per stop: the shared 128-bit division, see `cruise_room`.)
+        let dist = (crate::math::div128(v * v, 2 * self.accel.max(1) as i128) + v / 2) as i64;
         self.target = self.p.saturating_add(dist * self.v.signum());
         self.done = false;
     }

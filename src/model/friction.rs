@@ -36,7 +36,7 @@ pub struct FrictionLaw {
     pub rate: I32F32,
     /// Viscous slope per unit of `s`, −10³…10³.
     pub slope: I32F32,
-    /// The viscous term is flat beyond this `s` (`I32F32::MAX`: never).
+    /// The viscous term is flat beyond this `s`, 0…10⁶ (`I32F32::MAX`: never).
     pub s_max: I32F32,
     /// Unit of `s`.
     pub variable: LawVariable,
@@ -113,10 +113,14 @@ impl FrictionLaw {
                 range: "-1000..1000",
             });
         }
-        if self.s_max <= I32F32::ZERO {
+        // Above 10⁶ only "none" (the largest value): every setting's value then has at most 18
+        // significant digits, as the console's 64-bit number parser takes them.
+        if self.s_max <= I32F32::ZERO
+            || (self.s_max > const { I32F32::lit("1000000") } && self.s_max != I32F32::MAX)
+        {
             return Err(ConfigError::OutOfRange {
                 field: "friction.s_max",
-                range: ">0",
+                range: ">0..1e6",
             });
         }
         // The law's input bits: |θ̇| in Q16 for speed laws, τ in Q28 for the lubrication law.
@@ -142,7 +146,7 @@ impl FrictionLaw {
         let in_max = if self.s_max == I32F32::MAX {
             u32::MAX
         } else {
-            let v = (smax * k_den << in_frac) / (k_num << 32);
+            let v = crate::math::div128(smax * k_den << in_frac, k_num << 32);
             if v > i128::from(u32::MAX) {
                 u32::MAX
             } else {

@@ -29,14 +29,17 @@ impl Scale {
         if den <= 0 || num == 0 {
             return Scale::default();
         }
-        // Find the largest shift ≤ 62 with |num·2^shift/den| < 2^31.
+        // Find the largest shift ≤ 62 with |num·2^shift/den| < 2^31, i.e. |num|·2^shift <
+        // den·2^31 (a comparison instead of a 128-bit division per step; a den·2^31 beyond
+        // u128 exceeds every shifted |num| the quotient test could see).
         let mut shift = 0u32;
         let mag = num.unsigned_abs();
         let den_u = den as u128;
-        while shift < 62 && (mag << (shift + 1)) / den_u < (1u128 << 31) {
+        let limit = (den_u.leading_zeros() >= 31).then_some(den_u << 31);
+        while shift < 62 && limit.is_none_or(|l| (mag << (shift + 1)) < l) {
             shift += 1;
         }
-        let m = (mag << shift) / den_u;
+        let m = crate::math::udiv128(mag << shift, den_u);
         if m >= 1u128 << 31 {
             // The constant is ≥ 2^31 in the units asked for: saturate.
             return Scale {

@@ -8,9 +8,12 @@
 use crate::check_range as range;
 use crate::detect::stickslip::StickSlipConfig;
 use crate::estimator::EstimatorConfig;
+use crate::model::ballscrew::BallScrewConfig;
 use crate::model::geometry::Geometry;
 use crate::units::{Amperes, Kilograms, Metres, Newtons, RadiansPerSecond, Ratio, Volts};
 use crate::ConfigError;
+
+pub use super::lube::LubeConfig;
 
 /// Shape of the speed ramp.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -243,6 +246,11 @@ pub struct ControlConfig {
     pub stick_slip: StickSlipConfig,
     /// Lead screw or ball screw.
     pub screw: ScrewKind,
+    /// The ball screw's geometry, preload and f(τ) law (seed 002), used in ball-screw mode to
+    /// identify f online from the motor current (`control::lube`). Validated in either mode.
+    pub ball_screw: BallScrewConfig,
+    /// The identification's sampling and the lubrication warning's band.
+    pub lube: LubeConfig,
 }
 
 impl ControlConfig {
@@ -256,6 +264,8 @@ impl ControlConfig {
         sensing: SensingConfig::DEFAULT,
         stick_slip: StickSlipConfig::DEFAULT,
         screw: ScrewKind::Lead,
+        ball_screw: BallScrewConfig::SEED_001_4008,
+        lube: LubeConfig::DEFAULT,
     };
 
     /// The default lift with seed 001's 4008 ball screw (r_m = 20 mm, lead 8 mm, λ = 3.64°) in
@@ -266,7 +276,6 @@ impl ControlConfig {
     ///
     /// [`BallScrew::equivalent_thread_law`]: crate::model::ballscrew::BallScrew::equivalent_thread_law
     pub fn ball_screw_4008() -> Result<ControlConfig, ConfigError> {
-        use crate::model::ballscrew::BallScrewConfig;
         let bs = BallScrewConfig::SEED_001_4008.compile()?;
         let mut c = ControlConfig::DEFAULT;
         // R = M·g/tan 45° = M·g at α = 45°.
@@ -413,6 +422,8 @@ impl ControlConfig {
             "1..100000 uV",
         )?;
         self.stick_slip.validate()?;
+        self.ball_screw.compile()?;
+        self.lube.validate()?;
         self.limits.validate(geometry)
     }
 }

@@ -163,6 +163,10 @@ fn solve(bs: &BallScrew, up: &Sums, down: &Sums) -> Option<(Ratio, Ratio, Ratio)
     }
     let x = Ratio::from_raw(lo);
     let (fu, fd) = at(x)?;
+    // Friction is never negative: a pair that needs it is not a lift and a lowering of one load.
+    if fu < Ratio::ZERO || fd < Ratio::ZERO {
+        return None;
+    }
     Some((x, fu, fd))
 }
 

@@ -13,7 +13,7 @@
 //! - τ = η₀·V/P (Eq 3) with P = F/(M sin α cos β) the normal load per ball (seed 002's Q) and V
 //!   the ball-centre circle's speed r_m·|θ̇| (seed 002 says only "relative speed of the
 //!   ball–raceway contact").
-//! - The ball screw is not self-locking: the load alone turns it with torque `F·l/(2π)`
+//! - The ball screw is not self-locking: the load alone turns it with torque `|R|·l/(2π)`
 //!   ([`BallScrew::load_torque`]), against which only the friction torque holds.
 //!
 //! Every function has a float64 twin in `host_sim::physics::ballscrew` and a property test in
@@ -298,8 +298,9 @@ impl BallScrew {
         NewtonMetres::from_raw(self.lever_scale.apply32(f_axial.bits()))
     }
 
-    /// The friction torque in a measured screw torque (positive = lifting direction):
-    /// `T_screw − F·l/(2π)` when lifting; `F·l/(2π) − T_screw` when lowering (the load then
+    /// The friction torque in a measured screw torque (positive = lifting direction) under an
+    /// axial load |R| = `f_axial` (without the preload):
+    /// `T_screw − R·l/(2π)` when lifting; `R·l/(2π) − T_screw` when lowering (the load then
     /// drives, friction helps the motor hold it back, so the motor brakes with less than the
     /// load torque). Saturating.
     #[inline]
@@ -319,7 +320,8 @@ impl BallScrew {
 
     /// Eq 2 online: f from the screw torque the motor delivers (current × k_t × gear ratio ×
     /// efficiency, measured at steady speed) and the axial load R. `None` when the force is too
-    /// small for the quotient to mean anything.
+    /// small for the quotient to mean anything. The load torque is |R|·l/(2π): the preload is
+    /// internal to the nut (it loads the balls, hence the friction, but turns nothing).
     #[inline]
     pub fn identify(
         &self,
@@ -328,7 +330,7 @@ impl BallScrew {
         lifting: bool,
     ) -> Option<Ratio> {
         let fa = self.axial_force(load);
-        self.coefficient_from_torque(self.friction_in(screw_torque, fa, lifting), fa)
+        self.coefficient_from_torque(self.friction_in(screw_torque, load.sat_abs(), lifting), fa)
     }
 
     /// The ball screw as a thread for the lead-screw model (estimator and plant): the friction

@@ -89,14 +89,15 @@ impl BallScrewFriction {
     }
 
     /// Screw torque at steady speed θ̇ under axial load R (positive = lifting direction):
-    /// lifting `F·l/(2π) + M_f`, lowering `F·l/(2π) − M_f`.
+    /// lifting `|R|·l/(2π) + M_f`, lowering `|R|·l/(2π) − M_f` (the preload, internal to the
+    /// nut, adds friction through F but no load torque).
     pub fn steady_screw_torque(&self, theta_dot: f64, load: f64) -> f64 {
         let fa = self.axial_force(load);
         let mf = self.friction_torque(self.coefficient(self.tau(theta_dot, fa)), fa);
         if theta_dot >= 0.0 {
-            self.load_torque(fa) + mf
+            self.load_torque(load.abs()) + mf
         } else {
-            self.load_torque(fa) - mf
+            self.load_torque(load.abs()) - mf
         }
     }
 }

@@ -266,7 +266,7 @@ mod tests {
         cfg.motion.ramp_ms = 120;
         let mut b = [0u8; MAX_RECORD_LEN];
         let len = old_record(&cfg, 1, &mut b);
-        assert_eq!(len, record_len() - 8 * 15, "v1 lacks drive.screw and ballscrew.*");
+        assert_eq!(len, record_len() - 8 * 16, "v1 lacks drive.screw and ballscrew.*");
         assert_eq!(decode(&b[..len]), Ok((cfg, 3)));
         // The same bytes labelled version 2 are refused: the key list differs.
         b[4..6].copy_from_slice(&2u16.to_le_bytes());
@@ -285,7 +285,7 @@ mod tests {
         cfg.protection.runaway_travel = crate::units::Metres::lit("0.001");
         let mut b = [0u8; MAX_RECORD_LEN];
         let len = old_record(&cfg, 2, &mut b);
-        assert_eq!(len, record_len() - 8 * 14);
+        assert_eq!(len, record_len() - 8 * 15);
         assert_eq!(decode(&b[..len]), Ok((cfg, 3)));
         // A version-3 record keeps a changed ball screw; a future version is refused.
         cfg.ball_screw.preload = crate::units::Newtons::lit("1500");

@@ -354,7 +354,7 @@ pub const LAW_PRESETS: [FrictionLaw; 4] = [
 
 /// Every setting. The flash record's layout follows this order (the `stored` ones): changing
 /// it changes the record's schema fingerprint (see [`crate::config::record`]).
-pub static SETTINGS: [Setting; 69] = [
+pub static SETTINGS: [Setting; 70] = [
     setting!("limits.lower", LEN, "the mechanism's height range (see `limits`)",
         "lowest head height the lift drives to", q32 limits.lower),
     setting!("limits.upper", LEN, "the mechanism's height range (see `limits`)",
@@ -617,6 +617,9 @@ pub static SETTINGS: [Setting; 69] = [
         "warn when the identified f leaves law*(1 +- band)", q32 lube.band),
     setting!("ballscrew.ident_min_speed", num(16, &RAD_PER_S), "0.05..20 rad/s",
         "slowest cruise whose motor current identifies f", q32 lube.min_speed),
+    setting!("ballscrew.no_load_current", num(16, &AMPS), "0..20 A",
+        "motor current at cruise speed with the gearbox output free (drive friction)",
+        q32 lube.no_load_current),
 ];
 
 #[cfg(test)]
@@ -759,11 +762,12 @@ mod tests {
             lube: LubeConfig {
                 band: _,
                 min_speed: _,
+                no_load_current: _,
             },
         } = ControlConfig::DEFAULT;
-        // 68 fields above, one key each (the ball screw's law variable is fixed), plus the
+        // 69 fields above, one key each (the ball screw's law variable is fixed), plus the
         // `friction.law` preset selector.
-        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 68);
+        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 69);
     }
 
     #[test]

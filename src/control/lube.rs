@@ -16,8 +16,8 @@
 //! **Where the current means something.** A tick is a sample only while driving at a constant
 //! reference (cruise, not ramping) of at least `ballscrew.ident_min_speed`, for
 //! [`SETTLE_MS`] since the reference became constant (the coupling winds up and the speed
-//! filter settles), with the measured speed within 25 % of the reference and no stick-slip
-//! episode under way. From each sample it keeps the measured *thread* torque (the measured
+//! filter settles), with the measured speed within 50 % of the reference (stick-slip bursts
+//! are kept: the mean torque over them is the mean friction). From each sample it keeps the measured *thread* torque (the measured
 //! screw torque less the model's support, damping and inertia torques) and the model's axial
 //! demand at the rated load; a motion's means are its samples' sums over their count.
 //!
@@ -31,7 +31,10 @@
 //! [`crate::control::Event::Lubrication`] (the console prints a `warning:` line).
 
 use crate::model::ballscrew::{BallScrew, FrictionIdentifier};
-use crate::units::{qmul, sat32, Kilograms, NewtonMetres, Newtons, RadiansPerSecond, Ratio, Q};
+use crate::control::config::ControlConfig;
+use crate::units::{
+    qmul, sat32, Amperes, Kilograms, NewtonMetres, Newtons, RadiansPerSecond, Ratio, Q,
+};
 use crate::ConfigError;
 
 /// The identification's and the warning's settings.
@@ -42,6 +45,10 @@ pub struct LubeConfig {
     pub band: Ratio,
     /// Slowest reference speed at which the current is used, 0.05…20 rad/s.
     pub min_speed: RadiansPerSecond,
+    /// Motor current with the gearbox output uncoupled, at the cruise speed, 0…20 A: the
+    /// drive's own friction (motor and gearbox), which the identification removes at the screw
+    /// as k_t·I₀·n·η lifting and k_t·I₀·n/η lowering.
+    pub no_load_current: Amperes,
 }
 
 impl LubeConfig {
@@ -49,6 +56,7 @@ impl LubeConfig {
     pub const DEFAULT: LubeConfig = LubeConfig {
         band: Ratio::lit("0.5"),
         min_speed: RadiansPerSecond::lit("0.5"),
+        no_load_current: Amperes::ZERO,
     };
 
     /// Check the ranges.
@@ -66,6 +74,13 @@ impl LubeConfig {
             const { RadiansPerSecond::lit("20") },
             "ballscrew.ident_min_speed",
             "0.05..20 rad/s",
+        )?;
+        crate::check_range(
+            self.no_load_current,
+            Amperes::ZERO,
+            const { Amperes::lit("20") },
+            "ballscrew.no_load_current",
+            "0..20 A",
         )
     }
 }
@@ -134,6 +149,12 @@ pub struct LubeReport {
 /// does not fit: no warning is drawn from it).
 fn solve(bs: &BallScrew, up: &Sums, down: &Sums) -> Option<(Ratio, Ratio, Ratio)> {
     let (tu, wu, td, wd) = (up.torque(), up.axial(), down.torque(), down.axial());
+    // Both directions must be load-driven: where the pins' friction exceeds the load's push
+    // while lowering (high arm angles), the lowering needs torque like a lift does and the two
+    // no longer tell load and friction apart.
+    if wu <= Newtons::ZERO || wd <= Newtons::ZERO {
+        return None;
+    }
     let at = |x: Ratio| -> Option<(Ratio, Ratio)> {
         let fu = bs.identify(tu, qmul(x, wu), true)?;
         let fd = bs.identify(td, qmul(x, wd), false)?;
@@ -184,6 +205,9 @@ pub struct LubeMonitor {
     identifier: FrictionIdentifier,
     report: Option<LubeReport>,
     in_motion: bool,
+    /// The drive's no-load torque at the screw, lifting (×n·η) and lowering (×n/η).
+    drive_up: NewtonMetres,
+    drive_down: NewtonMetres,
 }
 
 /// What the controller hands the monitor each tick.
@@ -197,8 +221,6 @@ pub struct LubeInputs {
     pub reference: RadiansPerSecond,
     /// Estimated screw speed (signed).
     pub speed: RadiansPerSecond,
-    /// A stick-slip episode is under way.
-    pub stick_slip: bool,
     /// Measured screw torque less the model's support, damping and inertia torques.
     pub thread_torque: NewtonMetres,
     /// The model's axial demand at the rated load.
@@ -206,9 +228,16 @@ pub struct LubeInputs {
 }
 
 impl LubeMonitor {
-    /// A monitor for a controller ticking every `tick_us`.
-    pub fn new(tick_us: u32) -> LubeMonitor {
+    /// A monitor for a (validated) configuration.
+    pub fn new(cfg: &ControlConfig) -> LubeMonitor {
+        let tick_us = cfg.estimator.tick_us;
         let t = |ms: u32| ms.saturating_mul(1000) / tick_us.max(1);
+        // Configuration time: k_t·I₀·n, then through the gearbox either way.
+        let m = &cfg.estimator.motor;
+        let t0 = cfg.lube.no_load_current.to_f64()
+            * m.torque_constant.to_f64()
+            * cfg.estimator.drive.gear_ratio.to_num::<f64>();
+        let eta = m.gear_efficiency.to_f64().max(0.1);
         LubeMonitor {
             run: Sums::default(),
             run_lifting: true,
@@ -222,6 +251,8 @@ impl LubeMonitor {
             identifier: FrictionIdentifier::new(Ratio::ZERO, 2, const { Newtons::lit("100") }),
             report: None,
             in_motion: false,
+            drive_up: NewtonMetres::from_f64(t0 * eta),
+            drive_down: NewtonMetres::from_f64(t0 / eta),
         }
     }
 
@@ -236,7 +267,7 @@ impl LubeMonitor {
         let constant = x.reference == self.prev_reference;
         self.prev_reference = x.reference;
         let r = x.reference.sat_abs();
-        if !(x.driving && constant && r >= cfg.min_speed && !x.stick_slip) {
+        if !(x.driving && constant && r >= cfg.min_speed) {
             self.steady_ticks = 0;
             return;
         }
@@ -244,12 +275,21 @@ impl LubeMonitor {
         if self.steady_ticks <= self.settle_ticks {
             return;
         }
-        // Within 25 % of the reference, in its direction.
+        // Following the reference (a jammed or current-limited screw is not at steady speed):
+        // within 50 %. Stick-slip bursts stay in: the mean torque over them is still the
+        // screw's mean friction (rejecting the fast or slow ticks would bias it).
         let err = x.speed.sat_sub(x.reference).sat_abs();
-        if err > RadiansPerSecond::from_raw(r.bits() >> 2) {
+        if err > RadiansPerSecond::from_raw(r.bits() >> 1) {
             return;
         }
-        self.run.add(x.thread_torque, x.axial_rated, x.speed);
+        // The drive's friction opposes the motion: it raised the lift's measured torque and
+        // lowered the lowering's.
+        let t = if x.lifting {
+            x.thread_torque.sat_sub(self.drive_up)
+        } else {
+            x.thread_torque.sat_add(self.drive_down)
+        };
+        self.run.add(t, x.axial_rated, x.speed);
     }
 
     /// The lift came to rest (or faulted): close the motion's sums, solve a pair if there is
@@ -390,6 +430,9 @@ mod tests {
         let mut c = LubeConfig::DEFAULT;
         c.validate().unwrap();
         c.band = Ratio::lit("0.01");
+        assert!(c.validate().is_err());
+        c = LubeConfig::DEFAULT;
+        c.no_load_current = Amperes::lit("-1");
         assert!(c.validate().is_err());
     }
 }

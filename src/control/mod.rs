@@ -544,7 +544,7 @@ impl Controller {
             cruise_q32,
             escape_q32,
             ball_screw,
-            lube: lube::LubeMonitor::new(tick_us),
+            lube: lube::LubeMonitor::new(cfg),
             lube_notice: None,
         })
     }
@@ -690,7 +690,10 @@ impl Controller {
         next.release_ticks = self.release_ticks;
         next.prev_buttons = self.prev_buttons;
         next.pending_event = self.pending_event;
-        if cfg.ball_screw == self.cfg.ball_screw && next.tick_us == self.tick_us {
+        if cfg.ball_screw == self.cfg.ball_screw
+            && cfg.lube == self.cfg.lube
+            && cfg.estimator == self.cfg.estimator
+        {
             next.lube = self.lube;
         }
         // Counts mean another height under another geometry or drive: the position is then
@@ -1054,7 +1057,6 @@ impl Controller {
                 lifting: self.state == State::Lifting,
                 reference: self.reference_speed(),
                 speed: e.screw_speed,
-                stick_slip: self.stick_slip.output().active,
                 thread_torque: e.measured_screw_torque.sat_sub(not_thread),
                 axial_rated: e.contact.axial,
             };

@@ -298,8 +298,8 @@ impl BallScrew {
         NewtonMetres::from_raw(self.lever_scale.apply32(f_axial.bits()))
     }
 
-    /// The friction torque in a measured screw torque (positive = lifting direction) under an
-    /// axial load |R| = `f_axial` (without the preload):
+    /// The friction torque in a measured screw torque (positive = lifting direction) under a
+    /// signed axial load R = `f_axial` (without the preload):
     /// `T_screw − R·l/(2π)` when lifting; `R·l/(2π) − T_screw` when lowering (the load then
     /// drives, friction helps the motor hold it back, so the motor brakes with less than the
     /// load torque). Saturating.
@@ -320,8 +320,10 @@ impl BallScrew {
 
     /// Eq 2 online: f from the screw torque the motor delivers (current × k_t × gear ratio ×
     /// efficiency, measured at steady speed) and the axial load R. `None` when the force is too
-    /// small for the quotient to mean anything. The load torque is |R|·l/(2π): the preload is
-    /// internal to the nut (it loads the balls, hence the friction, but turns nothing).
+    /// small for the quotient to mean anything. The load torque is R·l/(2π) with R signed (negative
+    /// when the motor must push the nut down, e.g. against the lift's pin friction): the
+    /// preload is internal to the nut (it loads the balls, hence the friction, but turns
+    /// nothing).
     #[inline]
     pub fn identify(
         &self,
@@ -330,7 +332,7 @@ impl BallScrew {
         lifting: bool,
     ) -> Option<Ratio> {
         let fa = self.axial_force(load);
-        self.coefficient_from_torque(self.friction_in(screw_torque, load.sat_abs(), lifting), fa)
+        self.coefficient_from_torque(self.friction_in(screw_torque, load, lifting), fa)
     }
 
     /// The ball screw as a thread for the lead-screw model (estimator and plant): the friction

@@ -8,7 +8,7 @@ mod support;
 use host_sim::physics::Geometry;
 use liftfw::control::config::ScrewKind;
 use liftfw::control::{Bridge, Command, Event, FaultKind, State};
-use liftfw::units::{Amperes, Metres, NewtonMetres};
+use liftfw::units::Metres;
 use support::{command_at, run, Run, Scenario, Tick};
 
 const RATED: f64 = 1000.0;
@@ -253,9 +253,10 @@ fn plant_f(r: &Run) -> f64 {
 fn lift_and_lower(load: f64, factor: f64) -> (Scenario, Run) {
     let mut s = Scenario::ball_screw(load, 30.0, 4.4);
     s.ball_friction_factor = factor;
-    // Commissioning: the motor current at cruise speed with the gearbox output free (the
-    // plant's motor: 0.02 N·m Coulomb + 2·10⁻⁵ N·m·s/rad × 90 rad/s, over k_t = 0.04 N·m/A).
-    s.control.lube.no_load_current = Amperes::from_f64((0.02 + 2e-5 * 90.0) / 0.04);
+    // The factory `ballscrew.no_load_current` is the default motor's (host-sim's): 0.02 N·m
+    // Coulomb + 2·10⁻⁵ N·m·s/rad × 90 rad/s, over k_t = 0.04 N·m/A.
+    let i0 = (0.02 + 2e-5 * 90.0) / 0.04;
+    assert!((s.control.lube.no_load_current.to_f64() - i0).abs() < 1e-3);
     let h0 = height_at(30.0);
     let mut phase = 0;
     let r = run(

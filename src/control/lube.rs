@@ -52,11 +52,15 @@ pub struct LubeConfig {
 }
 
 impl LubeConfig {
-    /// ±50 % around the law; samples at 0.5 rad/s and faster.
+    /// ±50 % around the law; samples at 0.5 rad/s and faster; the default motor's no-load
+    /// current at a 1.5 rad/s cruise (0.02 N·m Coulomb + 2·10⁻⁵ N·m·s/rad × 90 rad/s over
+    /// k_t = 0.04 N·m/A, docs/plant.md). Without it the identified f came out 76 % (rated load)
+    /// and 180 % (half load) too high in host-sim: the lowering's friction torque is little
+    /// more than the drive's own.
     pub const DEFAULT: LubeConfig = LubeConfig {
         band: Ratio::lit("0.5"),
         min_speed: RadiansPerSecond::lit("0.5"),
-        no_load_current: Amperes::ZERO,
+        no_load_current: Amperes::lit("0.545"),
     };
 
     /// Check the ranges.

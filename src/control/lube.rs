@@ -152,7 +152,20 @@ pub struct LubeReport {
 /// `None` when no x in 0.02…4 makes them agree (not a pair of the same load, or a model that
 /// does not fit: no warning is drawn from it).
 fn solve(bs: &BallScrew, up: &Sums, down: &Sums) -> Option<(Ratio, Ratio, Ratio)> {
-    let (tu, wu, td, wd) = (up.torque(), up.axial(), down.torque(), down.axial());
+    solve_pair(bs, (up.torque(), up.axial()), (down.torque(), down.axial()))
+}
+
+/// The pair solve on mean values: `up` and `down` are (thread torque, rated-load axial demand)
+/// of a lift and a lowering. Returns the load fraction x (to 1 LSB, by bisection on
+/// 0.02…4) and Eq 2's f of each direction there. `None` when no x in that range makes them
+/// agree, when either demand is not positive, or when the f it needs is negative. Error
+/// against the float64 twin: `tests/ballscrew_vs_float_twin.rs`.
+pub fn solve_pair(
+    bs: &BallScrew,
+    up: (NewtonMetres, Newtons),
+    down: (NewtonMetres, Newtons),
+) -> Option<(Ratio, Ratio, Ratio)> {
+    let ((tu, wu), (td, wd)) = (up, down);
     // Both directions must be load-driven: where the pins' friction exceeds the load's push
     // while lowering (high arm angles), the lowering needs torque like a lift does and the two
     // no longer tell load and friction apart.

@@ -309,7 +309,11 @@ fn identified_friction_converges_to_the_plant_at_rated_and_half_load() {
         );
         assert_eq!(rep.pairs, 1);
         assert!(err.abs() < 0.10, "{load} kg: f {f} vs plant {want}");
-        assert!(load_err.abs() < 0.05, "{load} kg: load {}", rep.load.to_f64());
+        assert!(
+            load_err.abs() < 0.05,
+            "{load} kg: load {}",
+            rep.load.to_f64()
+        );
         assert!(!rep.out_of_band);
         assert_eq!(lube_events(&r), 0, "{:?}", r.events);
     }
@@ -332,6 +336,9 @@ fn degraded_lubrication_is_warned_about() {
     assert_eq!(lube_events(&r), 1, "{:?}", r.events);
     let mut line = String::new();
     liftfw::console::write_lube_warning(&mut line, rep.f_last, rep.law).unwrap();
-    assert!(line.starts_with("warning: ball-screw friction f="), "{line}");
+    assert!(
+        line.starts_with("warning: ball-screw friction f="),
+        "{line}"
+    );
     assert!(line.contains("above"), "{line}");
 }

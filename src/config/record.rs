@@ -266,7 +266,11 @@ mod tests {
         cfg.motion.ramp_ms = 120;
         let mut b = [0u8; MAX_RECORD_LEN];
         let len = old_record(&cfg, 1, &mut b);
-        assert_eq!(len, record_len() - 8 * 16, "v1 lacks drive.screw and ballscrew.*");
+        assert_eq!(
+            len,
+            record_len() - 8 * 16,
+            "v1 lacks drive.screw and ballscrew.*"
+        );
         assert_eq!(decode(&b[..len]), Ok((cfg, 3)));
         // The same bytes labelled version 2 are refused: the key list differs.
         b[4..6].copy_from_slice(&2u16.to_le_bytes());

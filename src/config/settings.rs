@@ -644,12 +644,12 @@ mod tests {
     /// in the flash record, whose schema word then changes).
     #[test]
     fn registry_covers_every_field() {
+        use crate::control::config::LubeConfig;
         use crate::control::config::{LimitStops, MotionConfig, ProtectionConfig, SensingConfig};
         use crate::detect::stickslip::StickSlipConfig;
         use crate::estimator::{EstimatorConfig, MotorConfig};
-        use crate::model::geometry::{DriveConfig, GeometryConfig};
-        use crate::control::config::LubeConfig;
         use crate::model::ballscrew::BallScrewConfig;
+        use crate::model::geometry::{DriveConfig, GeometryConfig};
         use crate::model::screw::MechanicsConfig;
         let ControlConfig {
             estimator:
@@ -759,11 +759,12 @@ mod tests {
                             variable: _,
                         },
                 },
-            lube: LubeConfig {
-                band: _,
-                min_speed: _,
-                no_load_current: _,
-            },
+            lube:
+                LubeConfig {
+                    band: _,
+                    min_speed: _,
+                    no_load_current: _,
+                },
         } = ControlConfig::DEFAULT;
         // 69 fields above, one key each (the ball screw's law variable is fixed), plus the
         // `friction.law` preset selector.

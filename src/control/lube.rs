@@ -30,8 +30,8 @@
 //! identified axial force; outside `law·(1 ± ballscrew.lube_band)` the controller reports
 //! [`crate::control::Event::Lubrication`] (the console prints a `warning:` line).
 
-use crate::model::ballscrew::{BallScrew, FrictionIdentifier};
 use crate::control::config::ControlConfig;
+use crate::model::ballscrew::{BallScrew, FrictionIdentifier};
 use crate::units::{
     qmul, sat32, Amperes, Kilograms, NewtonMetres, Newtons, RadiansPerSecond, Ratio, Q,
 };
@@ -353,9 +353,7 @@ impl LubeMonitor {
         let (lu, ld): (Newtons, Newtons) = (qmul(x, up.axial()), qmul(x, down.axial()));
         self.identifier.update(bs, up.torque(), lu, true);
         self.identifier.update(bs, down.torque(), ld, false);
-        let f_last = Ratio::from_raw(sat32(
-            (i64::from(fu.bits()) + i64::from(fd.bits())) / 2,
-        ));
+        let f_last = Ratio::from_raw(sat32((i64::from(fu.bits()) + i64::from(fd.bits())) / 2));
         let speed = RadiansPerSecond::from_raw(sat32(
             (i64::from(up.speed().bits()) + i64::from(down.speed().bits())) / 2,
         ));
@@ -401,7 +399,11 @@ mod tests {
         let fa = bs.config().preload.to_f64() + w;
         let lever = bs.lever().to_f64();
         let mf = f * fa * bs.arm().to_f64();
-        let t = if lifting { w * lever + mf } else { w * lever - mf };
+        let t = if lifting {
+            w * lever + mf
+        } else {
+            w * lever - mf
+        };
         let mut s = Sums::default();
         for _ in 0..1000 {
             s.add(
@@ -425,9 +427,15 @@ mod tests {
                 let up = sums(&bs, f, frac * wu, wu, true);
                 let down = sums(&bs, f, frac * wd, wd, false);
                 let (x, fu, fd) = solve(&bs, &up, &down).unwrap();
-                assert!((x.to_f64() - frac).abs() < 1e-3 * frac, "{preload} {f} {frac}: x {x:?}");
+                assert!(
+                    (x.to_f64() - frac).abs() < 1e-3 * frac,
+                    "{preload} {f} {frac}: x {x:?}"
+                );
                 for g in [fu, fd] {
-                    assert!((g.to_f64() - f).abs() < 2e-3 * f + 1e-6, "{f} {frac}: {g:?}");
+                    assert!(
+                        (g.to_f64() - f).abs() < 2e-3 * f + 1e-6,
+                        "{f} {frac}: {g:?}"
+                    );
                 }
             }
         }
@@ -440,6 +448,56 @@ mod tests {
         let up = sums(&bs, 0.005, 5000.0, 10_000.0, false);
         let down = sums(&bs, 0.005, 5000.0, 10_000.0, true);
         assert_eq!(solve(&bs, &up, &down), None);
+    }
+
+    /// Feed `ticks` ticks of one steady motion (after a 100-tick ramp) at the torque Eq 1 gives.
+    fn motion(m: &mut LubeMonitor, bs: &BallScrew, lifting: bool, w: f64, ticks: u32) {
+        let cfg = LubeConfig::DEFAULT;
+        let s = sums(bs, 0.005, w, 10_000.0, lifting);
+        let cruise = if lifting { 1.5 } else { -1.5 };
+        for k in 0..ticks + 100 {
+            // Ramping for 100 ticks: the reference changes every tick, no sample.
+            let r = cruise * f64::from(k.min(100)) / 100.0;
+            m.sample(
+                &cfg,
+                &LubeInputs {
+                    driving: true,
+                    lifting,
+                    reference: RadiansPerSecond::from_f64(r),
+                    speed: RadiansPerSecond::from_f64(r),
+                    thread_torque: s.torque(),
+                    axial_rated: Newtons::from_f64(10_000.0),
+                },
+            );
+        }
+    }
+
+    #[test]
+    fn a_lift_and_a_lowering_make_a_pair_and_the_lower_stop_forgets_them() {
+        let bs = BallScrewConfig::SEED_001_4008.compile().unwrap();
+        let mut c = ControlConfig::DEFAULT;
+        c.estimator.tick_us = 1000;
+        c.lube.no_load_current = Amperes::ZERO;
+        let mut m = LubeMonitor::new(&c);
+        let cfg = c.lube;
+        let rated = Kilograms::lit("1000");
+        // The reference is constant from tick 101: 200 settling ticks, then 149 samples: too few.
+        motion(&mut m, &bs, true, 6000.0, 350);
+        assert_eq!(m.samples(), 149);
+        assert_eq!(m.end_motion(&bs, &cfg, rated, false), None);
+        // Enough, but one direction only.
+        motion(&mut m, &bs, true, 6000.0, 600);
+        assert_eq!(m.samples(), 399);
+        assert_eq!(m.end_motion(&bs, &cfg, rated, false), None);
+        motion(&mut m, &bs, false, 6000.0, 600);
+        let r = m.end_motion(&bs, &cfg, rated, true).expect("a pair");
+        assert!((r.f.to_f64() - 0.005).abs() < 1e-5, "{r:?}");
+        assert!((r.load.to_f64() - 600.0).abs() < 1.0, "{r:?}");
+        assert!(!r.out_of_band && r.pairs == 1);
+        assert_eq!(m.report(), Some(r));
+        // It stopped at the lower stop: the next lowering alone is no pair.
+        motion(&mut m, &bs, false, 6000.0, 600);
+        assert_eq!(m.end_motion(&bs, &cfg, rated, false), None);
     }
 
     #[test]

@@ -235,10 +235,13 @@ impl Monitors {
         // Holding back less is also what any load lighter than the rated one does (a ball
         // screw lowering half its rated load tripped): an overhauling model's limit starts
         // from zero, so only pushing the lift down (an obstruction under it) trips.
-        let limit = s.model_torque.max(NewtonMetres::ZERO).sat_add(qmul::<_, _, NewtonMetres>(
-            s.model_torque.sat_abs(),
-            l.overload_margin,
-        ));
+        let limit = s
+            .model_torque
+            .max(NewtonMetres::ZERO)
+            .sat_add(qmul::<_, _, NewtonMetres>(
+                s.model_torque.sat_abs(),
+                l.overload_margin,
+            ));
         let over =
             s.overload_armed && s.measured_torque > limit.sat_add(const { NewtonMetres::lit("2") });
         if count(&mut self.overload, over) >= l.overload_ticks {

@@ -121,20 +121,23 @@ impl BallScrewConfig {
         }
         // The law's r_m/cos λ only matter for sliding-speed laws: any valid values do. Its
         // refusals name the `ballscrew.f_*` keys (the law's own name the estimator's).
-        let law = self.law.compile(self.r_m, Ratio::ONE).map_err(|e| match e {
-            ConfigError::OutOfRange { field, range } => ConfigError::OutOfRange {
-                field: match field {
-                    "friction.base" => "ballscrew.f_base",
-                    "friction.amp" => "ballscrew.f_amp",
-                    "friction.rate" => "ballscrew.f_rate",
-                    "friction.slope" => "ballscrew.f_slope",
-                    "friction.s_max" => "ballscrew.f_s_max",
-                    other => other,
+        let law = self
+            .law
+            .compile(self.r_m, Ratio::ONE)
+            .map_err(|e| match e {
+                ConfigError::OutOfRange { field, range } => ConfigError::OutOfRange {
+                    field: match field {
+                        "friction.base" => "ballscrew.f_base",
+                        "friction.amp" => "ballscrew.f_amp",
+                        "friction.rate" => "ballscrew.f_rate",
+                        "friction.slope" => "ballscrew.f_slope",
+                        "friction.s_max" => "ballscrew.f_s_max",
+                        other => other,
+                    },
+                    range,
                 },
-                range,
-            },
-            other => other,
-        })?;
+                other => other,
+            })?;
 
         // Design in float (configuration time only), quantise once.
         let alpha = Angle::from_degrees(self.contact_angle_deg);

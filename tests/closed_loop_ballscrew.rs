@@ -249,8 +249,9 @@ fn plant_f(r: &Run) -> f64 {
     mus.iter().sum::<f64>() / mus.len() as f64
 }
 
-/// Lift 5 mm from 30° at `load` kg, then lower back: one pair for the identification.
-fn lift_and_lower(load: f64, factor: f64) -> (Scenario, Run) {
+/// Move 5 mm from 30° at `load` kg (up first, or down first) and back: one pair for the
+/// identification.
+fn up_and_down(load: f64, factor: f64, up_first: bool) -> (Scenario, Run) {
     let mut s = Scenario::ball_screw(load, 30.0, 4.4);
     s.ball_friction_factor = factor;
     // The factory `ballscrew.no_load_current` is the default motor's (host-sim's): 0.02 N·m
@@ -264,8 +265,9 @@ fn lift_and_lower(load: f64, factor: f64) -> (Scenario, Run) {
         Box::new(move |k: &mut Tick<'_>| {
             if phase == 0 && k.t >= 0.05 {
                 phase = 1;
+                let dh = if up_first { 0.005 } else { -0.005 };
                 k.controller
-                    .command(Command::GoTo(Metres::from_f64(h0 + 0.005)))
+                    .command(Command::GoTo(Metres::from_f64(h0 + dh)))
                     .expect("accepted");
             } else if phase == 1 && k.t > 0.2 && k.controller.state() == State::Holding {
                 phase = 2;
@@ -287,8 +289,14 @@ fn lube_events(r: &Run) -> usize {
 
 #[test]
 fn identified_friction_converges_to_the_plant_at_rated_and_half_load() {
-    for load in [RATED, 0.5 * RATED] {
-        let (_, r) = lift_and_lower(load, 1.0);
+    // Both orders: the pair is solved when its second motion ends.
+    for (load, up_first) in [
+        (RATED, true),
+        (0.5 * RATED, true),
+        (RATED, false),
+        (0.5 * RATED, false),
+    ] {
+        let (_, r) = up_and_down(load, 1.0, up_first);
         assert!(r.first_fault().is_none(), "{load} kg: {:?}", r.events);
         let rep = r
             .controller
@@ -300,8 +308,9 @@ fn identified_friction_converges_to_the_plant_at_rated_and_half_load() {
         let err = (f - want) / want;
         let load_err = (rep.load.to_f64() - load) / load;
         println!(
-            "{load} kg: f {f:.5} (pair {last:.5}) plant {want:.5} ({:+.1} %), law {:.5}, \
+            "{load} kg, {}: f {f:.5} (pair {last:.5}) plant {want:.5} ({:+.1} %), law {:.5}, \
              load {:.0} kg ({:+.1} %)",
+            if up_first { "up, down" } else { "down, up" },
             err * 100.0,
             rep.law.to_f64(),
             rep.load.to_f64(),
@@ -322,7 +331,7 @@ fn identified_friction_converges_to_the_plant_at_rated_and_half_load() {
 #[test]
 fn degraded_lubrication_is_warned_about() {
     // f twice the law (a screw run dry or worn): outside the default ±50 % band.
-    let (_, r) = lift_and_lower(RATED, 2.0);
+    let (_, r) = up_and_down(RATED, 2.0, true);
     assert!(r.first_fault().is_none(), "{:?}", r.events);
     let rep = r.controller.status().lube.expect("identified");
     let want = plant_f(&r);

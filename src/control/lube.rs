@@ -24,7 +24,7 @@
 //! **Pairing.** When a motion with at least [`MIN_SAMPLES`] ends, its means replace the last
 //! ones of its direction; when both directions have means, the pair is solved (a few dozen
 //! integer divisions, once per motion). A motion that ends at the lower stop forgets both: the
-//! car may be changed there.
+//! car may be changed there. A motion that ends in a fault is dropped.
 //!
 //! **Warning.** The identified f is compared with the law's f(τ) at the pair's mean speed and
 //! identified axial force; outside `law·(1 ± ballscrew.lube_band)` the controller reports
@@ -372,6 +372,14 @@ impl LubeMonitor {
         Some(report)
     }
 
+    /// Drop the motion under way (it ended in a fault); the pairs kept so far stay.
+    pub fn abort_motion(&mut self) {
+        self.run = Sums::default();
+        self.in_motion = false;
+        self.steady_ticks = 0;
+        self.prev_reference = RadiansPerSecond::ZERO;
+    }
+
     /// The latest report, if a pair has been solved.
     pub fn report(&self) -> Option<LubeReport> {
         self.report
@@ -497,6 +505,11 @@ mod tests {
         assert_eq!(m.report(), Some(r));
         // It stopped at the lower stop: the next lowering alone is no pair.
         motion(&mut m, &bs, false, 6000.0, 600);
+        assert_eq!(m.end_motion(&bs, &cfg, rated, false), None);
+        // A lift that ends in a fault is dropped: still no pair.
+        motion(&mut m, &bs, true, 6000.0, 600);
+        m.abort_motion();
+        assert!(!m.in_motion());
         assert_eq!(m.end_motion(&bs, &cfg, rated, false), None);
     }
 

@@ -1061,6 +1061,9 @@ impl Controller {
                 axial_rated: e.contact.axial,
             };
             self.lube.sample(&self.cfg.lube, &x);
+        } else if self.lube.in_motion() && self.state == State::Fault {
+            // A motion a fault ended (an obstruction, a jam…) says nothing about the friction.
+            self.lube.abort_motion();
         } else if self.lube.in_motion() {
             let at_lower = self.enc.position() <= self.lower_counts.saturating_add(ARRIVED_COUNTS);
             let report = self.lube.end_motion(

@@ -292,7 +292,7 @@ proptest! {
         f in 0.001f64..0.05,
         x in 0.05f64..3.0,
         w_up in 2_000.0f64..40_000.0,
-        down_share in 0.2f64..1.0,
+        down_share in 0.13f64..1.0,
         preload in 0.0f64..5_000.0,
     ) {
         // Means a lift and a lowering of load fraction x at friction f would give (Eq 1), fed

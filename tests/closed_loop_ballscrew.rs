@@ -252,13 +252,17 @@ fn plant_f(r: &Run) -> f64 {
 /// Move 5 mm from 30° at `load` kg (up first, or down first) and back: one pair for the
 /// identification.
 fn up_and_down(load: f64, factor: f64, up_first: bool) -> (Scenario, Run) {
-    let mut s = Scenario::ball_screw(load, 30.0, 4.4);
+    up_and_down_at(30.0, load, factor, up_first)
+}
+
+fn up_and_down_at(deg: f64, load: f64, factor: f64, up_first: bool) -> (Scenario, Run) {
+    let mut s = Scenario::ball_screw(load, deg, 4.4);
     s.ball_friction_factor = factor;
     // The factory `ballscrew.no_load_current` is the default motor's (host-sim's): 0.02 N·m
     // Coulomb + 2·10⁻⁵ N·m·s/rad × 90 rad/s, over k_t = 0.04 N·m/A.
     let i0 = (0.02 + 2e-5 * 90.0) / 0.04;
     assert!((s.control.lube.no_load_current.to_f64() - i0).abs() < 1e-3);
-    let h0 = height_at(30.0);
+    let h0 = height_at(deg);
     let mut phase = 0;
     let r = run(
         &s,
@@ -350,4 +354,15 @@ fn degraded_lubrication_is_warned_about() {
         "{line}"
     );
     assert!(line.contains("above"), "{line}");
+}
+
+#[test]
+fn no_friction_is_identified_where_the_pins_take_the_lowering() {
+    // At 50° the pins' friction (2μ_b·Mg/sin α = 7.7 kN) takes all but 0.5 kN of the load's
+    // 8.2 kN push while lowering: its friction torque is about the drive's own, so the pair is
+    // not used (no report, no warning) rather than trusted.
+    let (_, r) = up_and_down_at(50.0, RATED, 1.0, true);
+    assert!(r.first_fault().is_none(), "{:?}", r.events);
+    assert_eq!(r.controller.status().lube, None);
+    assert_eq!(lube_events(&r), 0);
 }

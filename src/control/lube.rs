@@ -166,10 +166,11 @@ pub fn solve_pair(
     down: (NewtonMetres, Newtons),
 ) -> Option<(Ratio, Ratio, Ratio)> {
     let ((tu, wu), (td, wd)) = (up, down);
-    // Both directions must be load-driven: where the pins' friction exceeds the load's push
-    // while lowering (high arm angles), the lowering needs torque like a lift does and the two
-    // no longer tell load and friction apart.
-    if wu <= Newtons::ZERO || wd <= Newtons::ZERO {
+    // Both directions must be load-driven, the lowering by at least 1/8 of the lift's demand:
+    // where the pins' friction takes nearly all of the load's push while lowering (high arm
+    // angles), the lowering's friction torque drowns in the drive's own and the two no longer
+    // tell load and friction apart (beyond it the lowering needs torque like a lift does).
+    if wu <= Newtons::ZERO || wd < Newtons::from_raw(wu.bits() >> 3) {
         return None;
     }
     let at = |x: Ratio| -> Option<(Ratio, Ratio)> {
@@ -289,7 +290,8 @@ impl LubeMonitor {
             return;
         }
         self.steady_ticks = self.steady_ticks.saturating_add(1);
-        if self.steady_ticks <= self.settle_ticks {
+        // Eq 1 with |R| = R: only where the load pushes the nut the way the model says.
+        if self.steady_ticks <= self.settle_ticks || x.axial_rated <= Newtons::ZERO {
             return;
         }
         // Following the reference (a jammed or current-limited screw is not at steady speed):

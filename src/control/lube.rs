@@ -250,12 +250,12 @@ impl LubeMonitor {
     pub fn new(cfg: &ControlConfig) -> LubeMonitor {
         let tick_us = cfg.estimator.tick_us;
         let t = |ms: u32| ms.saturating_mul(1000) / tick_us.max(1);
-        // Configuration time: k_t·I₀·n, then through the gearbox either way.
+        // k_t·I₀·n at the screw (Q16), then through the gearbox either way.
         let m = &cfg.estimator.motor;
-        let t0 = cfg.lube.no_load_current.to_f64()
-            * m.torque_constant.to_f64()
-            * cfg.estimator.drive.gear_ratio.to_num::<f64>();
-        let eta = m.gear_efficiency.to_f64().max(0.1);
+        let t_motor: NewtonMetres = qmul(cfg.lube.no_load_current, m.torque_constant);
+        let n = i64::from(cfg.estimator.drive.gear_ratio.to_bits()); // Q16
+        let t0 = NewtonMetres::from_raw(sat32((i64::from(t_motor.bits()) * n) >> 16));
+        let eta = m.gear_efficiency.max(const { Ratio::lit("0.1") });
         LubeMonitor {
             run: Sums::default(),
             run_lifting: true,
@@ -269,8 +269,8 @@ impl LubeMonitor {
             identifier: FrictionIdentifier::new(Ratio::ZERO, 2, const { Newtons::lit("100") }),
             report: None,
             in_motion: false,
-            drive_up: NewtonMetres::from_f64(t0 * eta),
-            drive_down: NewtonMetres::from_f64(t0 / eta),
+            drive_up: qmul(t0, eta),
+            drive_down: crate::units::qdiv(t0, eta),
         }
     }
 

@@ -139,38 +139,59 @@ impl BallScrewConfig {
                 other => other,
             })?;
 
-        // Design in float (configuration time only), quantise once.
-        let alpha = Angle::from_degrees(self.contact_angle_deg);
-        let (cos_a, sin_a) = alpha.cos_sin();
-        let (ca, sa) = (cos_a.to_f64(), sin_a.to_f64());
-        let (rm, rb, lead) = (self.r_m.to_f64(), self.r_b.to_f64(), self.lead.to_f64());
-        // Helix angle β: tan β = l/(2π r_m), cos β = 1/√(1 + tan²β).
-        let tan_b = lead / (2.0 * core::f64::consts::PI * rm);
-        let cos_b = 1.0 / sqrt_f64(1.0 + tan_b * tan_b);
-        // Eq 1 (with Eq 2's factor 2): M_f = f·F·arm, arm = 2(r_m + r_b cos α)/sin α, metres.
-        let arm = 2.0 * (rm + rb * ca) / sa;
-        // f·F (N, Q8) → N·m (Q16): ×arm·2^8.
-        let arm_scale = scale_of(arm * 256.0);
-        // F (Q8) → N·m (Q16) for the denominator of Eq 2.
-        let lever = lead / (2.0 * core::f64::consts::PI);
-        let lever_scale = scale_of(lever * 256.0);
-        // τ (Q28) = η₀·r_m·M·sin α·cos β · |θ̇| / F: numerator constant c = η₀ r_m M sin α cos β
-        // (N·s), |θ̇| in Q16, F in Q8 → τ_bits = c·2^20·θ̇_bits / F_bits.
-        let c = self.viscosity.to_num::<f64>() * rm * f64::from(self.loaded_balls) * sa * cos_b;
-        let tau_scale = scale_of(c * (1u64 << 20) as f64);
+        // Design in integers (no floating point linked into the firmware): lengths in Q24,
+        // cos α and sin α in Q28, rationals in i128, quantised once by `Scale::from_ratio`.
+        let (cos_a, sin_a) = Angle::from_degrees(self.contact_angle_deg).cos_sin();
+        let (rm, rb) = (i128::from(self.r_m.bits()), i128::from(self.r_b.bits()));
+        let lead = i128::from(self.lead.bits());
+        let (ca, sa) = (i128::from(cos_a.bits()), i128::from(sin_a.bits()).max(1));
+        // Eq 1 (with Eq 2's factor 2): M_f = f·F·arm, arm = 2(r_m + r_b cos α)/sin α; arm in
+        // Q52/Q28 = num52/sa in Q24.
+        let num52 = 2 * ((rm << 28) + rb * ca);
+        // f·F (N, Q8) → N·m (Q16): ×arm·2^8 = num52/(sa·2^16).
+        let arm_scale = Scale::from_ratio(num52, sa << 16);
+        // Lever l/(2π): F (Q8) → N·m (Q16) is ×lever·2^8 = lead/(2^16·2π).
+        let lever_scale = Scale::from_ratio(lead << 60, TWO_PI_Q60 << 16);
+        let lever_q24 = (lead << 60) / TWO_PI_Q60;
+        // Helix angle β: cos β = 2π r_m / √((2π r_m)² + l²), lengths in Q32 (≤ 0.63 m).
+        let circ = (rm * TWO_PI_Q60) >> 52;
+        let l32 = lead << 8;
+        let hyp = i128::from(crate::math::isqrt_u64((circ * circ + l32 * l32) as u64)).max(1);
+        // sin α·cos β in Q28.
+        let sa_cb = sa * circ / hyp;
+        // τ (Q28) = η₀·r_m·M·sin α·cos β · |θ̇| / F: numerator constant c (N·s), |θ̇| in Q16,
+        // F in Q8 → τ_bits = c·2^20·θ̇_bits / F_bits, c·2^20 = η(Q32)·r_m(Q24)·M·(sa_cb)(Q28)/2^64.
+        let eta = i128::from(self.viscosity.to_bits());
+        let tau_num = eta * rm * i128::from(self.loaded_balls) * sa_cb;
+        let tau_scale = Scale::from_ratio(tau_num, 1i128 << 64);
         Ok(BallScrew {
-            k_arm: (arm / rm).into(),
-            tau_per_rate: c.into(),
             config: *self,
             law,
             arm_scale,
             lever_scale,
             tau_scale,
-            arm: Metres::from_f64(arm),
-            lever: Metres::from_f64(lever),
+            arm: Metres::from_raw(crate::units::sat32((num52 / sa) as i64)),
+            lever: Metres::from_raw(crate::units::sat32(lever_q24 as i64)),
         })
     }
+
+    /// arm/r_m and η₀ r_m M sin α cos β in float64, for [`BallScrew::equivalent_thread_law`]
+    /// (configuration time on the host; not linked into the firmware).
+    fn float_design(&self) -> (f64, f64) {
+        let alpha = Angle::from_degrees(self.contact_angle_deg);
+        let (cos_a, sin_a) = alpha.cos_sin();
+        let (ca, sa) = (cos_a.to_f64(), sin_a.to_f64());
+        let (rm, rb, lead) = (self.r_m.to_f64(), self.r_b.to_f64(), self.lead.to_f64());
+        let tan_b = lead / (2.0 * core::f64::consts::PI * rm);
+        let cos_b = 1.0 / sqrt_f64(1.0 + tan_b * tan_b);
+        let arm = 2.0 * (rm + rb * ca) / sa;
+        let c = self.viscosity.to_num::<f64>() * rm * f64::from(self.loaded_balls) * sa * cos_b;
+        (arm / rm, c)
+    }
 }
+
+/// 2π in Q60.
+const TWO_PI_Q60: i128 = 7_244_019_458_077_122_842;
 
 /// √x for configuration time without libm (`core` has no `f64::sqrt`): Newton from above,
 /// to the last bit for 1 ≤ x ≤ 10⁶.
@@ -186,36 +207,9 @@ fn sqrt_f64(x: f64) -> f64 {
     s
 }
 
-/// A positive constant as a [`Scale`] (configuration time only).
-fn scale_of(v: f64) -> Scale {
-    // 2^40 keeps ≥ 31 significant bits for every constant here (10⁻⁸ … 10⁶).
-    let den: i128 = 1 << 40;
-    Scale::from_ratio((v * den as f64) as i128, den)
-}
-
-/// An `f64` kept by its bits, so that configuration types holding one stay `Eq`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct F64Bits(u64);
-
-impl From<f64> for F64Bits {
-    fn from(v: f64) -> Self {
-        F64Bits(v.to_bits())
-    }
-}
-
-impl F64Bits {
-    fn get(self) -> f64 {
-        f64::from_bits(self.0)
-    }
-}
-
 /// A compiled ball screw: every per-tick operation is a few integer multiplies.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BallScrew {
-    /// arm/r_m and η₀ r_m M sin α cos β, kept for [`BallScrew::equivalent_thread_law`]
-    /// (configuration time only; stored as bits so the type stays `Eq`).
-    k_arm: F64Bits,
-    tau_per_rate: F64Bits,
     config: BallScrewConfig,
     law: CompiledLaw,
     arm_scale: Scale,
@@ -352,8 +346,8 @@ impl BallScrew {
                 range: ">= 1 N",
             });
         }
-        let k = self.k_arm.get();
-        let tau_per_rate = self.tau_per_rate.get() / fa;
+        let (k, c) = self.config.float_design();
+        let tau_per_rate = c / fa;
         let l = &self.config.law;
         let law = FrictionLaw {
             base: Ratio::from_f64(l.base.to_f64() * k),

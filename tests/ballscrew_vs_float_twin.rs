@@ -220,9 +220,9 @@ proptest! {
     /// twin's (the plant's): both are μ_eq = (arm/r_m)·f(τ(θ̇)) at the reference force.
     #[test]
     fn equivalent_thread_law_matches_the_twin(fa in 1000.0f64..80_000.0, w in -400.0f64..400.0) {
-        let (b, t) = (core(), twin());
+        let t = twin();
         let fq = Newtons::from_f64(fa);
-        let law = b.equivalent_thread_law(fq).unwrap().compile(BallScrewConfig::SEED_001_4008.r_m, Ratio::ONE).unwrap();
+        let law = BallScrewConfig::SEED_001_4008.equivalent_thread_law(fq).unwrap().compile(BallScrewConfig::SEED_001_4008.r_m, Ratio::ONE).unwrap();
         let tl = t.equivalent_law(fq.to_f64());
         let wq = RadiansPerSecond::from_f64(w);
         let got = law.mu(wq).to_f64();

@@ -406,7 +406,7 @@ mod tests {
     /// Means of one direction for a true load `w` N (at a rated-load demand `w_rated`) and a
     /// true f: the screw torque seed 002's Eq 1 gives.
     fn sums(bs: &BallScrew, f: f64, w: f64, w_rated: f64, lifting: bool) -> Sums {
-        let fa = bs.config().preload.to_f64() + w;
+        let fa = bs.preload().to_f64() + w;
         let lever = bs.lever().to_f64();
         let mf = f * fa * bs.arm().to_f64();
         let t = if lifting {

@@ -420,8 +420,8 @@ pub struct Controller {
     /// The ball screw (`cfg.ball_screw`, compiled) and the identification of its friction.
     ball_screw: BallScrew,
     lube: lube::LubeMonitor,
-    /// A lubrication warning waiting for a tick without another event.
-    lube_notice: Option<lube::LubeReport>,
+    /// A lubrication warning (of `lube`'s latest report) waits for a tick without another event.
+    lube_notice: bool,
 }
 
 impl Controller {
@@ -545,7 +545,7 @@ impl Controller {
             escape_q32,
             ball_screw,
             lube: lube::LubeMonitor::new(cfg),
-            lube_notice: None,
+            lube_notice: false,
         })
     }
 
@@ -1072,14 +1072,13 @@ impl Controller {
                 self.cfg.rated_load,
                 at_lower,
             );
-            if let Some(r) = report.filter(|r| r.out_of_band) {
-                self.lube_notice = Some(r);
+            if report.is_some_and(|r| r.out_of_band) {
+                self.lube_notice = true;
             }
         }
-        if self.pending_event.is_none() {
-            if let Some(r) = self.lube_notice.take() {
-                self.pending_event = Some(Event::Lubrication(r));
-            }
+        if self.lube_notice && self.pending_event.is_none() {
+            self.lube_notice = false;
+            self.pending_event = self.lube.report().map(Event::Lubrication);
         }
     }
 

@@ -165,7 +165,7 @@ impl BallScrewConfig {
         let tau_num = eta * rm * i128::from(self.loaded_balls) * sa_cb;
         let tau_scale = Scale::from_ratio(tau_num, 1i128 << 64);
         Ok(BallScrew {
-            config: *self,
+            preload: self.preload,
             law,
             arm_scale,
             lever_scale,
@@ -175,7 +175,41 @@ impl BallScrewConfig {
         })
     }
 
-    /// arm/r_m and η₀ r_m M sin α cos β in float64, for [`BallScrew::equivalent_thread_law`]
+    /// The ball screw as a thread for the lead-screw model (estimator and plant): the friction
+    /// law in the screw rate whose thread friction torque μ·W·r_m equals Eq 1's `f·F·arm` at
+    /// axial force `f_axial`: `μ_eq(θ̇) = (arm/r_m)·f(τ)` with `τ = η₀ r_m M sin α cos β·|θ̇|/F`.
+    /// The thread model adds `μ tan λ` (≈ 0.1 %) and `tan²λ` (≈ 0.4 %) corrections the ball
+    /// screw does not have; τ's dependence on the load is frozen at `f_axial` (docs/model.md).
+    /// Configuration time only.
+    pub fn equivalent_thread_law(&self, f_axial: Newtons) -> Result<FrictionLaw, ConfigError> {
+        let fa = f_axial.to_f64();
+        if fa < 1.0 {
+            return Err(ConfigError::OutOfRange {
+                field: "ballscrew.reference_force",
+                range: ">= 1 N",
+            });
+        }
+        let (k, c) = self.float_design();
+        let tau_per_rate = c / fa;
+        let l = &self.law;
+        let law = FrictionLaw {
+            base: Ratio::from_f64(l.base.to_f64() * k),
+            amp: Ratio::from_f64(l.amp.to_f64() * k),
+            rate: I32F32::saturating_from_num(l.rate.to_num::<f64>() * tau_per_rate),
+            slope: I32F32::saturating_from_num(l.slope.to_num::<f64>() * k * tau_per_rate),
+            s_max: if l.s_max == I32F32::MAX {
+                I32F32::MAX
+            } else {
+                I32F32::saturating_from_num(l.s_max.to_num::<f64>() / tau_per_rate)
+            },
+            variable: LawVariable::ScrewRate,
+        };
+        // Validate the result as a law in its own right.
+        law.compile(self.r_m, Ratio::ONE)?;
+        Ok(law)
+    }
+
+    /// arm/r_m and η₀ r_m M sin α cos β in float64, for [`BallScrewConfig::equivalent_thread_law`]
     /// (configuration time on the host; not linked into the firmware).
     fn float_design(&self) -> (f64, f64) {
         let alpha = Angle::from_degrees(self.contact_angle_deg);
@@ -210,7 +244,9 @@ fn sqrt_f64(x: f64) -> f64 {
 /// A compiled ball screw: every per-tick operation is a few integer multiplies.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BallScrew {
-    config: BallScrewConfig,
+    /// F_p (the rest of the configuration is compiled into the constants below; the
+    /// controller keeps the configuration itself).
+    preload: Newtons,
     law: CompiledLaw,
     arm_scale: Scale,
     lever_scale: Scale,
@@ -220,9 +256,9 @@ pub struct BallScrew {
 }
 
 impl BallScrew {
-    /// The configuration it was compiled from.
-    pub fn config(&self) -> &BallScrewConfig {
-        &self.config
+    /// The preload F_p it was compiled with.
+    pub fn preload(&self) -> Newtons {
+        self.preload
     }
 
     /// Moment arm of Eq 1, 2(r_m + r_b cos α)/sin α.
@@ -238,7 +274,7 @@ impl BallScrew {
     /// Axial force on the loaded balls: preload + |R|, saturating.
     #[inline]
     pub fn axial_force(&self, load: Newtons) -> Newtons {
-        self.config.preload.sat_add(load.sat_abs())
+        self.preload.sat_add(load.sat_abs())
     }
 
     /// τ = η₀·V/P (Eq 3) at screw rate θ̇ and axial force `f_axial` (Q28; saturates at 8 for a
@@ -330,40 +366,6 @@ impl BallScrew {
     ) -> Option<Ratio> {
         let fa = self.axial_force(load);
         self.coefficient_from_torque(self.friction_in(screw_torque, load, lifting), fa)
-    }
-
-    /// The ball screw as a thread for the lead-screw model (estimator and plant): the friction
-    /// law in the screw rate whose thread friction torque μ·W·r_m equals Eq 1's `f·F·arm` at
-    /// axial force `f_axial`: `μ_eq(θ̇) = (arm/r_m)·f(τ)` with `τ = η₀ r_m M sin α cos β·|θ̇|/F`.
-    /// The thread model adds `μ tan λ` (≈ 0.1 %) and `tan²λ` (≈ 0.4 %) corrections the ball
-    /// screw does not have; τ's dependence on the load is frozen at `f_axial` (docs/model.md).
-    /// Configuration time only.
-    pub fn equivalent_thread_law(&self, f_axial: Newtons) -> Result<FrictionLaw, ConfigError> {
-        let fa = f_axial.to_f64();
-        if fa < 1.0 {
-            return Err(ConfigError::OutOfRange {
-                field: "ballscrew.reference_force",
-                range: ">= 1 N",
-            });
-        }
-        let (k, c) = self.config.float_design();
-        let tau_per_rate = c / fa;
-        let l = &self.config.law;
-        let law = FrictionLaw {
-            base: Ratio::from_f64(l.base.to_f64() * k),
-            amp: Ratio::from_f64(l.amp.to_f64() * k),
-            rate: I32F32::saturating_from_num(l.rate.to_num::<f64>() * tau_per_rate),
-            slope: I32F32::saturating_from_num(l.slope.to_num::<f64>() * k * tau_per_rate),
-            s_max: if l.s_max == I32F32::MAX {
-                I32F32::MAX
-            } else {
-                I32F32::saturating_from_num(l.s_max.to_num::<f64>() / tau_per_rate)
-            },
-            variable: LawVariable::ScrewRate,
-        };
-        // Validate the result as a law in its own right.
-        law.compile(self.config.r_m, Ratio::ONE)?;
-        Ok(law)
     }
 
     /// The law's minimum on τ ∈ [0, 0.01] (seed 002's turning point between mixed and

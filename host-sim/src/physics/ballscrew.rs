@@ -106,7 +106,7 @@ impl BallScrewFriction {
     /// The ball screw as a thread for the plant's lead-screw mechanics: the law in the screw
     /// rate whose thread friction torque μ·W·r_m equals M_f at axial force `f_axial`,
     /// `μ_eq(θ̇) = (arm/r_m)·f(η₀ r_m M sin α cos β·|θ̇|/F)` (twin of the core's
-    /// `BallScrew::equivalent_thread_law`; τ's load dependence frozen at `f_axial`).
+    /// `BallScrewConfig::equivalent_thread_law`; τ's load dependence frozen at `f_axial`).
     pub fn equivalent_law(&self, f_axial: f64) -> FrictionLaw {
         let k = self.arm() / self.r_m;
         let tau_per_rate = self.tau(1.0, f_axial);

@@ -214,8 +214,9 @@ pub fn solve_pair(
 pub struct LubeMonitor {
     run: Sums,
     run_lifting: bool,
-    up: Option<Sums>,
-    down: Option<Sums>,
+    /// The last usable lift's and lowering's sums (n = 0: none).
+    up: Sums,
+    down: Sums,
     steady_ticks: u32,
     prev_reference: RadiansPerSecond,
     settle_ticks: u32,
@@ -259,8 +260,8 @@ impl LubeMonitor {
         LubeMonitor {
             run: Sums::default(),
             run_lifting: true,
-            up: None,
-            down: None,
+            up: Sums::default(),
+            down: Sums::default(),
             steady_ticks: 0,
             prev_reference: RadiansPerSecond::ZERO,
             settle_ticks: t(SETTLE_MS),
@@ -328,17 +329,18 @@ impl LubeMonitor {
         let mut solved = None;
         if run.n >= self.min_samples {
             if self.run_lifting {
-                self.up = Some(run);
+                self.up = run;
             } else {
-                self.down = Some(run);
+                self.down = run;
             }
-            if let (Some(up), Some(down)) = (self.up, self.down) {
+            if self.up.n > 0 && self.down.n > 0 {
+                let (up, down) = (self.up, self.down);
                 solved = self.solve_pair(bs, cfg, rated, &up, &down);
             }
         }
         if at_lower_stop {
-            self.up = None;
-            self.down = None;
+            self.up = Sums::default();
+            self.down = Sums::default();
         }
         solved
     }

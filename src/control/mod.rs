@@ -556,12 +556,14 @@ impl Controller {
     /// lower stop is not enforced on that run (the switch is the stop); stall, over-current and
     /// the other protections are.
     pub fn new_unhomed(cfg: &ControlConfig) -> Result<Controller, ConfigError> {
-        let mut c = Controller::new(cfg, 0)?;
         // Until homed, assume the lowest position: the model's load (and feed-forward) is then
-        // the largest the lift can see.
-        c.set_position(c.switch_counts);
-        c.homed = false;
-        Ok(c)
+        // the largest the lift can see. (`map` rather than `?` + `Ok`: one controller copy
+        // fewer on the boot stack.)
+        Controller::new(cfg, 0).map(|mut c| {
+            c.set_position(c.switch_counts);
+            c.homed = false;
+            c
+        })
     }
 
     /// The position is known (a homing run is not needed).

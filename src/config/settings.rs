@@ -612,7 +612,7 @@ pub static SETTINGS: [Setting; 70] = [
     setting!("ballscrew.f_slope", num(32, &NUMBER), "-1000..1000",
         "ball screw f(tau): slope per unit of tau", q64 ball_screw.law.slope),
     setting!("ballscrew.f_s_max", Kind::Number { frac: 32, pow10: 0, unit: &NUMBER, none_at_max: true },
-        ">0", "ball screw f(tau): flat beyond this tau (none: never)", q64 ball_screw.law.s_max),
+        ">0..1e6", "ball screw f(tau): flat beyond this tau (none: never)", q64 ball_screw.law.s_max),
     setting!("ballscrew.lube_band", num(28, &RATIO), "0.05..4",
         "warn when the identified f leaves law*(1 +- band)", q32 lube.band),
     setting!("ballscrew.ident_min_speed", num(16, &RAD_PER_S), "0.05..20 rad/s",

@@ -354,6 +354,10 @@ async fn control(mut board: Board, mut park: ParkLog) {
                     info!("{}", e);
                     true
                 }
+                Event::Lubrication(_) => {
+                    warn!("{}", e);
+                    true
+                }
                 _ => {
                     info!("{}", e);
                     false
@@ -421,6 +425,7 @@ fn write_notice(out: &mut dyn core::fmt::Write, e: &Event) -> core::fmt::Result 
             amplitude,
             reaction == Reaction::ChangeSpeed,
         ),
+        Event::Lubrication(r) => liftfw::console::write_lube_warning(out, r.f_last, r.law),
         Event::State { .. } => Ok(()),
     }
 }

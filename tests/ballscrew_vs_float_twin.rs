@@ -2,7 +2,8 @@
 //! float64 twin (`host_sim::physics::ballscrew`) over the envelope: screw rate −400…400 rad/s,
 //! axial load 0…80 kN (twice the lift's 36.6 kN at 15°), f 0…0.1, torque −200…200 N·m.
 //! Budgets: τ 10⁻⁶ relative or 10⁻⁸; f 10⁻⁷; friction torque 0.01 % or 0.5 mN·m; Eq 2 1 % of
-//! 10⁻⁵ … (see each test). Arbitrary bit patterns must not panic.
+//! 10⁻⁵ … (see each test); the lift/lowering pair solve (`control::lube::solve_pair`) against a
+//! float64 bisection. Arbitrary bit patterns must not panic.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use host_sim::physics::ballscrew::BallScrewFriction;
@@ -219,9 +220,9 @@ proptest! {
     /// twin's (the plant's): both are μ_eq = (arm/r_m)·f(τ(θ̇)) at the reference force.
     #[test]
     fn equivalent_thread_law_matches_the_twin(fa in 1000.0f64..80_000.0, w in -400.0f64..400.0) {
-        let (b, t) = (core(), twin());
+        let t = twin();
         let fq = Newtons::from_f64(fa);
-        let law = b.equivalent_thread_law(fq).unwrap().compile(BallScrewConfig::SEED_001_4008.r_m, Ratio::ONE).unwrap();
+        let law = BallScrewConfig::SEED_001_4008.equivalent_thread_law(fq).unwrap().compile(BallScrewConfig::SEED_001_4008.r_m, Ratio::ONE).unwrap();
         let tl = t.equivalent_law(fq.to_f64());
         let wq = RadiansPerSecond::from_f64(w);
         let got = law.mu(wq).to_f64();
@@ -264,5 +265,71 @@ fn configuration_is_validated_once() {
     ];
     for c in bad {
         assert!(c.compile().is_err(), "{c:?}");
+    }
+}
+
+/// Float64 twin of `control::lube::solve_pair`: the x where Eq 2 gives a lift and a lowering
+/// the same f, by bisection to 10⁻¹⁵, and that f.
+fn twin_pair(t: &BallScrewFriction, up: (f64, f64), down: (f64, f64)) -> (f64, f64) {
+    let lever = t.lead / (2.0 * std::f64::consts::PI);
+    let f_up = |x: f64| (up.0 - x * up.1 * lever) / (t.arm() * (t.preload + x * up.1));
+    let f_down = |x: f64| (x * down.1 * lever - down.0) / (t.arm() * (t.preload + x * down.1));
+    let (mut lo, mut hi) = (0.02, 4.0);
+    while hi - lo > 1e-15 {
+        let mid = 0.5 * (lo + hi);
+        if f_up(mid) >= f_down(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    (lo, 0.5 * (f_up(lo) + f_down(lo)))
+}
+
+proptest! {
+    #[test]
+    fn lift_and_lowering_pair_matches_the_twin(
+        f in 0.001f64..0.05,
+        x in 0.05f64..3.0,
+        w_up in 2_000.0f64..40_000.0,
+        down_share in 0.13f64..1.0,
+        preload in 0.0f64..5_000.0,
+    ) {
+        // Means a lift and a lowering of load fraction x at friction f would give (Eq 1), fed
+        // through the core's quantisation; the twin solves the same quantised means.
+        let mut c = BallScrewConfig::SEED_001_4008;
+        c.preload = Newtons::from_f64(preload);
+        let b = c.compile().unwrap();
+        let t = BallScrewFriction { preload: c.preload.to_f64(), ..twin() };
+        let lever = t.lead / (2.0 * std::f64::consts::PI);
+        let w_down = w_up * down_share;
+        let (ru, rd) = (x * w_up, x * w_down);
+        let tu = ru * lever + f * t.arm() * (t.preload + ru);
+        let td = rd * lever - f * t.arm() * (t.preload + rd);
+        let q = |tq: f64, w: f64| (NewtonMetres::from_f64(tq), Newtons::from_f64(w));
+        let (up, down) = (q(tu, w_up), q(td, w_down));
+        let (xt, ft) = twin_pair(
+            &t,
+            (up.0.to_f64(), up.1.to_f64()),
+            (down.0.to_f64(), down.1.to_f64()),
+        );
+        let got = liftfw::control::lube::solve_pair(&b, up, down);
+        if td <= 0.0 {
+            // The lowering needs torque to drive down: no load-driven pair (either answer is
+            // allowed, but it must not panic).
+            return Ok(());
+        }
+        let (xc, fu, fd) = got.expect("a consistent pair is solved");
+        // The core rounds x·W to 1/256 N and torques to 1/65536 N·m: x to a few force LSB over
+        // the lowering's demand (its torque is the one the friction hardly changes); f to those
+        // roundings (load torque lever·4/256 N, 2 torque LSB) over the lowering's F·arm, plus
+        // 10⁻⁵ relative.
+        let x_tol = 1e-5 * xt + 4.0 / (256.0 * w_down);
+        prop_assert!((xc.to_f64() - xt).abs() <= x_tol, "x {} vs {xt}", xc.to_f64());
+        let tol = (3e-5 + lever * 4.0 / 256.0) / ((t.preload + rd) * t.arm()) + 1e-5 * ft;
+        for g in [fu, fd] {
+            prop_assert!((g.to_f64() - ft).abs() <= tol, "f {} vs {ft} (tol {tol:e})", g.to_f64());
+        }
+        prop_assert!((ft - f).abs() <= 1e-3 * f + 1e-5, "twin {ft} vs true {f}");
     }
 }

@@ -7,7 +7,7 @@
 mod support;
 use host_sim::physics::Geometry;
 use liftfw::control::config::ScrewKind;
-use liftfw::control::{Bridge, Command, FaultKind, State};
+use liftfw::control::{Bridge, Command, Event, FaultKind, State};
 use liftfw::units::Metres;
 use support::{command_at, run, Run, Scenario, Tick};
 
@@ -215,4 +215,154 @@ fn a_bridge_failure_at_rest_is_caught_as_back_driving_and_held() {
     );
     let drop = (height_at(30.0) - r.final_height()) * 1e3;
     assert!(drop > 0.0 && drop < 5.0, "dropped {drop:.2} mm");
+}
+
+// ---- Online identification of f (seed 002's Eq 2) and the lubrication warning ----
+
+/// The plant's friction coefficient f during the cruise of both motions (from 0.3 s after
+/// each start to 0.1 s before each stop): the mean of its thread law μ_eq(θ̇) over k_arm
+/// (`BallScrewFriction::equivalent_law`), i.e. f(τ) at the speeds it ran at, stick-slip
+/// included.
+fn plant_f(r: &Run) -> f64 {
+    let b = host_sim::physics::ballscrew::BallScrewFriction::seed_001_4008();
+    let k = b.arm() / b.r_m;
+    let mut starts = Vec::new();
+    let mut windows = Vec::new();
+    for (t, e) in &r.events {
+        if let Event::State { from, to } = e {
+            if matches!(to, State::Lifting | State::Lowering) {
+                starts.push(*t);
+            } else if matches!(from, State::Lifting | State::Lowering) {
+                let a = starts.pop().expect("a start before the stop");
+                windows.push((a + 0.3, *t - 0.1));
+            }
+        }
+    }
+    assert_eq!(windows.len(), 2, "{:?}", r.events);
+    let mus: Vec<f64> = r
+        .trace
+        .records
+        .iter()
+        .filter(|x| windows.iter().any(|&(a, z)| x.t >= a && x.t < z))
+        .map(|x| x.mu / k)
+        .collect();
+    mus.iter().sum::<f64>() / mus.len() as f64
+}
+
+/// Move 5 mm from 30° at `load` kg (up first, or down first) and back: one pair for the
+/// identification.
+fn up_and_down(load: f64, factor: f64, up_first: bool) -> (Scenario, Run) {
+    up_and_down_at(30.0, load, factor, up_first)
+}
+
+fn up_and_down_at(deg: f64, load: f64, factor: f64, up_first: bool) -> (Scenario, Run) {
+    let mut s = Scenario::ball_screw(load, deg, 4.4);
+    s.ball_friction_factor = factor;
+    // The factory `ballscrew.no_load_current` is the default motor's (host-sim's): 0.02 N·m
+    // Coulomb + 2·10⁻⁵ N·m·s/rad × 90 rad/s, over k_t = 0.04 N·m/A.
+    let i0 = (0.02 + 2e-5 * 90.0) / 0.04;
+    assert!((s.control.lube.no_load_current.to_f64() - i0).abs() < 1e-3);
+    let h0 = height_at(deg);
+    let mut phase = 0;
+    let r = run(
+        &s,
+        Box::new(move |k: &mut Tick<'_>| {
+            if phase == 0 && k.t >= 0.05 {
+                phase = 1;
+                let dh = if up_first { 0.005 } else { -0.005 };
+                k.controller
+                    .command(Command::GoTo(Metres::from_f64(h0 + dh)))
+                    .expect("accepted");
+            } else if phase == 1 && k.t > 0.2 && k.controller.state() == State::Holding {
+                phase = 2;
+                k.controller
+                    .command(Command::GoTo(Metres::from_f64(h0)))
+                    .expect("accepted");
+            }
+        }),
+    );
+    (s, r)
+}
+
+fn lube_events(r: &Run) -> usize {
+    r.events
+        .iter()
+        .filter(|(_, e)| matches!(e, Event::Lubrication(_)))
+        .count()
+}
+
+#[test]
+fn identified_friction_converges_to_the_plant_at_rated_and_half_load() {
+    // Both orders: the pair is solved when its second motion ends.
+    for (load, up_first) in [
+        (RATED, true),
+        (0.5 * RATED, true),
+        (RATED, false),
+        (0.5 * RATED, false),
+    ] {
+        let (_, r) = up_and_down(load, 1.0, up_first);
+        assert!(r.first_fault().is_none(), "{load} kg: {:?}", r.events);
+        let rep = r
+            .controller
+            .status()
+            .lube
+            .expect("a lift and a lowering identify f");
+        let want = plant_f(&r);
+        let (f, last) = (rep.f.to_f64(), rep.f_last.to_f64());
+        let err = (f - want) / want;
+        let load_err = (rep.load.to_f64() - load) / load;
+        println!(
+            "{load} kg, {}: f {f:.5} (pair {last:.5}) plant {want:.5} ({:+.1} %), law {:.5}, \
+             load {:.0} kg ({:+.1} %)",
+            if up_first { "up, down" } else { "down, up" },
+            err * 100.0,
+            rep.law.to_f64(),
+            rep.load.to_f64(),
+            load_err * 100.0
+        );
+        assert_eq!(rep.pairs, 1);
+        assert!(err.abs() < 0.10, "{load} kg: f {f} vs plant {want}");
+        assert!(
+            load_err.abs() < 0.05,
+            "{load} kg: load {}",
+            rep.load.to_f64()
+        );
+        assert!(!rep.out_of_band);
+        assert_eq!(lube_events(&r), 0, "{:?}", r.events);
+    }
+}
+
+#[test]
+fn degraded_lubrication_is_warned_about() {
+    // f twice the law (a screw run dry or worn): outside the default ±50 % band.
+    let (_, r) = up_and_down(RATED, 2.0, true);
+    assert!(r.first_fault().is_none(), "{:?}", r.events);
+    let rep = r.controller.status().lube.expect("identified");
+    let want = plant_f(&r);
+    println!(
+        "degraded: f {:.5} plant {want:.5} law {:.5}",
+        rep.f.to_f64(),
+        rep.law.to_f64()
+    );
+    assert!(((rep.f.to_f64() - want) / want).abs() < 0.10);
+    assert!(rep.out_of_band);
+    assert_eq!(lube_events(&r), 1, "{:?}", r.events);
+    let mut line = String::new();
+    liftfw::console::write_lube_warning(&mut line, rep.f_last, rep.law).unwrap();
+    assert!(
+        line.starts_with("warning: ball-screw friction f="),
+        "{line}"
+    );
+    assert!(line.contains("above"), "{line}");
+}
+
+#[test]
+fn no_friction_is_identified_where_the_pins_take_the_lowering() {
+    // At 50° the pins' friction (2μ_b·Mg/sin α = 7.7 kN) takes all but 0.5 kN of the load's
+    // 8.2 kN push while lowering: its friction torque is about the drive's own, so the pair is
+    // not used (no report, no warning) rather than trusted.
+    let (_, r) = up_and_down_at(50.0, RATED, 1.0, true);
+    assert!(r.first_fault().is_none(), "{:?}", r.events);
+    assert_eq!(r.controller.status().lube, None);
+    assert_eq!(lube_events(&r), 0);
 }

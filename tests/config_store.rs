@@ -309,7 +309,7 @@ fn store_raw(bytes: &[u8]) -> Flash {
     for range in [0..HALF as u32, HALF as u32..SIZE as u32] {
         let mut map =
             MapStorage::<u8, _, _>::new(&mut flash, MapConfig::new(range), Cache::new_uncached());
-        let mut buf = [0u8; 512];
+        let mut buf = [0u8; (record::MAX_RECORD_LEN + 8).div_ceil(8) * 8];
         block_on(map.store_item(&mut buf, &CONFIG_KEY, &bytes)).unwrap();
     }
     flash
@@ -331,17 +331,17 @@ fn encoded(cfg: &ControlConfig) -> Vec<u8> {
 #[test]
 fn record_of_another_version_is_not_used_and_says_why() {
     let mut rec = encoded(&ControlConfig::DEFAULT);
-    // Version 3: a future format (this firmware writes 2 and also reads 1).
-    rec[4..6].copy_from_slice(&3u16.to_le_bytes());
+    // Version 4: a future format (this firmware writes 3 and also reads 1 and 2).
+    rec[4..6].copy_from_slice(&4u16.to_le_bytes());
     let (loaded, _) = load(store_raw(&with_crc(rec)));
     assert_eq!(
         loaded.source,
-        Source::Incompatible(DecodeError::Version { found: 3 })
+        Source::Incompatible(DecodeError::Version { found: 4 })
     );
     assert_eq!(loaded.config, ValidatedConfig::factory());
     let msg = format!("{}", loaded.source);
     assert!(msg.contains("version mismatch"), "{msg}");
-    assert!(msg.contains("version 3"), "{msg}");
+    assert!(msg.contains("version 4"), "{msg}");
 }
 
 #[test]

@@ -248,6 +248,7 @@ fn status_line_is_readable() {
         stick_slip_amplitude: NewtonMetres::ZERO,
         stick_slip_episodes: 0,
         fault: None,
+        ball_f: None,
     };
     assert_eq!(
         reply(|s| console::write_status(s, &v)),
@@ -260,6 +261,7 @@ fn status_line_is_readable() {
         stick_slip_amplitude: NewtonMetres::lit("31.256"),
         stick_slip_episodes: 3,
         fault: Some("overcurrent"),
+        ball_f: None,
         ..v
     };
     let s = reply(|s| console::write_status(s, &v));

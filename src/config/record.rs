@@ -22,9 +22,10 @@ use crate::control::config::ControlConfig;
 
 /// Record magic, "LFCF".
 pub const MAGIC: [u8; 4] = *b"LFCF";
-/// Format version written by this firmware. 2: `drive.screw` added (version 1 records have no
-/// screw kind; they are refused and the factory configuration applies, see docs/config-store.md).
-pub const VERSION: u16 = 2;
+/// Format version written by this firmware. 2: `drive.screw` added; 3: the ball screw's
+/// `ballscrew.*` settings added. Older records are read with their own key list, the settings
+/// they lack keep their factory value (see docs/config-store.md).
+pub const VERSION: u16 = 3;
 /// Bytes before the settings.
 pub const HEADER_LEN: usize = 16;
 
@@ -57,12 +58,20 @@ fn crc32_update(mut crc: u32, data: &[u8]) -> u32 {
     crc
 }
 
-/// Keys a format-1 record lacks (added by format 2; they keep their factory value).
-const NOT_IN_V1: [&str; 1] = ["drive.screw"];
+/// The format version that added a stored setting (1: there from the start).
+fn added_in(key: &str) -> u16 {
+    if key == "drive.screw" {
+        2
+    } else if key.starts_with("ballscrew.") {
+        3
+    } else {
+        1
+    }
+}
 
 /// Whether a stored setting is in records of `version`.
 fn in_version(key: &str, version: u16) -> bool {
-    version >= 2 || !NOT_IN_V1.contains(&key)
+    added_in(key) <= version
 }
 
 /// The schema fingerprint of `version`'s key list.
@@ -175,11 +184,11 @@ pub fn decode(bytes: &[u8]) -> Result<(ControlConfig, u32), DecodeError> {
         return Err(DecodeError::BadCrc);
     }
     let version = le_u16(bytes, 4);
-    if version != VERSION && version != 1 {
+    if version == 0 || version > VERSION {
         return Err(DecodeError::Version { found: version });
     }
-    // Format 1 is format 2 without `drive.screw`: decoded with its own key list, the missing
-    // setting keeps its factory value.
+    // An older format is this one without the settings added since: decoded with its own key
+    // list, the missing settings keep their factory value.
     let count = SETTINGS
         .iter()
         .filter(|s| s.stored && in_version(s.key, version))
@@ -225,38 +234,71 @@ mod tests {
         assert_eq!(decode(&buf[..len]), Ok((ControlConfig::DEFAULT, 7)));
     }
 
-    /// A version-1 record (no `drive.screw`), built by hand: decoded, the screw kind stays Lead.
-    #[test]
-    fn version_1_record_decodes_with_the_factory_screw_kind() {
-        let mut cfg = ControlConfig::DEFAULT;
-        cfg.motion.ramp_ms = 120;
+    /// A record of an older `version`, built by hand with its own key list.
+    fn old_record(cfg: &ControlConfig, version: u16, b: &mut [u8; MAX_RECORD_LEN]) -> usize {
         let keys: usize = SETTINGS
             .iter()
-            .filter(|s| s.stored && in_version(s.key, 1))
+            .filter(|s| s.stored && in_version(s.key, version))
             .count();
-        assert_eq!(keys + NOT_IN_V1.len(), stored_count());
-        let mut b = [0u8; MAX_RECORD_LEN];
         b[0..4].copy_from_slice(&MAGIC);
-        b[4..6].copy_from_slice(&1u16.to_le_bytes());
+        b[4..6].copy_from_slice(&version.to_le_bytes());
         b[6..8].copy_from_slice(&(keys as u16).to_le_bytes());
-        b[8..12].copy_from_slice(&schema_of(1).to_le_bytes());
+        b[8..12].copy_from_slice(&schema_of(version).to_le_bytes());
         b[12..16].copy_from_slice(&3u32.to_le_bytes());
         for (i, s) in SETTINGS
             .iter()
-            .filter(|s| s.stored && in_version(s.key, 1))
+            .filter(|s| s.stored && in_version(s.key, version))
             .enumerate()
         {
             let at = HEADER_LEN + 8 * i;
-            b[at..at + 8].copy_from_slice(&s.get(&cfg).to_le_bytes());
+            b[at..at + 8].copy_from_slice(&s.get(cfg).to_le_bytes());
         }
         let body = HEADER_LEN + 8 * keys;
         let crc = crc32(&b[..body]);
         b[body..body + 4].copy_from_slice(&crc.to_le_bytes());
-        assert_eq!(decode(&b[..body + 4]), Ok((cfg, 3)));
+        body + 4
+    }
+
+    /// A version-1 record (no `drive.screw`): decoded, the screw kind stays Lead.
+    #[test]
+    fn version_1_record_decodes_with_the_factory_screw_kind() {
+        let mut cfg = ControlConfig::DEFAULT;
+        cfg.motion.ramp_ms = 120;
+        let mut b = [0u8; MAX_RECORD_LEN];
+        let len = old_record(&cfg, 1, &mut b);
+        assert_eq!(
+            len,
+            record_len() - 8 * 16,
+            "v1 lacks drive.screw and ballscrew.*"
+        );
+        assert_eq!(decode(&b[..len]), Ok((cfg, 3)));
         // The same bytes labelled version 2 are refused: the key list differs.
         b[4..6].copy_from_slice(&2u16.to_le_bytes());
+        let body = len - 4;
         let crc = crc32(&b[..body]);
-        b[body..body + 4].copy_from_slice(&crc.to_le_bytes());
-        assert_eq!(decode(&b[..body + 4]), Err(DecodeError::Schema));
+        b[body..len].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(decode(&b[..len]), Err(DecodeError::Schema));
+    }
+
+    /// A version-2 record (no `ballscrew.*`) of a ball-screw lift: every setting it holds is
+    /// kept (the screw kind too), the ball screw's parameters take their factory values.
+    #[test]
+    fn version_2_record_keeps_its_settings_and_gets_the_factory_ball_screw() {
+        let mut cfg = ControlConfig::ball_screw_4008().unwrap();
+        cfg.motion.ramp_ms = 150;
+        cfg.protection.runaway_travel = crate::units::Metres::lit("0.001");
+        let mut b = [0u8; MAX_RECORD_LEN];
+        let len = old_record(&cfg, 2, &mut b);
+        assert_eq!(len, record_len() - 8 * 15);
+        assert_eq!(decode(&b[..len]), Ok((cfg, 3)));
+        // A version-3 record keeps a changed ball screw; a future version is refused.
+        cfg.ball_screw.preload = crate::units::Newtons::lit("1500");
+        cfg.lube.band = crate::units::Ratio::lit("0.3");
+        let len = encode(&cfg, 4, &mut b).unwrap();
+        assert_eq!(decode(&b[..len]), Ok((cfg, 4)));
+        b[4..6].copy_from_slice(&4u16.to_le_bytes());
+        let crc = crc32(&b[..len - 4]);
+        b[len - 4..len].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(decode(&b[..len]), Err(DecodeError::Version { found: 4 }));
     }
 }

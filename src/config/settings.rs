@@ -12,7 +12,9 @@ use crate::config::ValidatedConfig;
 use crate::control::config::{ButtonMode, ControlConfig, RampShape, ScrewKind};
 use crate::detect::stickslip::Reaction;
 use crate::model::friction::{FrictionLaw, LawVariable};
-use crate::units::{Amperes, Kilograms, Metres, NewtonMetres, RadiansPerSecond, Ratio, Volts};
+use crate::units::{
+    Amperes, Kilograms, Metres, NewtonMetres, Newtons, RadiansPerSecond, Ratio, Volts,
+};
 use crate::ConfigError;
 use fixed::types::{I16F16, I32F32};
 
@@ -92,6 +94,12 @@ unit!(
 unit!(
     /// Screw inertia in µkg·m².
     MICRO_KGM2, "ukgm2", "an inertia", [("ukgm2", 0), ("ukg*m2", 0)]);
+unit!(
+    /// Forces.
+    NEWTONS, "N", "a force", [("n", 0), ("kn", 3)]);
+unit!(
+    /// Dynamic viscosity.
+    PASCAL_SECONDS, "Pa.s", "a viscosity", [("pa.s", 0), ("mpa.s", -3)]);
 unit!(
     /// Screw support damping in µN·m·s/rad.
     MICRO_NMS, "uNms/rad", "a rotational damping", [("unms/rad", 0), ("unms", 0)]);
@@ -283,6 +291,7 @@ bits32!(
     Kilograms,
     NewtonMetres,
     RadiansPerSecond,
+    Newtons,
     I16F16
 );
 
@@ -345,7 +354,7 @@ pub const LAW_PRESETS: [FrictionLaw; 4] = [
 
 /// Every setting. The flash record's layout follows this order (the `stored` ones): changing
 /// it changes the record's schema fingerprint (see [`crate::config::record`]).
-pub static SETTINGS: [Setting; 55] = [
+pub static SETTINGS: [Setting; 70] = [
     setting!("limits.lower", LEN, "the mechanism's height range (see `limits`)",
         "lowest head height the lift drives to", q32 limits.lower),
     setting!("limits.upper", LEN, "the mechanism's height range (see `limits`)",
@@ -580,6 +589,37 @@ pub static SETTINGS: [Setting; 55] = [
     setting!("stickslip.escape_speed", num(16, &RAD_PER_S), "0.2..20 rad/s",
         "cruise speed for the rest of a motion after stick-slip (reaction speed)",
         q32 stick_slip.escape_speed),
+    setting!("ballscrew.r_m", LEN, "2..100 mm",
+        "ball screw: ball-centre circle radius r_m", q32 ball_screw.r_m),
+    setting!("ballscrew.r_b", LEN, "0.5..20 mm",
+        "ball screw: ball radius r_b (less than r_m)", q32 ball_screw.r_b),
+    setting!("ballscrew.contact_angle", num(16, &DEGREES), "20..80 deg",
+        "ball screw: contact angle alpha", q32 ball_screw.contact_angle_deg),
+    setting!("ballscrew.lead", LEN, "0.5..50 mm",
+        "ball screw: lead (nut travel per screw turn)", q32 ball_screw.lead),
+    setting!("ballscrew.balls", num(0, &COUNTS), "1..1000",
+        "ball screw: number of loaded balls M", int u16, ball_screw.loaded_balls),
+    setting!("ballscrew.preload", num(8, &NEWTONS), "0..100 kN",
+        "ball screw: preload F_p", q32 ball_screw.preload),
+    setting!("ballscrew.viscosity", num(32, &PASCAL_SECONDS), "1e-4..10 Pa.s",
+        "ball screw: lubricant dynamic viscosity eta0", q64 ball_screw.viscosity),
+    setting!("ballscrew.f_base", num(28, &RATIO), "0..1",
+        "ball screw f(tau): constant term", q32 ball_screw.law.base),
+    setting!("ballscrew.f_amp", num(28, &RATIO), "-1..1",
+        "ball screw f(tau): exponential amplitude", q32 ball_screw.law.amp),
+    setting!("ballscrew.f_rate", num(32, &NUMBER), "0..1e6",
+        "ball screw f(tau): exponential rate per unit of tau", q64 ball_screw.law.rate),
+    setting!("ballscrew.f_slope", num(32, &NUMBER), "-1000..1000",
+        "ball screw f(tau): slope per unit of tau", q64 ball_screw.law.slope),
+    setting!("ballscrew.f_s_max", Kind::Number { frac: 32, pow10: 0, unit: &NUMBER, none_at_max: true },
+        ">0..1e6", "ball screw f(tau): flat beyond this tau (none: never)", q64 ball_screw.law.s_max),
+    setting!("ballscrew.lube_band", num(28, &RATIO), "0.05..4",
+        "warn when the identified f leaves law*(1 +- band)", q32 lube.band),
+    setting!("ballscrew.ident_min_speed", num(16, &RAD_PER_S), "0.05..20 rad/s",
+        "slowest cruise whose motor current identifies f", q32 lube.min_speed),
+    setting!("ballscrew.no_load_current", num(16, &AMPS), "0..20 A",
+        "motor current at cruise speed with the gearbox output free (drive friction)",
+        q32 lube.no_load_current),
 ];
 
 #[cfg(test)]
@@ -604,9 +644,11 @@ mod tests {
     /// in the flash record, whose schema word then changes).
     #[test]
     fn registry_covers_every_field() {
+        use crate::control::config::LubeConfig;
         use crate::control::config::{LimitStops, MotionConfig, ProtectionConfig, SensingConfig};
         use crate::detect::stickslip::StickSlipConfig;
         use crate::estimator::{EstimatorConfig, MotorConfig};
+        use crate::model::ballscrew::BallScrewConfig;
         use crate::model::geometry::{DriveConfig, GeometryConfig};
         use crate::model::screw::MechanicsConfig;
         let ControlConfig {
@@ -697,9 +739,36 @@ mod tests {
                     escape_speed: _,
                 },
             screw: _,
+            ball_screw:
+                BallScrewConfig {
+                    r_m: _,
+                    r_b: _,
+                    contact_angle_deg: _,
+                    lead: _,
+                    loaded_balls: _,
+                    preload: _,
+                    viscosity: _,
+                    law:
+                        FrictionLaw {
+                            base: _,
+                            amp: _,
+                            rate: _,
+                            slope: _,
+                            s_max: _,
+                            // Always `Lubrication` (validation refuses any other): no key.
+                            variable: _,
+                        },
+                },
+            lube:
+                LubeConfig {
+                    band: _,
+                    min_speed: _,
+                    no_load_current: _,
+                },
         } = ControlConfig::DEFAULT;
-        // 54 fields above, one key each, plus the `friction.law` preset selector.
-        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 54);
+        // 69 fields above, one key each (the ball screw's law variable is fixed), plus the
+        // `friction.law` preset selector.
+        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 69);
     }
 
     #[test]

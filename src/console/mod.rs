@@ -413,7 +413,7 @@ pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
     match topic {
         HelpTopic::Commands => out.write_str(
             "commands (case-insensitive):\r\n\
-             \x20 status              state, height, speed, current, T_r, stick-slip (flag, last drop, episodes), fault\r\n\
+             \x20 status              state, height, speed, current, T_r, stick-slip (flag, last drop, episodes), fault, ball screw: f, f_law\r\n\
              \x20 up | down | stop    move (hold-to-run unless motion.buttons = latched)\r\n\
              \x20 goto <height>       drive the head to a height, e.g. goto 300mm\r\n\
              \x20 limits              limit stops and the mechanism's range\r\n\
@@ -468,6 +468,8 @@ pub struct StatusView {
     pub stick_slip_episodes: u32,
     /// The active fault's name, if any.
     pub fault: Option<&'static str>,
+    /// Ball screw: identified friction coefficient and the law's f(τ), once identified.
+    pub ball_f: Option<(Ratio, Ratio)>,
 }
 
 /// Fixed-point value with `dec` decimals (rounded), for status lines.
@@ -510,7 +512,25 @@ pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
     )?;
     write_fixed(out, s.stick_slip_amplitude.to_bits(), 16, 2)?;
     write!(out, "Nm ss_episodes={} fault=", s.stick_slip_episodes)?;
-    write_word(out, s.fault.unwrap_or("none"))
+    write_word(out, s.fault.unwrap_or("none"))?;
+    if let Some((f, law)) = s.ball_f {
+        out.write_str(" f=")?;
+        write_fixed(out, f.to_bits(), 28, 5)?;
+        out.write_str(" f_law=")?;
+        write_fixed(out, law.to_bits(), 28, 5)?;
+    }
+    Ok(())
+}
+
+/// The console warning of a ball screw whose identified friction coefficient left the band
+/// around the law (`control::lube`), one line.
+pub fn write_lube_warning(out: &mut dyn Write, f: Ratio, law: Ratio) -> fmt::Result {
+    out.write_str("warning: ball-screw friction f=")?;
+    write_fixed(out, f.to_bits(), 28, 5)?;
+    out.write_str(if f > law { " above" } else { " below" })?;
+    out.write_str(" the law's ")?;
+    write_fixed(out, law.to_bits(), 28, 5)?;
+    out.write_str(" beyond ballscrew.lube_band (check lubrication and wear)")
 }
 
 /// A name as one `key=value` word: spaces become `-` ("encoder lost" → `encoder-lost`).

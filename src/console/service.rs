@@ -112,6 +112,7 @@ pub fn status_view(s: &Status) -> StatusView {
         stick_slip_amplitude: s.stick_slip_amplitude,
         stick_slip_episodes: s.stick_slip_episodes,
         fault: s.fault.map(|f| f.name()),
+        ball_f: s.lube.map(|r| (r.f, r.law)),
     }
 }
 

@@ -8,9 +8,12 @@
 use crate::check_range as range;
 use crate::detect::stickslip::StickSlipConfig;
 use crate::estimator::EstimatorConfig;
+use crate::model::ballscrew::BallScrewConfig;
 use crate::model::geometry::Geometry;
 use crate::units::{Amperes, Kilograms, Metres, Newtons, RadiansPerSecond, Ratio, Volts};
 use crate::ConfigError;
+
+pub use super::lube::LubeConfig;
 
 /// Shape of the speed ramp.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -243,6 +246,11 @@ pub struct ControlConfig {
     pub stick_slip: StickSlipConfig,
     /// Lead screw or ball screw.
     pub screw: ScrewKind,
+    /// The ball screw's geometry, preload and f(τ) law (seed 002), used in ball-screw mode to
+    /// identify f online from the motor current (`control::lube`). Validated in either mode.
+    pub ball_screw: BallScrewConfig,
+    /// The identification's sampling and the lubrication warning's band.
+    pub lube: LubeConfig,
 }
 
 impl ControlConfig {
@@ -256,22 +264,24 @@ impl ControlConfig {
         sensing: SensingConfig::DEFAULT,
         stick_slip: StickSlipConfig::DEFAULT,
         screw: ScrewKind::Lead,
+        ball_screw: BallScrewConfig::SEED_001_4008,
+        lube: LubeConfig::DEFAULT,
     };
 
     /// The default lift with seed 001's 4008 ball screw (r_m = 20 mm, lead 8 mm, λ = 3.64°) in
-    /// place of the S12x2: the estimator sees it through [`BallScrew::equivalent_thread_law`]
+    /// place of the S12x2: the estimator sees it through [`BallScrewConfig::equivalent_thread_law`]
     /// at the rated load's axial force at α = 45° (seed 002's f(τ), VG100 oil), the screw's
     /// inertia is that of a Ø35 mm × 0.4 m steel shaft (460 µkg·m²), and the cruise speed is
     /// halved (the 8 mm lead moves the nut 4.9× farther per turn than the S12x2's 2 mm).
     ///
-    /// [`BallScrew::equivalent_thread_law`]: crate::model::ballscrew::BallScrew::equivalent_thread_law
+    /// [`BallScrewConfig::equivalent_thread_law`]: crate::model::ballscrew::BallScrewConfig::equivalent_thread_law
     pub fn ball_screw_4008() -> Result<ControlConfig, ConfigError> {
-        use crate::model::ballscrew::BallScrewConfig;
         let bs = BallScrewConfig::SEED_001_4008.compile()?;
         let mut c = ControlConfig::DEFAULT;
         // R = M·g/tan 45° = M·g at α = 45°.
         let reference = Newtons::from_f64(c.rated_load.to_f64() * 9.806_65);
-        c.estimator.law = bs.equivalent_thread_law(bs.axial_force(reference))?;
+        c.estimator.law =
+            BallScrewConfig::SEED_001_4008.equivalent_thread_law(bs.axial_force(reference))?;
         c.estimator.drive.pitch_radius = BallScrewConfig::SEED_001_4008.r_m;
         c.estimator.drive.lead_angle_deg = const { fixed::types::I16F16::lit("3.643") };
         c.estimator.mechanics.inertia_ukgm2 = 460;
@@ -413,6 +423,8 @@ impl ControlConfig {
             "1..100000 uV",
         )?;
         self.stick_slip.validate()?;
+        self.ball_screw.compile()?;
+        self.lube.validate()?;
         self.limits.validate(geometry)
     }
 }

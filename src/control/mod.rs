@@ -23,6 +23,7 @@
 pub mod config;
 pub mod edges;
 mod hold;
+pub mod lube;
 pub mod park;
 pub mod profile;
 pub mod protect;
@@ -32,6 +33,7 @@ pub mod speed;
 use crate::detect::stickslip::{DetectorInputs, Reaction, StickSlipDetector};
 use crate::estimator::{Estimate, Estimator, Measurements};
 use crate::math::div128;
+use crate::model::ballscrew::BallScrew;
 use crate::model::Scale;
 use crate::units::{
     qmul, sat32, Amperes, Instant, Metres, NewtonMetres, Radians, RadiansPerSecond, Ratio, Volts, Q,
@@ -269,6 +271,9 @@ pub enum Event {
         /// The configured reaction (`Warn` and `ChangeSpeed` ask for a console warning).
         reaction: Reaction,
     },
+    /// A ball screw's lift/lowering pair put the identified friction coefficient outside
+    /// `ballscrew.lube_band` around the law (`lube`): lubrication or wear to check.
+    Lubrication(lube::LubeReport),
 }
 
 /// A snapshot for the console's `status` line and telemetry.
@@ -299,6 +304,9 @@ pub struct Status {
     pub position: i32,
     /// The position is known (false: homing on the lower limit switch is required).
     pub homed: bool,
+    /// Ball screw: the friction coefficient identified from the current and the law's, once a
+    /// lift/lowering pair has been solved (`lube`).
+    pub lube: Option<lube::LubeReport>,
 }
 
 /// Ticks after the reference arrives during which the loop may settle before the bridge coasts.
@@ -409,6 +417,11 @@ pub struct Controller {
     stick_slip: StickSlipDetector,
     cruise_q32: i64,
     escape_q32: i64,
+    /// The ball screw (`cfg.ball_screw`, compiled) and the identification of its friction.
+    ball_screw: BallScrew,
+    lube: lube::LubeMonitor,
+    /// A lubrication warning (of `lube`'s latest report) waits for a tick without another event.
+    lube_notice: bool,
 }
 
 impl Controller {
@@ -416,6 +429,7 @@ impl Controller {
     /// survives power loss with the configuration: the lead screw is self-locking).
     pub fn new(cfg: &ControlConfig, position: i32) -> Result<Controller, ConfigError> {
         let est = Estimator::new(&cfg.estimator)?;
+        let ball_screw = cfg.ball_screw.compile()?;
         let geometry = est.geometry();
         cfg.validate(geometry)?;
         // `validate` checked these heights against the geometry already; a refusal here
@@ -529,6 +543,9 @@ impl Controller {
             stick_slip: StickSlipDetector::new(&cfg.stick_slip, tick_us),
             cruise_q32,
             escape_q32,
+            ball_screw,
+            lube: lube::LubeMonitor::new(cfg),
+            lube_notice: false,
         })
     }
 
@@ -539,12 +556,14 @@ impl Controller {
     /// lower stop is not enforced on that run (the switch is the stop); stall, over-current and
     /// the other protections are.
     pub fn new_unhomed(cfg: &ControlConfig) -> Result<Controller, ConfigError> {
-        let mut c = Controller::new(cfg, 0)?;
         // Until homed, assume the lowest position: the model's load (and feed-forward) is then
-        // the largest the lift can see.
-        c.set_position(c.switch_counts);
-        c.homed = false;
-        Ok(c)
+        // the largest the lift can see. (`map` rather than `?` + `Ok`: one controller copy
+        // fewer on the boot stack.)
+        Controller::new(cfg, 0).map(|mut c| {
+            c.set_position(c.switch_counts);
+            c.homed = false;
+            c
+        })
     }
 
     /// The position is known (a homing run is not needed).
@@ -628,7 +647,17 @@ impl Controller {
             fault: self.fault.map(|f| f.kind),
             position: self.enc.position(),
             homed: self.homed,
+            lube: if self.holds_actively() {
+                self.lube.report()
+            } else {
+                None
+            },
         }
+    }
+
+    /// The ball screw's friction identification (`lube`).
+    pub fn lube(&self) -> &lube::LubeMonitor {
+        &self.lube
     }
 
     /// Replace the configuration while the lift is at rest (Idle, Holding or Fault, screw
@@ -663,6 +692,12 @@ impl Controller {
         next.release_ticks = self.release_ticks;
         next.prev_buttons = self.prev_buttons;
         next.pending_event = self.pending_event;
+        if cfg.ball_screw == self.cfg.ball_screw
+            && cfg.lube == self.cfg.lube
+            && cfg.estimator == self.cfg.estimator
+        {
+            next.lube = self.lube;
+        }
         // Counts mean another height under another geometry or drive: the position is then
         // unknown until the lift is homed again.
         let same_counts = cfg.estimator.geometry == self.cfg.estimator.geometry
@@ -971,6 +1006,9 @@ impl Controller {
             }
         };
         self.detect_stick_slip();
+        if self.holds_actively() {
+            self.identify_friction();
+        }
         self.last_duty = match bridge {
             Bridge::Drive(d) => d,
             _ => 0,
@@ -1006,6 +1044,43 @@ impl Controller {
                     reaction,
                 });
             }
+        }
+    }
+
+    /// Ball screw: a sample of the friction identification while moving, the pair solve and
+    /// the lubrication warning once at rest (`lube`).
+    fn identify_friction(&mut self) {
+        let moving = matches!(self.state, State::Lifting | State::Lowering);
+        if moving {
+            let e = &self.estimate;
+            let not_thread = e.model_screw_torque.sat_sub(e.contact.thread_torque);
+            let x = lube::LubeInputs {
+                driving: matches!(self.last_bridge, Bridge::Drive(_)),
+                lifting: self.state == State::Lifting,
+                reference: self.reference_speed(),
+                speed: e.screw_speed,
+                thread_torque: e.measured_screw_torque.sat_sub(not_thread),
+                axial_rated: e.contact.axial,
+            };
+            self.lube.sample(&self.cfg.lube, &x);
+        } else if self.lube.in_motion() && self.state == State::Fault {
+            // A motion a fault ended (an obstruction, a jam…) says nothing about the friction.
+            self.lube.abort_motion();
+        } else if self.lube.in_motion() {
+            let at_lower = self.enc.position() <= self.lower_counts.saturating_add(ARRIVED_COUNTS);
+            let report = self.lube.end_motion(
+                &self.ball_screw,
+                &self.cfg.lube,
+                self.cfg.rated_load,
+                at_lower,
+            );
+            if report.is_some_and(|r| r.out_of_band) {
+                self.lube_notice = true;
+            }
+        }
+        if self.lube_notice && self.pending_event.is_none() {
+            self.lube_notice = false;
+            self.pending_event = self.lube.report().map(Event::Lubrication);
         }
     }
 

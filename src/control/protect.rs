@@ -232,10 +232,16 @@ impl Monitors {
         // The margin is a fraction of the model torque's size: lowering an overhauling load the
         // projected model torque is negative, and scaling it by (1 + margin) moved the limit
         // below the model, so a motor holding back *less* than the model tripped "overload".
-        let limit = s.model_torque.sat_add(qmul::<_, _, NewtonMetres>(
-            s.model_torque.sat_abs(),
-            l.overload_margin,
-        ));
+        // Holding back less is also what any load lighter than the rated one does (a ball
+        // screw lowering half its rated load tripped): an overhauling model's limit starts
+        // from zero, so only pushing the lift down (an obstruction under it) trips.
+        let limit = s
+            .model_torque
+            .max(NewtonMetres::ZERO)
+            .sat_add(qmul::<_, _, NewtonMetres>(
+                s.model_torque.sat_abs(),
+                l.overload_margin,
+            ));
         let over =
             s.overload_armed && s.measured_torque > limit.sat_add(const { NewtonMetres::lit("2") });
         if count(&mut self.overload, over) >= l.overload_ticks {

@@ -13,7 +13,7 @@
 //! - τ = η₀·V/P (Eq 3) with P = F/(M sin α cos β) the normal load per ball (seed 002's Q) and V
 //!   the ball-centre circle's speed r_m·|θ̇| (seed 002 says only "relative speed of the
 //!   ball–raceway contact").
-//! - The ball screw is not self-locking: the load alone turns it with torque `F·l/(2π)`
+//! - The ball screw is not self-locking: the load alone turns it with torque `|R|·l/(2π)`
 //!   ([`BallScrew::load_torque`]), against which only the friction torque holds.
 //!
 //! Every function has a float64 twin in `host_sim::physics::ballscrew` and a property test in
@@ -119,41 +119,113 @@ impl BallScrewConfig {
                 reason: "a ball-screw law is written in tau = eta0*V/P",
             });
         }
-        // The law's r_m/cos λ only matter for sliding-speed laws: any valid values do.
-        let law = self.law.compile(self.r_m, Ratio::ONE)?;
+        // The law's r_m/cos λ only matter for sliding-speed laws: any valid values do. Its
+        // refusals name the `ballscrew.f_*` keys (the law's own name the estimator's).
+        let law = self
+            .law
+            .compile(self.r_m, Ratio::ONE)
+            .map_err(|e| match e {
+                ConfigError::OutOfRange { field, range } => ConfigError::OutOfRange {
+                    field: match field {
+                        "friction.base" => "ballscrew.f_base",
+                        "friction.amp" => "ballscrew.f_amp",
+                        "friction.rate" => "ballscrew.f_rate",
+                        "friction.slope" => "ballscrew.f_slope",
+                        "friction.s_max" => "ballscrew.f_s_max",
+                        other => other,
+                    },
+                    range,
+                },
+                other => other,
+            })?;
 
-        // Design in float (configuration time only), quantise once.
-        let alpha = Angle::from_degrees(self.contact_angle_deg);
-        let (cos_a, sin_a) = alpha.cos_sin();
-        let (ca, sa) = (cos_a.to_f64(), sin_a.to_f64());
-        let (rm, rb, lead) = (self.r_m.to_f64(), self.r_b.to_f64(), self.lead.to_f64());
-        // Helix angle β: tan β = l/(2π r_m), cos β = 1/√(1 + tan²β).
-        let tan_b = lead / (2.0 * core::f64::consts::PI * rm);
-        let cos_b = 1.0 / sqrt_f64(1.0 + tan_b * tan_b);
-        // Eq 1 (with Eq 2's factor 2): M_f = f·F·arm, arm = 2(r_m + r_b cos α)/sin α, metres.
-        let arm = 2.0 * (rm + rb * ca) / sa;
-        // f·F (N, Q8) → N·m (Q16): ×arm·2^8.
-        let arm_scale = scale_of(arm * 256.0);
-        // F (Q8) → N·m (Q16) for the denominator of Eq 2.
-        let lever = lead / (2.0 * core::f64::consts::PI);
-        let lever_scale = scale_of(lever * 256.0);
-        // τ (Q28) = η₀·r_m·M·sin α·cos β · |θ̇| / F: numerator constant c = η₀ r_m M sin α cos β
-        // (N·s), |θ̇| in Q16, F in Q8 → τ_bits = c·2^20·θ̇_bits / F_bits.
-        let c = self.viscosity.to_num::<f64>() * rm * f64::from(self.loaded_balls) * sa * cos_b;
-        let tau_scale = scale_of(c * (1u64 << 20) as f64);
+        // Design in integers (no floating point linked into the firmware): lengths in Q24,
+        // cos α and sin α in Q28, rationals in i128, quantised once by `Scale::from_ratio`.
+        let (cos_a, sin_a) = Angle::from_degrees(self.contact_angle_deg).cos_sin();
+        let (rm, rb) = (i128::from(self.r_m.bits()), i128::from(self.r_b.bits()));
+        let lead = i128::from(self.lead.bits());
+        let (ca, sa) = (i128::from(cos_a.bits()), i128::from(sin_a.bits()).max(1));
+        // Eq 1 (with Eq 2's factor 2): M_f = f·F·arm, arm = 2(r_m + r_b cos α)/sin α; arm in
+        // Q52/Q28 = num52/sa in Q24.
+        let num52 = 2 * ((rm << 28) + rb * ca);
+        // f·F (N, Q8) → N·m (Q16): ×arm·2^8 = num52/(sa·2^16).
+        let arm_scale = Scale::from_ratio(num52, sa << 16);
+        // Lever l/(2π): F (Q8) → N·m (Q16) is ×lever·2^8 = lead/(2^16·2π).
+        let lever_scale = Scale::from_ratio(lead << 60, TWO_PI_Q60 << 16);
+        let lever_q24 = (lead << 60) / TWO_PI_Q60;
+        // Helix angle β: cos β = 2π r_m / √((2π r_m)² + l²), lengths in Q32 (≤ 0.63 m).
+        let circ = (rm * TWO_PI_Q60) >> 52;
+        let l32 = lead << 8;
+        let hyp = i128::from(crate::math::isqrt_u64((circ * circ + l32 * l32) as u64)).max(1);
+        // sin α·cos β in Q28.
+        let sa_cb = sa * circ / hyp;
+        // τ (Q28) = η₀·r_m·M·sin α·cos β · |θ̇| / F: numerator constant c (N·s), |θ̇| in Q16,
+        // F in Q8 → τ_bits = c·2^20·θ̇_bits / F_bits, c·2^20 = η(Q32)·r_m(Q24)·M·(sa_cb)(Q28)/2^64.
+        let eta = i128::from(self.viscosity.to_bits());
+        let tau_num = eta * rm * i128::from(self.loaded_balls) * sa_cb;
+        let tau_scale = Scale::from_ratio(tau_num, 1i128 << 64);
         Ok(BallScrew {
-            k_arm: (arm / rm).into(),
-            tau_per_rate: c.into(),
-            config: *self,
+            preload: self.preload,
             law,
             arm_scale,
             lever_scale,
             tau_scale,
-            arm: Metres::from_f64(arm),
-            lever: Metres::from_f64(lever),
+            arm: Metres::from_raw(crate::units::sat32((num52 / sa) as i64)),
+            lever: Metres::from_raw(crate::units::sat32(lever_q24 as i64)),
         })
     }
+
+    /// The ball screw as a thread for the lead-screw model (estimator and plant): the friction
+    /// law in the screw rate whose thread friction torque μ·W·r_m equals Eq 1's `f·F·arm` at
+    /// axial force `f_axial`: `μ_eq(θ̇) = (arm/r_m)·f(τ)` with `τ = η₀ r_m M sin α cos β·|θ̇|/F`.
+    /// The thread model adds `μ tan λ` (≈ 0.1 %) and `tan²λ` (≈ 0.4 %) corrections the ball
+    /// screw does not have; τ's dependence on the load is frozen at `f_axial` (docs/model.md).
+    /// Configuration time only.
+    pub fn equivalent_thread_law(&self, f_axial: Newtons) -> Result<FrictionLaw, ConfigError> {
+        let fa = f_axial.to_f64();
+        if fa < 1.0 {
+            return Err(ConfigError::OutOfRange {
+                field: "ballscrew.reference_force",
+                range: ">= 1 N",
+            });
+        }
+        let (k, c) = self.float_design();
+        let tau_per_rate = c / fa;
+        let l = &self.law;
+        let law = FrictionLaw {
+            base: Ratio::from_f64(l.base.to_f64() * k),
+            amp: Ratio::from_f64(l.amp.to_f64() * k),
+            rate: I32F32::saturating_from_num(l.rate.to_num::<f64>() * tau_per_rate),
+            slope: I32F32::saturating_from_num(l.slope.to_num::<f64>() * k * tau_per_rate),
+            s_max: if l.s_max == I32F32::MAX {
+                I32F32::MAX
+            } else {
+                I32F32::saturating_from_num(l.s_max.to_num::<f64>() / tau_per_rate)
+            },
+            variable: LawVariable::ScrewRate,
+        };
+        // Validate the result as a law in its own right.
+        law.compile(self.r_m, Ratio::ONE)?;
+        Ok(law)
+    }
+
+    /// arm/r_m and η₀ r_m M sin α cos β in float64, for [`BallScrewConfig::equivalent_thread_law`]
+    /// (configuration time on the host; not linked into the firmware).
+    fn float_design(&self) -> (f64, f64) {
+        let alpha = Angle::from_degrees(self.contact_angle_deg);
+        let (cos_a, sin_a) = alpha.cos_sin();
+        let (ca, sa) = (cos_a.to_f64(), sin_a.to_f64());
+        let (rm, rb, lead) = (self.r_m.to_f64(), self.r_b.to_f64(), self.lead.to_f64());
+        let tan_b = lead / (2.0 * core::f64::consts::PI * rm);
+        let cos_b = 1.0 / sqrt_f64(1.0 + tan_b * tan_b);
+        let arm = 2.0 * (rm + rb * ca) / sa;
+        let c = self.viscosity.to_num::<f64>() * rm * f64::from(self.loaded_balls) * sa * cos_b;
+        (arm / rm, c)
+    }
 }
+
+/// 2π in Q60.
+const TWO_PI_Q60: i128 = 7_244_019_458_077_122_842;
 
 /// √x for configuration time without libm (`core` has no `f64::sqrt`): Newton from above,
 /// to the last bit for 1 ≤ x ≤ 10⁶.
@@ -169,37 +241,12 @@ fn sqrt_f64(x: f64) -> f64 {
     s
 }
 
-/// A positive constant as a [`Scale`] (configuration time only).
-fn scale_of(v: f64) -> Scale {
-    // 2^40 keeps ≥ 31 significant bits for every constant here (10⁻⁸ … 10⁶).
-    let den: i128 = 1 << 40;
-    Scale::from_ratio((v * den as f64) as i128, den)
-}
-
-/// An `f64` kept by its bits, so that configuration types holding one stay `Eq`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct F64Bits(u64);
-
-impl From<f64> for F64Bits {
-    fn from(v: f64) -> Self {
-        F64Bits(v.to_bits())
-    }
-}
-
-impl F64Bits {
-    fn get(self) -> f64 {
-        f64::from_bits(self.0)
-    }
-}
-
 /// A compiled ball screw: every per-tick operation is a few integer multiplies.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BallScrew {
-    /// arm/r_m and η₀ r_m M sin α cos β, kept for [`BallScrew::equivalent_thread_law`]
-    /// (configuration time only; stored as bits so the type stays `Eq`).
-    k_arm: F64Bits,
-    tau_per_rate: F64Bits,
-    config: BallScrewConfig,
+    /// F_p (the rest of the configuration is compiled into the constants below; the
+    /// controller keeps the configuration itself).
+    preload: Newtons,
     law: CompiledLaw,
     arm_scale: Scale,
     lever_scale: Scale,
@@ -209,9 +256,9 @@ pub struct BallScrew {
 }
 
 impl BallScrew {
-    /// The configuration it was compiled from.
-    pub fn config(&self) -> &BallScrewConfig {
-        &self.config
+    /// The preload F_p it was compiled with.
+    pub fn preload(&self) -> Newtons {
+        self.preload
     }
 
     /// Moment arm of Eq 1, 2(r_m + r_b cos α)/sin α.
@@ -227,7 +274,7 @@ impl BallScrew {
     /// Axial force on the loaded balls: preload + |R|, saturating.
     #[inline]
     pub fn axial_force(&self, load: Newtons) -> Newtons {
-        self.config.preload.sat_add(load.sat_abs())
+        self.preload.sat_add(load.sat_abs())
     }
 
     /// τ = η₀·V/P (Eq 3) at screw rate θ̇ and axial force `f_axial` (Q28; saturates at 8 for a
@@ -284,8 +331,9 @@ impl BallScrew {
         NewtonMetres::from_raw(self.lever_scale.apply32(f_axial.bits()))
     }
 
-    /// The friction torque in a measured screw torque (positive = lifting direction):
-    /// `T_screw − F·l/(2π)` when lifting; `F·l/(2π) − T_screw` when lowering (the load then
+    /// The friction torque in a measured screw torque (positive = lifting direction) under a
+    /// signed axial load R = `f_axial` (without the preload):
+    /// `T_screw − R·l/(2π)` when lifting; `R·l/(2π) − T_screw` when lowering (the load then
     /// drives, friction helps the motor hold it back, so the motor brakes with less than the
     /// load torque). Saturating.
     #[inline]
@@ -305,7 +353,10 @@ impl BallScrew {
 
     /// Eq 2 online: f from the screw torque the motor delivers (current × k_t × gear ratio ×
     /// efficiency, measured at steady speed) and the axial load R. `None` when the force is too
-    /// small for the quotient to mean anything.
+    /// small for the quotient to mean anything. The load torque is R·l/(2π) with R signed (negative
+    /// when the motor must push the nut down, e.g. against the lift's pin friction): the
+    /// preload is internal to the nut (it loads the balls, hence the friction, but turns
+    /// nothing).
     #[inline]
     pub fn identify(
         &self,
@@ -314,41 +365,7 @@ impl BallScrew {
         lifting: bool,
     ) -> Option<Ratio> {
         let fa = self.axial_force(load);
-        self.coefficient_from_torque(self.friction_in(screw_torque, fa, lifting), fa)
-    }
-
-    /// The ball screw as a thread for the lead-screw model (estimator and plant): the friction
-    /// law in the screw rate whose thread friction torque μ·W·r_m equals Eq 1's `f·F·arm` at
-    /// axial force `f_axial`: `μ_eq(θ̇) = (arm/r_m)·f(τ)` with `τ = η₀ r_m M sin α cos β·|θ̇|/F`.
-    /// The thread model adds `μ tan λ` (≈ 0.1 %) and `tan²λ` (≈ 0.4 %) corrections the ball
-    /// screw does not have; τ's dependence on the load is frozen at `f_axial` (docs/model.md).
-    /// Configuration time only.
-    pub fn equivalent_thread_law(&self, f_axial: Newtons) -> Result<FrictionLaw, ConfigError> {
-        let fa = f_axial.to_f64();
-        if fa < 1.0 {
-            return Err(ConfigError::OutOfRange {
-                field: "ballscrew.reference_force",
-                range: ">= 1 N",
-            });
-        }
-        let k = self.k_arm.get();
-        let tau_per_rate = self.tau_per_rate.get() / fa;
-        let l = &self.config.law;
-        let law = FrictionLaw {
-            base: Ratio::from_f64(l.base.to_f64() * k),
-            amp: Ratio::from_f64(l.amp.to_f64() * k),
-            rate: I32F32::saturating_from_num(l.rate.to_num::<f64>() * tau_per_rate),
-            slope: I32F32::saturating_from_num(l.slope.to_num::<f64>() * k * tau_per_rate),
-            s_max: if l.s_max == I32F32::MAX {
-                I32F32::MAX
-            } else {
-                I32F32::saturating_from_num(l.s_max.to_num::<f64>() / tau_per_rate)
-            },
-            variable: LawVariable::ScrewRate,
-        };
-        // Validate the result as a law in its own right.
-        law.compile(self.config.r_m, Ratio::ONE)?;
-        Ok(law)
+        self.coefficient_from_torque(self.friction_in(screw_torque, load, lifting), fa)
     }
 
     /// The law's minimum on τ ∈ [0, 0.01] (seed 002's turning point between mixed and

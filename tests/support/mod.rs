@@ -45,6 +45,11 @@ pub struct Scenario {
     /// The plant has seed 001's 4008 ball screw instead of the S12x2 lead screw (see
     /// [`Scenario::ball_screw`]); the core's configuration is the caller's.
     pub ball_screw: bool,
+    /// Ball screw: the plant's f(τ) multiplied by this (1: seed 002's law; more: degraded
+    /// lubrication or wear).
+    pub ball_friction_factor: f64,
+    /// The motor's own friction (Coulomb and viscous) multiplied by this (1: host-sim's motor).
+    pub motor_friction_factor: f64,
 }
 
 impl Scenario {
@@ -63,6 +68,8 @@ impl Scenario {
             battery: 12.6,
             unhomed: false,
             ball_screw: false,
+            ball_friction_factor: 1.0,
+            motor_friction_factor: 1.0,
         }
     }
 
@@ -171,8 +178,13 @@ pub fn run(s: &Scenario, mut hook: Hook) -> Run {
     cfg.record_rate = 1000.0;
     cfg.seed = s.seed;
     cfg.drive.battery_voltage = s.battery;
+    cfg.drive.motor_coulomb *= s.motor_friction_factor;
+    cfg.drive.motor_viscous *= s.motor_friction_factor;
     if s.ball_screw {
-        let bs = host_sim::physics::ballscrew::BallScrewFriction::seed_001_4008();
+        let mut bs = host_sim::physics::ballscrew::BallScrewFriction::seed_001_4008();
+        bs.law.base *= s.ball_friction_factor;
+        bs.law.amp *= s.ball_friction_factor;
+        bs.law.slope *= s.ball_friction_factor;
         cfg.plant.screw = bs.plant_screw(cfg.plant.screw);
         cfg.plant.law = bs.equivalent_law(1000.0 * host_sim::physics::G);
     }

@@ -89,14 +89,15 @@ impl BallScrewFriction {
     }
 
     /// Screw torque at steady speed θ̇ under axial load R (positive = lifting direction):
-    /// lifting `F·l/(2π) + M_f`, lowering `F·l/(2π) − M_f`.
+    /// lifting `|R|·l/(2π) + M_f`, lowering `|R|·l/(2π) − M_f` (the preload, internal to the
+    /// nut, adds friction through F but no load torque).
     pub fn steady_screw_torque(&self, theta_dot: f64, load: f64) -> f64 {
         let fa = self.axial_force(load);
         let mf = self.friction_torque(self.coefficient(self.tau(theta_dot, fa)), fa);
         if theta_dot >= 0.0 {
-            self.load_torque(fa) + mf
+            self.load_torque(load.abs()) + mf
         } else {
-            self.load_torque(fa) - mf
+            self.load_torque(load.abs()) - mf
         }
     }
 }
@@ -105,7 +106,7 @@ impl BallScrewFriction {
     /// The ball screw as a thread for the plant's lead-screw mechanics: the law in the screw
     /// rate whose thread friction torque μ·W·r_m equals M_f at axial force `f_axial`,
     /// `μ_eq(θ̇) = (arm/r_m)·f(η₀ r_m M sin α cos β·|θ̇|/F)` (twin of the core's
-    /// `BallScrew::equivalent_thread_law`; τ's load dependence frozen at `f_axial`).
+    /// `BallScrewConfig::equivalent_thread_law`; τ's load dependence frozen at `f_axial`).
     pub fn equivalent_law(&self, f_axial: f64) -> FrictionLaw {
         let k = self.arm() / self.r_m;
         let tau_per_rate = self.tau(1.0, f_axial);

@@ -13,11 +13,11 @@
 use crate::math::{div128, exp_neg_q16};
 use crate::model::friction::{CompiledLaw, FrictionLaw};
 use crate::model::geometry::{DriveConfig, Geometry, GeometryConfig, Pose};
-use crate::model::screw::{Contact, MechanicsConfig, ScrewModel};
+use crate::model::screw::{Contact, ContactCore, MechanicsConfig, ScrewModel};
 use crate::model::Scale;
 use crate::units::{
-    qmul, sat32, Amperes, Factor, Instant, Kilograms, KilogramsPerSecond, NewtonMetres, Newtons,
-    RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
+    qmul, sat32, Amperes, Factor, Instant, Kilograms, KilogramsPerSecond, Metres, NewtonMetres,
+    Newtons, RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
 };
 use crate::ConfigError;
 
@@ -151,6 +151,29 @@ pub struct Estimate {
     pub flags: EstimateFlags,
 }
 
+/// What the control tick reads of an estimate, every tick ([`Estimator::step`]); the whole
+/// [`Estimate`] of the same tick comes from [`Estimator::details`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TickEstimate {
+    /// Head height.
+    pub height: Metres,
+    /// Screw speed θ̇ from the tracking filter (clamped to ±[`SPEED_MAX`]).
+    pub screw_speed: RadiansPerSecond,
+    /// Screw acceleration θ̈ from the tracking filter (clamped to ±[`ACCEL_MAX`]).
+    pub screw_accel: RadiansPerSecond2,
+    /// Friction torque T_r about the screw axis.
+    pub friction_torque: NewtonMetres,
+    /// Torque the model says the screw needs from the coupling.
+    pub model_screw_torque: NewtonMetres,
+    /// The same at the motor shaft.
+    pub model_motor_torque: NewtonMetres,
+    /// Torque the motor delivers to the screw, from its current.
+    pub measured_screw_torque: NewtonMetres,
+    /// Conditions of this estimate.
+    pub flags: EstimateFlags,
+}
+
 /// The estimator's configuration and state.
 #[derive(Clone, Debug)]
 pub struct Estimator {
@@ -164,6 +187,14 @@ pub struct Estimator {
     eta_over_n: Ratio,
     inv_n_eta: Ratio,
     rest_speed: RadiansPerSecond,
+    /// 2·μ_b (pin friction, Eq 6).
+    two_mu_pin: Ratio,
+    /// m·r_m·tan λ: θ̈(Q8) → N(Q8); I: θ̈(Q8) → N·m(Q16); c: θ̇(Q16) → N·m(Q16).
+    mass_lead: Scale,
+    inertia: Scale,
+    damping: Scale,
+    /// Support friction torque T₀, raw N·m bits.
+    screw_support: i32,
     /// α, β, 2γ in Q28 (each ≤ 1).
     gains: [i32; 3],
     speed_scale: Scale,
@@ -262,6 +293,11 @@ impl Estimator {
             eta_over_n,
             inv_n_eta,
             rest_speed: cfg.rest_speed,
+            two_mu_pin: Ratio::from_raw(cfg.geometry.mu_pin.bits() * 2),
+            mass_lead: screw.mass_lead(),
+            inertia: screw.inertia(),
+            damping: screw.damping(),
+            screw_support: cfg.mechanics.support_torque.bits(),
             gains: [alpha as i32, beta as i32, gamma2 as i32],
             speed_scale,
             accel_scale,
@@ -300,10 +336,11 @@ impl Estimator {
 
     /// One estimator tick. Total: no panic, no wrap, whatever the inputs.
     ///
-    /// `#[inline]` with [`Self::estimate`]: the firmware has one caller (the control tick),
-    /// which then builds the estimate in place instead of copying 100 bytes out of a temporary.
+    /// Returns the fields the control tick reads ([`TickEstimate`]); [`Self::details`] gives
+    /// the whole [`Estimate`] of the same tick on demand (telemetry, tests). `#[inline]`: the
+    /// firmware has one caller (the control tick), which then builds the result in place.
     #[inline]
-    pub fn step(&mut self, now: Instant, m: &Measurements) -> Estimate {
+    pub fn step(&mut self, now: Instant, m: &Measurements) -> TickEstimate {
         self.step_at(now, m, 0)
     }
 
@@ -311,10 +348,40 @@ impl Estimator {
     /// (Q16 of a count, from the encoder's edge times: `crate::control::edges`) above
     /// `m.position_counts`. `step` is this with 0, the bare count.
     #[inline]
-    pub fn step_at(&mut self, now: Instant, m: &Measurements, fraction: u16) -> Estimate {
+    pub fn step_at(&mut self, now: Instant, m: &Measurements, fraction: u16) -> TickEstimate {
+        let (speed, accel, flags) = self.filter(now, m.position_counts, fraction);
+        let x = self.model(m, speed, accel, flags);
+        TickEstimate {
+            height: x.pose.height,
+            screw_speed: x.speed,
+            screw_accel: x.accel,
+            friction_torque: x.core.friction_torque,
+            model_screw_torque: x.model_screw_torque,
+            model_motor_torque: x.model_motor_torque,
+            measured_screw_torque: x.measured_screw_torque,
+            flags: EstimateFlags(x.flags),
+        }
+    }
+
+    /// The whole estimate of a tick that [`Self::step`] returned `tick` for, with `m` its
+    /// measurements: the same numbers (bit for bit) plus the diagnostics (pose, R, F₀, c_x, μ,
+    /// ξ, N, residual, self-locking margin). Recomputed from the tick's inputs: about the cost
+    /// of a step, for telemetry and tests rather than every tick.
+    pub fn details(&self, m: &Measurements, tick: &TickEstimate) -> Estimate {
+        self.estimate(m, tick.screw_speed, tick.screw_accel, tick.flags.0)
+    }
+
+    /// The α-β-γ tracking filter: (speed, acceleration, flags) for this tick.
+    #[inline(always)]
+    fn filter(
+        &mut self,
+        now: Instant,
+        counts: i32,
+        fraction: u16,
+    ) -> (RadiansPerSecond, RadiansPerSecond2, u8) {
         let mut flags = 0u8;
         match self.last {
-            None => self.reset(m.position_counts),
+            None => self.reset(counts),
             Some(prev) => {
                 if now.micros_since(prev) > self.late_us {
                     flags |= EstimateFlags::LATE_TICK;
@@ -328,8 +395,8 @@ impl Estimator {
         // q ← α·r − r + fraction.
         // The residual is saturated to i32 (±32 768 counts per tick, beyond any drive), so
         // each correction is one 32×32→64 product and the gains (≤ 1 in Q28) keep it in i32.
-        let moved = i64::from(m.position_counts) - i64::from(self.last_counts);
-        self.last_counts = m.position_counts;
+        let moved = i64::from(counts) - i64::from(self.last_counts);
+        self.last_counts = counts;
         let predicted = i64::from(self.q) + i64::from(self.v) + i64::from(self.a >> 1);
         let r = sat32((moved << 16) + i64::from(fraction) - predicted);
         let correction = |g: i32| ((i64::from(r) * i64::from(g)) >> 28) as i32;
@@ -343,19 +410,68 @@ impl Estimator {
         self.a = self.a.saturating_add(correction(self.gains[2]));
         let speed = RadiansPerSecond::from_raw(self.speed_scale.apply32(self.v));
         let accel = RadiansPerSecond2::from_raw(self.accel_scale.apply32(self.a));
-        self.estimate(m, speed, accel, flags)
+        (speed, accel, flags)
     }
 
     /// The model's estimate at a given speed and acceleration (no filtering): the function the
-    /// float64 twin is held to.
+    /// float64 twin is held to. Every field; [`Self::step`] computes the same numbers for the
+    /// fields it returns.
     #[inline]
     pub fn estimate(
         &self,
         m: &Measurements,
         speed: RadiansPerSecond,
         accel: RadiansPerSecond2,
-        mut flags: u8,
+        flags: u8,
     ) -> Estimate {
+        let x = self.model(m, speed, accel, flags);
+        // Diagnostics, off the tick path: they saturate freely.
+        let axial_load = Newtons::from_raw(sat32(
+            (i64::from(x.ws) * i64::from(x.pose.cos_alpha.bits())) >> 28,
+        ));
+        let pin_friction = Newtons::from_raw(sat32(
+            (i64::from(x.ws) * i64::from(self.two_mu_pin.bits())) >> 28,
+        ));
+        Estimate {
+            pose: x.pose,
+            screw_speed: x.speed,
+            screw_accel: x.accel,
+            axial_load,
+            pin_friction,
+            structure_damping: x.c_x,
+            mu: x.mu,
+            contact: self.screw.contact_from(x.mu_s, x.w, &x.core),
+            model_screw_torque: x.model_screw_torque,
+            model_motor_torque: x.model_motor_torque,
+            measured_screw_torque: x.measured_screw_torque,
+            residual: x.measured_screw_torque.sat_sub(x.model_screw_torque),
+            self_locking_margin: self.screw.self_locking_margin(x.mu),
+            flags: EstimateFlags(x.flags),
+        }
+    }
+
+    /// The model shared by [`Self::step`] and [`Self::estimate`]: inlined into each, so a step
+    /// computes only what its result needs.
+    ///
+    /// Saturate once (docs/model.md "Numeric envelope"): the inputs are clamped to the
+    /// envelope (load 0…[`LOAD_MAX`], |θ̇| ≤ [`SPEED_MAX`], |θ̈| ≤ [`ACCEL_MAX`], μ ≤
+    /// `mu_max`; a clamp sets `SATURATED`), and within it no force can leave `Newtons`
+    /// for any validated configuration, so the force chain is plain 32×32→64 products and
+    /// adds. Only the torques, which a large screw under a large W can push past ±32 768 N·m,
+    /// saturate (and are flagged).
+    #[inline(always)]
+    fn model(
+        &self,
+        m: &Measurements,
+        speed: RadiansPerSecond,
+        accel: RadiansPerSecond2,
+        mut flags: u8,
+    ) -> Model {
+        let speed_c = speed.clamp(SPEED_MAX.sat_neg(), SPEED_MAX);
+        let accel_c = accel.clamp(ACCEL_MAX.sat_neg(), ACCEL_MAX);
+        let load = m.load.clamp(Kilograms::ZERO, LOAD_MAX);
+        let mut clamped = (speed_c != speed) | (accel_c != accel) | (load != m.load);
+        let (speed, accel) = (speed_c, accel_c);
         let pose = self.geometry.pose(m.position_counts);
         if pose.clamped {
             flags |= EstimateFlags::POSE_CLAMPED;
@@ -368,18 +484,44 @@ impl Estimator {
             flags |= EstimateFlags::AT_REST;
             m.commanded_dir.signum()
         };
-        let weight = Geometry::weight(m.load);
-        let (axial_load, pin_friction) = self.geometry.axial_and_pin(&pose, weight);
+        // M·g/sin α: ≤ 98.1 kN·8 (sin α ≥ sin 7°, 1/sin α saturates at 8) < 2^20 N.
+        let weight = Geometry::weight(load).bits();
+        let ws = ((i64::from(weight) * i64::from(pose.inv_sin_alpha.bits())) >> 28) as i32;
+        // R + F₀·dir = M·g/sin α·(cos α + 2μ_b·dir): one product; |…| ≤ 3, ≤ 2.4 MN.
+        let pins = match dir {
+            d if d > 0 => self.two_mu_pin.bits(),
+            d if d < 0 => -self.two_mu_pin.bits(),
+            _ => 0,
+        };
+        let r_f0 = ((i64::from(ws) * i64::from(pose.cos_alpha.bits() + pins)) >> 28) as i32;
         let c_x = self.geometry.structure_damping(pose.alpha);
-        let mu = self.law.mu(speed);
-        let w = self
-            .screw
-            .axial_demand(speed, accel, dir, axial_load, pin_friction, c_x);
-        let contact = self.screw.contact(mu, dir, w);
+        // c_x·ẋ: ≤ 58 544 kg/s · 0.0182 m/rad · 2000 rad/s < 2.2 MN; m·r_m·tan λ·θ̈ < 6 kN.
+        let x_dot = self.screw.nut_speed(speed).bits();
+        let damping = ((i64::from(c_x.bits()) * i64::from(x_dot)) >> 24) as i32;
+        let inertial = self.mass_lead.apply32(accel.bits());
+        // |W| < 4.6 MN < 2^23 N: no overflow in the sum (Q8: < 2^31).
+        let w = Newtons::from_raw(inertial + r_f0 + damping);
+        let mu_law = self.law.mu(speed);
+        let mu = mu_law.min(self.screw.mu_max());
+        clamped |= mu != mu_law;
+        let mu_s = match dir {
+            d if d > 0 => mu,
+            d if d < 0 => Ratio::from_raw(-mu.bits()),
+            _ => Ratio::ZERO,
+        };
+        let core = self.screw.torques(mu_s, w);
         if w < Newtons::ZERO {
             flags |= EstimateFlags::FLANK_REVERSED;
         }
-        let model_screw_torque = self.screw.required_torque(speed, accel, dir, &contact);
+        // I·θ̈ + c·θ̇ + T₀·dir: ≤ 6554 + 2000 + 10 N·m within the envelope (I ≤ 0.1 kg·m²,
+        // c ≤ 1 N·m·s/rad), so only the thread torque's add saturates.
+        let support = match dir {
+            d if d > 0 => self.screw_support,
+            d if d < 0 => -self.screw_support,
+            _ => 0,
+        };
+        let own = self.inertia.apply32(accel.bits()) + self.damping.apply32(speed.bits()) + support;
+        let model_screw_torque = NewtonMetres::from_raw(own).sat_add(core.thread_torque);
         // Power flows motor → screw when the torque and the motion agree (or at rest).
         let motoring = (model_screw_torque >= NewtonMetres::ZERO) == (dir >= 0) || dir == 0;
         let model_motor_torque: NewtonMetres = if motoring {
@@ -387,44 +529,70 @@ impl Estimator {
         } else {
             qmul(model_screw_torque, self.eta_over_n)
         };
-        let motor_torque: NewtonMetres = qmul(m.motor_current, self.kt);
+        // k_t ≤ 1: |i·k_t| ≤ 32 768 N·m, no overflow; the gearbox factor can (saturated).
+        let motor_torque = NewtonMetres::from_raw(
+            ((i64::from(m.motor_current.bits()) * i64::from(self.kt.bits())) >> 28) as i32,
+        );
         let measured_motoring = (motor_torque >= NewtonMetres::ZERO) == (dir >= 0) || dir == 0;
         let measured_screw_torque: NewtonMetres = if measured_motoring {
             qmul(motor_torque, self.n_eta)
         } else {
             qmul(motor_torque, self.n_over_eta)
         };
-        let residual = measured_screw_torque.sat_sub(model_screw_torque);
         // On a saturation bound (MAX or MIN): v ^ (v >> 31) is MAX for both. Non-short-circuit
         // `|` keeps the sweep branch-free.
         let on_bound = |v: i32| (v ^ (v >> 31)) == i32::MAX;
-        if on_bound(axial_load.bits())
-            | on_bound(pin_friction.bits())
-            | on_bound(w.bits())
-            | on_bound(contact.normal.bits())
+        if clamped
+            | on_bound(core.friction_torque.bits())
+            | on_bound(core.thread_torque.bits())
             | on_bound(model_screw_torque.bits())
-            | on_bound(contact.friction_torque.bits())
+            | on_bound(model_motor_torque.bits())
             | on_bound(measured_screw_torque.bits())
-            | on_bound(speed.bits())
-            | on_bound(accel.bits())
         {
             flags |= EstimateFlags::SATURATED;
         }
-        Estimate {
+        Model {
             pose,
-            screw_speed: speed,
-            screw_accel: accel,
-            axial_load,
-            pin_friction,
-            structure_damping: c_x,
+            speed,
+            accel,
+            ws,
+            c_x,
             mu,
-            contact,
+            mu_s,
+            w,
+            core,
             model_screw_torque,
             model_motor_torque,
             measured_screw_torque,
-            residual,
-            self_locking_margin: self.screw.self_locking_margin(mu),
-            flags: EstimateFlags(flags),
+            flags,
         }
     }
+}
+
+/// The envelope of the estimator's inputs (docs/model.md "Numeric envelope"): outside it an
+/// input is clamped and the estimate flagged `SATURATED`. Far beyond any lift of the validated
+/// configurations (rated load ≤ 5 t, cruise ≤ 20 rad/s).
+pub const LOAD_MAX: Kilograms = Kilograms::lit("10000");
+/// Largest screw speed the model evaluates, rad/s.
+pub const SPEED_MAX: RadiansPerSecond = RadiansPerSecond::lit("2000");
+/// Largest screw acceleration the model evaluates, rad/s².
+pub const ACCEL_MAX: RadiansPerSecond2 = RadiansPerSecond2::lit("65536");
+
+/// Everything [`Estimator::model`] computes; each caller keeps what it returns (the rest is
+/// dead code after inlining).
+struct Model {
+    pose: Pose,
+    speed: RadiansPerSecond,
+    accel: RadiansPerSecond2,
+    /// M·g/sin α, raw Newtons bits.
+    ws: i32,
+    c_x: KilogramsPerSecond,
+    mu: Ratio,
+    mu_s: Ratio,
+    w: Newtons,
+    core: ContactCore,
+    model_screw_torque: NewtonMetres,
+    model_motor_torque: NewtonMetres,
+    measured_screw_torque: NewtonMetres,
+    flags: u8,
 }

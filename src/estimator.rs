@@ -12,13 +12,14 @@
 
 use crate::math::{div128, exp_neg_q16};
 use crate::model::friction::{CompiledLaw, FrictionLaw};
-use crate::model::geometry::{DriveConfig, Geometry, GeometryConfig, Pose};
+use crate::model::geometry::{DriveConfig, Geometry, GeometryConfig, Pose, DAMPING_TABLE};
 use crate::model::screw::{Contact, ContactCore, MechanicsConfig, ScrewModel};
 use crate::model::Scale;
 use crate::units::{
     qmul, sat32, Amperes, Factor, Instant, Kilograms, KilogramsPerSecond, Metres, NewtonMetres,
     Newtons, RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
 };
+use crate::units::Angle;
 use crate::ConfigError;
 
 /// Motor and gearbox constants.
@@ -189,10 +190,15 @@ pub struct Estimator {
     rest_speed: RadiansPerSecond,
     /// 2·μ_b (pin friction, Eq 6).
     two_mu_pin: Ratio,
-    /// m·r_m·tan λ: θ̈(Q8) → N(Q8); I: θ̈(Q8) → N·m(Q16); c: θ̇(Q16) → N·m(Q16).
-    mass_lead: Scale,
-    inertia: Scale,
-    damping: Scale,
+    /// Per-tick constants in fixed formats (no run-time shift amounts, docs/model.md
+    /// "Numeric envelope"): m·r_m·tan λ in Q32 (≤ 0.091 N per rad/s²), I in Q32 (≤ 0.1
+    /// kg·m²), c in Q30 (≤ 1 N·m·s/rad).
+    mass_lead_q32: i32,
+    inertia_q32: i32,
+    damping_q30: i32,
+    /// Table 1 times the lead r_m·tan λ: (α, c_x·r_m·tan λ in Q20 N per rad/s, slope per
+    /// Angle LSB in Q20·2^-24), so that the damping force c_x·ẋ is one product with θ̇.
+    damping_lead: [(i32, i32, i64); 3],
     /// Support friction torque T₀, raw N·m bits.
     screw_support: i32,
     /// α, β, 2γ in Q28 (each ≤ 1).
@@ -261,6 +267,19 @@ impl Estimator {
                 range: "0..50 rad/s",
             });
         }
+        // c_x·r_m·tan λ in Q20: c_x (kg/s)·r (Q24)·t (Q28) / 2^32 (≤ 58 544·0.0182·2^20).
+        let r_bits = i128::from(screw.pitch_radius().bits());
+        let tan_bits = i128::from(screw.tan_lambda().bits());
+        let mut damping_lead = [(0i32, 0i32, 0i64); 3];
+        for (i, &(deg, cx)) in DAMPING_TABLE.iter().enumerate() {
+            damping_lead[i].0 = Angle::from_degrees(fixed::types::I16F16::from_num(deg)).0;
+            damping_lead[i].1 = (i128::from(cx) * r_bits * tan_bits >> 32) as i32;
+        }
+        for i in 0..2 {
+            let da = i64::from(damping_lead[i + 1].0 - damping_lead[i].0);
+            let dc = i64::from(damping_lead[i + 1].1 - damping_lead[i].1);
+            damping_lead[i].2 = (dc << 24) / da;
+        }
         let n = i128::from(cfg.drive.gear_ratio.to_bits()); // Q16
         let eta = i128::from(m.gear_efficiency.bits()); // Q28
         let n_eta = Factor::from_raw(((n * eta) >> 28) as i32);
@@ -294,9 +313,14 @@ impl Estimator {
             inv_n_eta,
             rest_speed: cfg.rest_speed,
             two_mu_pin: Ratio::from_raw(cfg.geometry.mu_pin.bits() * 2),
-            mass_lead: screw.mass_lead(),
-            inertia: screw.inertia(),
-            damping: screw.damping(),
+            mass_lead_q32: {
+                // m (Q12)·r_m (Q24)·tan λ (Q28) = value·2^64 → Q32; ≤ 5·0.05·0.364·2^32.
+                let m = i128::from(cfg.mechanics.nut_mass.bits());
+                (m * r_bits * tan_bits >> 32) as i32
+            },
+            inertia_q32: ((i64::from(cfg.mechanics.inertia_ukgm2) << 32) / 1_000_000) as i32,
+            damping_q30: ((i64::from(cfg.mechanics.damping_unms) << 30) / 1_000_000) as i32,
+            damping_lead,
             screw_support: cfg.mechanics.support_torque.bits(),
             gains: [alpha as i32, beta as i32, gamma2 as i32],
             speed_scale,
@@ -438,7 +462,7 @@ impl Estimator {
             screw_accel: x.accel,
             axial_load,
             pin_friction,
-            structure_damping: x.c_x,
+            structure_damping: self.geometry.structure_damping(x.pose.alpha),
             mu: x.mu,
             contact: self.screw.contact_from(x.mu_s, x.w, &x.core),
             model_screw_torque: x.model_screw_torque,
@@ -488,39 +512,30 @@ impl Estimator {
         let weight = Geometry::weight(load).bits();
         let ws = ((i64::from(weight) * i64::from(pose.inv_sin_alpha.bits())) >> 28) as i32;
         // R + F₀·dir = M·g/sin α·(cos α + 2μ_b·dir): one product; |…| ≤ 3, ≤ 2.4 MN.
-        let pins = match dir {
-            d if d > 0 => self.two_mu_pin.bits(),
-            d if d < 0 => -self.two_mu_pin.bits(),
-            _ => 0,
-        };
+        let dir32 = i32::from(dir);
+        let pins = dir32 * self.two_mu_pin.bits();
         let r_f0 = ((i64::from(ws) * i64::from(pose.cos_alpha.bits() + pins)) >> 28) as i32;
-        let c_x = self.geometry.structure_damping(pose.alpha);
-        // c_x·ẋ: ≤ 58 544 kg/s · 0.0182 m/rad · 2000 rad/s < 2.2 MN; m·r_m·tan λ·θ̈ < 6 kN.
-        let x_dot = self.screw.nut_speed(speed).bits();
-        let damping = ((i64::from(c_x.bits()) * i64::from(x_dot)) >> 24) as i32;
-        let inertial = self.mass_lead.apply32(accel.bits());
+        // c_x·ẋ = (c_x·r_m·tan λ)·θ̇: ≤ 1066 N·s/rad · 2000 rad/s < 2.2 MN (Q20·Q16 → Q8).
+        let cxl = self.damping_lead(pose.alpha);
+        let damping = ((i64::from(cxl) * i64::from(speed.bits())) >> 28) as i32;
+        // m·r_m·tan λ·θ̈ < 0.091·65 536 < 6 kN: the high word of Q8·Q32.
+        let inertial = ((i64::from(accel.bits()) * i64::from(self.mass_lead_q32)) >> 32) as i32;
         // |W| < 4.6 MN < 2^23 N: no overflow in the sum (Q8: < 2^31).
         let w = Newtons::from_raw(inertial + r_f0 + damping);
         let mu_law = self.law.mu(speed);
         let mu = mu_law.min(self.screw.mu_max());
         clamped |= mu != mu_law;
-        let mu_s = match dir {
-            d if d > 0 => mu,
-            d if d < 0 => Ratio::from_raw(-mu.bits()),
-            _ => Ratio::ZERO,
-        };
+        // |μ| ≤ 4: dir·μ cannot overflow.
+        let mu_s = Ratio::from_raw(dir32 * mu.bits());
         let core = self.screw.torques(mu_s, w);
         if w < Newtons::ZERO {
             flags |= EstimateFlags::FLANK_REVERSED;
         }
         // I·θ̈ + c·θ̇ + T₀·dir: ≤ 6554 + 2000 + 10 N·m within the envelope (I ≤ 0.1 kg·m²,
         // c ≤ 1 N·m·s/rad), so only the thread torque's add saturates.
-        let support = match dir {
-            d if d > 0 => self.screw_support,
-            d if d < 0 => -self.screw_support,
-            _ => 0,
-        };
-        let own = self.inertia.apply32(accel.bits()) + self.damping.apply32(speed.bits()) + support;
+        let inertia = ((i64::from(accel.bits()) * i64::from(self.inertia_q32)) >> 24) as i32;
+        let damping = ((i64::from(speed.bits()) * i64::from(self.damping_q30)) >> 30) as i32;
+        let own = inertia + damping + dir32 * self.screw_support;
         let model_screw_torque = NewtonMetres::from_raw(own).sat_add(core.thread_torque);
         // Power flows motor → screw when the torque and the motion agree (or at rest).
         let motoring = (model_screw_torque >= NewtonMetres::ZERO) == (dir >= 0) || dir == 0;
@@ -556,7 +571,6 @@ impl Estimator {
             speed,
             accel,
             ws,
-            c_x,
             mu,
             mu_s,
             w,
@@ -566,6 +580,28 @@ impl Estimator {
             measured_screw_torque,
             flags,
         }
+    }
+}
+
+impl Estimator {
+    /// c_x(α)·r_m·tan λ (Q20, N per rad/s): Table 1 as [`Geometry::structure_damping`]
+    /// interpolates it (linear in α between its angles, flat outside), times the lead.
+    #[inline(always)]
+    fn damping_lead(&self, alpha: Angle) -> i32 {
+        let t = &self.damping_lead;
+        let a = alpha.0;
+        if a <= t[0].0 {
+            return t[0].1;
+        }
+        let i = if a <= t[1].0 {
+            0
+        } else if a <= t[2].0 {
+            1
+        } else {
+            return t[2].1;
+        };
+        // Within a segment: |Δα·slope| ≤ |Δc| < 2^31, so the sum stays between two entries.
+        t[i].1 + ((i64::from(a - t[i].0) * t[i].2) >> 24) as i32
     }
 }
 
@@ -586,7 +622,6 @@ struct Model {
     accel: RadiansPerSecond2,
     /// M·g/sin α, raw Newtons bits.
     ws: i32,
-    c_x: KilogramsPerSecond,
     mu: Ratio,
     mu_s: Ratio,
     w: Newtons,

@@ -15,11 +15,11 @@ use crate::model::friction::{CompiledLaw, FrictionLaw};
 use crate::model::geometry::{DriveConfig, Geometry, GeometryConfig, Pose, DAMPING_TABLE};
 use crate::model::screw::{Contact, ContactCore, MechanicsConfig, ScrewModel};
 use crate::model::Scale;
-use crate::units::{
-    qmul, sat32, Amperes, Factor, Instant, Kilograms, KilogramsPerSecond, Metres, NewtonMetres,
-    Newtons, RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
-};
 use crate::units::Angle;
+use crate::units::{
+    narrow, qmul, sat32, Amperes, Factor, Instant, Kilograms, KilogramsPerSecond, Metres,
+    NewtonMetres, Newtons, RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
+};
 use crate::ConfigError;
 
 /// Motor and gearbox constants.
@@ -510,18 +510,20 @@ impl Estimator {
         };
         // M·g/sin α: ≤ 98.1 kN·8 (sin α ≥ sin 7°, 1/sin α saturates at 8) < 2^20 N.
         let weight = Geometry::weight(load).bits();
-        let ws = ((i64::from(weight) * i64::from(pose.inv_sin_alpha.bits())) >> 28) as i32;
+        let ws = narrow((i64::from(weight) * i64::from(pose.inv_sin_alpha.bits())) >> 28);
         // R + F₀·dir = M·g/sin α·(cos α + 2μ_b·dir): one product; |…| ≤ 3, ≤ 2.4 MN.
         let dir32 = i32::from(dir);
         let pins = dir32 * self.two_mu_pin.bits();
-        let r_f0 = ((i64::from(ws) * i64::from(pose.cos_alpha.bits() + pins)) >> 28) as i32;
+        let r_f0 = narrow((i64::from(ws) * i64::from(pose.cos_alpha.bits() + pins)) >> 28);
         // c_x·ẋ = (c_x·r_m·tan λ)·θ̇: ≤ 1066 N·s/rad · 2000 rad/s < 2.2 MN (Q20·Q16 → Q8).
         let cxl = self.damping_lead(pose.alpha);
-        let damping = ((i64::from(cxl) * i64::from(speed.bits())) >> 28) as i32;
+        let damping = narrow((i64::from(cxl) * i64::from(speed.bits())) >> 28);
         // m·r_m·tan λ·θ̈ < 0.091·65 536 < 6 kN: the high word of Q8·Q32.
-        let inertial = ((i64::from(accel.bits()) * i64::from(self.mass_lead_q32)) >> 32) as i32;
+        let inertial = narrow((i64::from(accel.bits()) * i64::from(self.mass_lead_q32)) >> 32);
         // |W| < 4.6 MN < 2^23 N: no overflow in the sum (Q8: < 2^31).
-        let w = Newtons::from_raw(inertial + r_f0 + damping);
+        let w = Newtons::from_raw(narrow(
+            i64::from(inertial) + i64::from(r_f0) + i64::from(damping),
+        ));
         let mu_law = self.law.mu(speed);
         let mu = mu_law.min(self.screw.mu_max());
         clamped |= mu != mu_law;
@@ -533,9 +535,10 @@ impl Estimator {
         }
         // I·θ̈ + c·θ̇ + T₀·dir: ≤ 6554 + 2000 + 10 N·m within the envelope (I ≤ 0.1 kg·m²,
         // c ≤ 1 N·m·s/rad), so only the thread torque's add saturates.
-        let inertia = ((i64::from(accel.bits()) * i64::from(self.inertia_q32)) >> 24) as i32;
-        let damping = ((i64::from(speed.bits()) * i64::from(self.damping_q30)) >> 30) as i32;
-        let own = inertia + damping + dir32 * self.screw_support;
+        let inertia = narrow((i64::from(accel.bits()) * i64::from(self.inertia_q32)) >> 24);
+        let damping = narrow((i64::from(speed.bits()) * i64::from(self.damping_q30)) >> 30);
+        let own =
+            narrow(i64::from(inertia) + i64::from(damping) + i64::from(dir32 * self.screw_support));
         let model_screw_torque = NewtonMetres::from_raw(own).sat_add(core.thread_torque);
         // Power flows motor → screw when the torque and the motion agree (or at rest).
         let motoring = (model_screw_torque >= NewtonMetres::ZERO) == (dir >= 0) || dir == 0;
@@ -545,9 +548,9 @@ impl Estimator {
             qmul(model_screw_torque, self.eta_over_n)
         };
         // k_t ≤ 1: |i·k_t| ≤ 32 768 N·m, no overflow; the gearbox factor can (saturated).
-        let motor_torque = NewtonMetres::from_raw(
-            ((i64::from(m.motor_current.bits()) * i64::from(self.kt.bits())) >> 28) as i32,
-        );
+        let motor_torque = NewtonMetres::from_raw(narrow(
+            (i64::from(m.motor_current.bits()) * i64::from(self.kt.bits())) >> 28,
+        ));
         let measured_motoring = (motor_torque >= NewtonMetres::ZERO) == (dir >= 0) || dir == 0;
         let measured_screw_torque: NewtonMetres = if measured_motoring {
             qmul(motor_torque, self.n_eta)
@@ -601,7 +604,7 @@ impl Estimator {
             return t[2].1;
         };
         // Within a segment: |Δα·slope| ≤ |Δc| < 2^31, so the sum stays between two entries.
-        t[i].1 + ((i64::from(a - t[i].0) * t[i].2) >> 24) as i32
+        narrow(i64::from(t[i].1) + ((i64::from(a - t[i].0) * t[i].2) >> 24))
     }
 }
 

@@ -492,7 +492,8 @@ impl<T: Real> FloatEstimator<T> {
 
         // Contact (Eqs 7–10), either flank.
         // R + F₀·dir in one product, as the fixed-point step.
-        let w = self.mass_lead * accel + ws * (c + self.two_mu_pin * dir_t) + c_x * self.lead * speed;
+        let w =
+            self.mass_lead * accel + ws * (c + self.two_mu_pin * dir_t) + c_x * self.lead * speed;
         let mu_s = mu * dir_t;
         let mt = mu_s * self.tan_l;
         let loaded = w >= T::ZERO;

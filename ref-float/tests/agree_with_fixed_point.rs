@@ -169,7 +169,10 @@ fn filter_agrees<T: Real>(b: &Budget, speed_tol: f64) {
         let ft = float.step(k * 1000, &fm);
         let (e, f) = (fixed.details(&m, &t), float.details(&fm, &ft));
         assert_eq!(t.model_screw_torque, e.model_screw_torque);
-        assert_eq!(ft.model_screw_torque.to_f64(), f.model_screw_torque.to_f64());
+        assert_eq!(
+            ft.model_screw_torque.to_f64(),
+            f.model_screw_torque.to_f64()
+        );
         let dv = (e.screw_speed.to_f64() - f.screw_speed.to_f64()).abs();
         assert!(dv < speed_tol, "tick {k}: speed {dv}");
         // Compare the model only where the two filters agree on the friction direction.

@@ -10,11 +10,11 @@
 use crate::math::recip_q16_fast;
 use crate::model::geometry::DriveConfig;
 use crate::model::Scale;
+use crate::units::{narrow, sat32};
 use crate::units::{
     qmul, Angle, Kilograms, KilogramsPerSecond, Metres, MetresPerSecond, NewtonMetres, Newtons,
     RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
 };
-use crate::units::sat32;
 use crate::ConfigError;
 
 /// Mechanical constants of the screw assembly (seed 000).
@@ -220,7 +220,7 @@ impl ScrewModel {
     #[inline(always)]
     pub fn torques(&self, mu_s: Ratio, w: Newtons) -> ContactCore {
         let tan = self.tan_l.bits();
-        let mt = ((i64::from(mu_s.bits()) * i64::from(tan)) >> 28) as i32;
+        let mt = narrow((i64::from(mu_s.bits()) * i64::from(tan)) >> 28);
         let loaded = w >= Newtons::ZERO;
         let (den, num) = if loaded {
             ((1 << 28) - mt, tan + mu_s.bits())
@@ -229,7 +229,7 @@ impl ScrewModel {
         };
         let inv_q16 = recip_q16_fast(den as u32);
         // r_m/(1 ∓ μ_s tan λ) in Q32: Q16·Q24 = Q40 → Q32; ≤ 1.5·0.05 m·2^32 < 2^29.
-        let k = ((u64::from(inv_q16) * u64::from(self.r_m.bits() as u32)) >> 8) as i32;
+        let k = narrow(((u64::from(inv_q16) * u64::from(self.r_m.bits() as u32)) >> 8) as i64);
         // r_m·W/(1 ∓ μ_s tan λ) once (Q8·Q32 = Q40 → Q16): T_r = μ_s·|that|, thread torque
         // r_m·W·ξ = that·num.
         let wk = sat32((i64::from(w.bits()) * i64::from(k)) >> 24);

@@ -103,3 +103,102 @@ impl Scale {
         f64::from(self.mant) / (1u64 << self.shift) as f64
     }
 }
+
+/// A [`Scale`] for the per-tick path: one `SMULL` whose high word is the result, no run-time
+/// branch and no saturation, for an input clamped to `±limit` (set so that the result stays
+/// within `±out_max`). Inside the limit the result is exactly [`Scale::apply32`]'s,
+/// `floor(v·mant/2^shift)`: `((v << lsh)·mant) >> 32 >> rsh` with `shift = 32 + rsh − lsh`.
+/// An input beyond the limit gives the result at the limit; callers choose `out_max` so that
+/// this is still past their own bound (they clamp and flag it there).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct ClampedScale {
+    limit: i32,
+    lsh: u32,
+    mant: i32,
+    rsh: u32,
+}
+
+impl ClampedScale {
+    /// `scale` for results within `±out_max` (`0 ≤ out_max ≤ 2^29`: above that the shifted
+    /// input's own i32 range, not `out_max`, sets the limit, and the result at the limit can
+    /// fall short of `out_max`).
+    pub fn new(scale: Scale, out_max: i32) -> ClampedScale {
+        let (mut mant, mut shift) = scale.parts();
+        if mant == 0 {
+            return ClampedScale::default();
+        }
+        if shift == 0 {
+            // A constant ≥ 2^30 in raw units: drop its last bit so that lsh ≤ 31.
+            mant >>= 1;
+            shift = 1;
+        }
+        let (lsh, rsh) = if shift >= 32 {
+            (0, shift - 32)
+        } else {
+            (32 - shift, 0)
+        };
+        let by_out = (i128::from(out_max.max(0)) << shift) / i128::from(mant.unsigned_abs());
+        let limit = by_out.min(i128::from(i32::MAX >> lsh)) as i32;
+        ClampedScale {
+            limit,
+            lsh,
+            mant,
+            rsh,
+        }
+    }
+
+    /// `v·constant` for `|v| ≤ limit` (clamped there otherwise).
+    #[inline(always)]
+    pub fn apply(self, v: i32) -> i32 {
+        let v = v.clamp(-self.limit, self.limit) << self.lsh;
+        (((i64::from(v) * i64::from(self.mant)) >> 32) as i32) >> self.rsh
+    }
+
+    /// The largest input magnitude applied as it is.
+    pub fn limit(self) -> i32 {
+        self.limit
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clamped_scale_equals_apply32_inside_its_limit_and_holds_beyond() {
+        let consts: [(i128, i128); 8] = [
+            (1, 3),
+            (7, 2),
+            (-5, 9),
+            (378_611, 1),
+            (1, 1 << 40),
+            (15_708, 1),
+            (3, 1 << 20),
+            (1 << 40, 3),
+        ];
+        for (num, den) in consts {
+            let s = Scale::from_ratio(num, den);
+            for out_max in [1 << 20, 1 << 29, i32::MAX >> 1] {
+                let c = ClampedScale::new(s, out_max);
+                let lim = c.limit();
+                assert!(lim >= 0);
+                let mut x: u32 = 0x1234_5678;
+                for _ in 0..20_000 {
+                    x ^= x << 13;
+                    x ^= x >> 17;
+                    x ^= x << 5;
+                    let v = (x as i32) % (lim.max(1));
+                    let want = s.apply32(v);
+                    assert!(want.unsigned_abs() <= out_max as u32 + 1, "{num}/{den}");
+                    // Equal where the constant kept all its bits (not the ≥ 2^30 case).
+                    if s.parts().1 > 0 {
+                        assert_eq!(c.apply(v), want, "{num}/{den} at {v}");
+                    }
+                }
+                for v in [i32::MIN, (-lim).saturating_sub(1), lim.saturating_add(1), i32::MAX] {
+                    assert_eq!(c.apply(v), c.apply(v.clamp(-lim, lim)));
+                }
+            }
+        }
+    }
+}

@@ -14,7 +14,7 @@ use crate::math::{div128, exp_neg_q16};
 use crate::model::friction::{CompiledLaw, FrictionLaw};
 use crate::model::geometry::{DriveConfig, Geometry, GeometryConfig, Pose, DAMPING_TABLE};
 use crate::model::screw::{Contact, ContactCore, MechanicsConfig, ScrewModel};
-use crate::model::{ClampedScale, Scale};
+use crate::model::Scale;
 use crate::units::Angle;
 use crate::units::{
     narrow, qmul, sat32, Amperes, Factor, Instant, Kilograms, KilogramsPerSecond, Metres,
@@ -203,10 +203,8 @@ pub struct Estimator {
     screw_support: i32,
     /// α, β, 2γ in Q28 (each ≤ 1).
     gains: [i32; 3],
-    /// counts/tick (Q16) → rad/s (Q16) and counts/tick² (Q16) → rad/s² (Q8), for filter
-    /// states up to twice the envelope (beyond it the model clamps and flags them).
-    speed_scale: ClampedScale,
-    accel_scale: ClampedScale,
+    speed_scale: Scale,
+    accel_scale: Scale,
     /// A tick later than this (1.5 periods, µs) is flagged late.
     late_us: u32,
     // Filter state: the last count; position relative to it, speed and acceleration in Q16
@@ -325,8 +323,8 @@ impl Estimator {
             damping_lead,
             screw_support: cfg.mechanics.support_torque.bits(),
             gains: [alpha as i32, beta as i32, gamma2 as i32],
-            speed_scale: ClampedScale::new(speed_scale, 2 * SPEED_MAX.to_bits()),
-            accel_scale: ClampedScale::new(accel_scale, 2 * ACCEL_MAX.to_bits()),
+            speed_scale,
+            accel_scale,
             late_us: cfg.tick_us * 3 / 2,
             last_counts: 0,
             q: 0,
@@ -434,8 +432,8 @@ impl Estimator {
             .saturating_add(self.a)
             .saturating_add(correction(self.gains[1]));
         self.a = self.a.saturating_add(correction(self.gains[2]));
-        let speed = RadiansPerSecond::from_raw(self.speed_scale.apply(self.v));
-        let accel = RadiansPerSecond2::from_raw(self.accel_scale.apply(self.a));
+        let speed = RadiansPerSecond::from_raw(self.speed_scale.apply32(self.v));
+        let accel = RadiansPerSecond2::from_raw(self.accel_scale.apply32(self.a));
         (speed, accel, flags)
     }
 

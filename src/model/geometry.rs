@@ -8,7 +8,7 @@
 
 use crate::check_range as check;
 use crate::math::{first_quadrant_angle, sqrt_q30, sqrt_rsqrt_q30};
-use crate::model::{ClampedScale, Scale};
+use crate::model::Scale;
 use crate::units::{sat32, Angle, Kilograms, KilogramsPerSecond, Metres, Newtons, Ratio, Q};
 use crate::ConfigError;
 use fixed::types::I16F16;
@@ -82,8 +82,7 @@ pub struct Geometry {
     /// Nut travel per motor encoder count: x_Q24 = counts·metres_per_count.
     metres_per_count: Scale,
     /// x/L per motor count, as a scale from counts to Q28: cos α = cos α₀ − counts·this.
-    /// Clamped where x/L reaches ±2, far outside the valid band: the pose clamps and flags it.
-    cos_per_count: ClampedScale,
+    cos_per_count: Scale,
     /// Motor counts per metre of nut travel (inverse of the above).
     counts_per_metre: Scale,
     /// Screw radians per motor count, as a scale from counts to Q16 radians.
@@ -223,7 +222,7 @@ impl Geometry {
             cos_hi,
             inv_len_q24,
             metres_per_count,
-            cos_per_count: ClampedScale::new(cos_per_count, 1 << 29),
+            cos_per_count,
             counts_per_metre,
             screw_rad_per_count,
             damping,
@@ -270,7 +269,7 @@ impl Geometry {
     /// reports but the per-tick model does not need (dead code in the estimator's step).
     #[inline(always)]
     pub fn pose(&self, counts: i32) -> Pose {
-        self.pose_with(self.travel(counts), self.cos_per_count.apply(counts))
+        self.pose_with(self.travel(counts), self.cos_per_count.apply32(counts))
     }
 
     /// The pose for a nut travel `x` (Eq 1: cos α = cos α₀ − x/L).

@@ -197,8 +197,8 @@ pub struct Estimator {
     inertia_q32: i32,
     damping_q30: i32,
     /// Table 1 times the lead r_m·tan λ: (α, c_x·r_m·tan λ in Q20 N per rad/s, slope per
-    /// Angle LSB in Q20·2^-24), so that the damping force c_x·ẋ is one product with θ̇.
-    damping_lead: [(i32, i32, i64); 3],
+    /// Angle LSB in Q20·2^-28), so that the damping force c_x·ẋ is one product with θ̇.
+    damping_lead: [(i32, i32, i32); 3],
     /// Support friction torque T₀, raw N·m bits.
     screw_support: i32,
     /// α, β, 2γ in Q28 (each ≤ 1).
@@ -270,15 +270,17 @@ impl Estimator {
         // c_x·r_m·tan λ in Q20: c_x (kg/s)·r (Q24)·t (Q28) / 2^32 (≤ 58 544·0.0182·2^20).
         let r_bits = i128::from(screw.pitch_radius().bits());
         let tan_bits = i128::from(screw.tan_lambda().bits());
-        let mut damping_lead = [(0i32, 0i32, 0i64); 3];
+        let mut damping_lead = [(0i32, 0i32, 0i32); 3];
         for (i, &(deg, cx)) in DAMPING_TABLE.iter().enumerate() {
             damping_lead[i].0 = Angle::from_degrees(fixed::types::I16F16::from_num(deg)).0;
             damping_lead[i].1 = (i128::from(cx) * r_bits * tan_bits >> 32) as i32;
         }
         for i in 0..2 {
+            // Q28 per Angle LSB: |Δc/Δα| ≤ 2^30/2^27.8 (≥ 20° between entries) < 4.6, so
+            // < 2^31; the smallest lead keeps 18 significant bits.
             let da = i64::from(damping_lead[i + 1].0 - damping_lead[i].0);
             let dc = i64::from(damping_lead[i + 1].1 - damping_lead[i].1);
-            damping_lead[i].2 = (dc << 24) / da;
+            damping_lead[i].2 = ((dc << 28) / da) as i32;
         }
         let n = i128::from(cfg.drive.gear_ratio.to_bits()); // Q16
         let eta = i128::from(m.gear_efficiency.bits()); // Q28
@@ -604,7 +606,7 @@ impl Estimator {
             return t[2].1;
         };
         // Within a segment: |Δα·slope| ≤ |Δc| < 2^31, so the sum stays between two entries.
-        narrow(i64::from(t[i].1) + ((i64::from(a - t[i].0) * t[i].2) >> 24))
+        narrow(i64::from(t[i].1) + ((i64::from(a - t[i].0) * i64::from(t[i].2)) >> 28))
     }
 }
 

@@ -419,12 +419,16 @@ impl Estimator {
         // is kept relative to the last count (q = p − count·2^16), so the whole state is i32:
         // residual r = count·2^16 + fraction − (p + v + a/2), then p ← p + α·r, i.e.
         // q ← α·r − r + fraction.
-        // The residual is saturated to i32 (±32 768 counts per tick, beyond any drive), so
-        // each correction is one 32×32→64 product and the gains (≤ 1 in Q28) keep it in i32.
-        let moved = i64::from(counts) - i64::from(self.last_counts);
+        // The count's move is clamped to ±32 767 counts per tick (beyond any drive: `SSAT`)
+        // and every sum saturates in i32 (`QADD`/`QSUB`), so the residual is i32 without
+        // 64-bit arithmetic and each correction is one 32×32→64 product; the gains (≤ 1 in
+        // Q28) keep it in i32.
+        let moved = counts.saturating_sub(self.last_counts).clamp(-32_768, 32_767);
         self.last_counts = counts;
-        let predicted = i64::from(self.q) + i64::from(self.v) + i64::from(self.a >> 1);
-        let r = sat32((moved << 16) + i64::from(fraction) - predicted);
+        let predicted = self.q.saturating_add(self.v).saturating_add(self.a >> 1);
+        let r = (moved << 16)
+            .saturating_add(i32::from(fraction))
+            .saturating_sub(predicted);
         let correction = |g: i32| ((i64::from(r) * i64::from(g)) >> 28) as i32;
         self.q = correction(self.gains[0])
             .saturating_sub(r)

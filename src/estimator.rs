@@ -423,7 +423,9 @@ impl Estimator {
         // and every sum saturates in i32 (`QADD`/`QSUB`), so the residual is i32 without
         // 64-bit arithmetic and each correction is one 32×32→64 product; the gains (≤ 1 in
         // Q28) keep it in i32.
-        let moved = counts.saturating_sub(self.last_counts).clamp(-32_768, 32_767);
+        let moved = counts
+            .saturating_sub(self.last_counts)
+            .clamp(-32_768, 32_767);
         self.last_counts = counts;
         let predicted = self.q.saturating_add(self.v).saturating_add(self.a >> 1);
         let r = (moved << 16)

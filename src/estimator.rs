@@ -214,36 +214,6 @@ pub struct Estimator {
     v: i32,
     a: i32,
     last: Option<Instant>,
-    /// The pose of the last step's count (what the model reads of it).
-    pose_cache: PoseCache,
-}
-
-/// What the per-tick model reads of a pose, kept for the next step with the same count.
-#[derive(Clone, Copy, Debug, Default)]
-struct PoseCache {
-    valid: bool,
-    counts: i32,
-    cos_alpha: Ratio,
-    inv_sin_alpha: Ratio,
-    alpha: Angle,
-    height: Metres,
-    clamped: bool,
-}
-
-impl PoseCache {
-    /// As a pose (x and sin α, which the model does not read, left at zero).
-    #[inline(always)]
-    fn pose(&self) -> Pose {
-        Pose {
-            x: Metres::ZERO,
-            cos_alpha: self.cos_alpha,
-            sin_alpha: Ratio::ZERO,
-            inv_sin_alpha: self.inv_sin_alpha,
-            alpha: self.alpha,
-            height: self.height,
-            clamped: self.clamped,
-        }
-    }
 }
 
 impl Estimator {
@@ -363,7 +333,6 @@ impl Estimator {
             v: 0,
             a: 0,
             last: None,
-            pose_cache: PoseCache::default(),
         })
     }
 
@@ -407,25 +376,7 @@ impl Estimator {
     #[inline]
     pub fn step_at(&mut self, now: Instant, m: &Measurements, fraction: u16) -> TickEstimate {
         let (speed, accel, flags) = self.filter(now, m.position_counts, fraction);
-        // Pose reuse: the pose is a function of the count alone, so while the count does not
-        // move the last one serves (the same bits as recomputing it).
-        let c = m.position_counts;
-        let pose = if self.pose_cache.valid && self.pose_cache.counts == c {
-            self.pose_cache.pose()
-        } else {
-            let p = self.geometry.pose(c);
-            self.pose_cache = PoseCache {
-                valid: true,
-                counts: c,
-                cos_alpha: p.cos_alpha,
-                inv_sin_alpha: p.inv_sin_alpha,
-                alpha: p.alpha,
-                height: p.height,
-                clamped: p.clamped,
-            };
-            p
-        };
-        let x = self.model(m, pose, speed, accel, flags);
+        let x = self.model(m, speed, accel, flags);
         TickEstimate {
             height: x.pose.height,
             screw_speed: x.speed,
@@ -505,7 +456,7 @@ impl Estimator {
         accel: RadiansPerSecond2,
         flags: u8,
     ) -> Estimate {
-        let x = self.model(m, self.geometry.pose(m.position_counts), speed, accel, flags);
+        let x = self.model(m, speed, accel, flags);
         // Diagnostics, off the tick path: they saturate freely.
         let axial_load = Newtons::from_raw(sat32(
             (i64::from(x.ws) * i64::from(x.pose.cos_alpha.bits())) >> 28,
@@ -544,7 +495,6 @@ impl Estimator {
     fn model(
         &self,
         m: &Measurements,
-        pose: Pose,
         speed: RadiansPerSecond,
         accel: RadiansPerSecond2,
         mut flags: u8,
@@ -554,6 +504,7 @@ impl Estimator {
         let load = m.load.clamp(Kilograms::ZERO, LOAD_MAX);
         let mut clamped = (speed_c != speed) | (accel_c != accel) | (load != m.load);
         let (speed, accel) = (speed_c, accel_c);
+        let pose = self.geometry.pose(m.position_counts);
         if pose.clamped {
             flags |= EstimateFlags::POSE_CLAMPED;
         }

@@ -532,7 +532,8 @@ impl Estimator {
         let w = Newtons::from_raw(narrow(
             i64::from(inertial) + i64::from(r_f0) + i64::from(damping),
         ));
-        let mu_law = self.law.mu(speed);
+        // `mu_raw` is inlined here (the detector's calls of `mu` stay calls: flash).
+        let mu_law = self.law.mu_raw(speed.bits().unsigned_abs());
         let mu = mu_law.min(self.screw.mu_max());
         clamped |= mu != mu_law;
         // |μ| ≤ 4: dir·μ cannot overflow.

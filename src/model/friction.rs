@@ -199,7 +199,7 @@ impl CompiledLaw {
     }
 
     /// μ at screw rate θ̇ (its magnitude), for the lead-screw laws.
-    #[inline(always)]
+    #[inline]
     pub fn mu(&self, theta_dot: RadiansPerSecond) -> Ratio {
         self.mu_raw(theta_dot.bits().unsigned_abs())
     }

@@ -1,9 +1,11 @@
-//! The real-time friction-torque estimator: `step(now, measurements) -> Estimate`.
+//! The real-time friction-torque estimator: `step(now, measurements) -> TickEstimate`, and
+//! `details` for the whole [`Estimate`] of a tick.
 //!
 //! Every control tick it turns the motor encoder position and current into the model's view of
-//! the screw-nut contact (α, R, F₀, μ_s, N, T_r, the torque the model says the motor needs) and
-//! compares it with the torque the motor actually delivers (k_t·i through the gearbox). The
-//! residual is the basis of overload, obstruction and lubrication diagnostics.
+//! the screw-nut contact (height, T_r, the torque the model says the screw and the motor need)
+//! and the torque the motor actually delivers (k_t·i through the gearbox); on demand the rest
+//! (α, R, F₀, μ_s, ξ, N, the residual measured − model, the self-locking margin). The residual
+//! is the basis of overload, obstruction and lubrication diagnostics.
 //!
 //! Speed and acceleration come from a fading-memory α-β-γ tracking filter on the encoder count
 //! (three coincident discrete poles at `e^(−2π·f_b·T)`): it has no lag for constant acceleration,

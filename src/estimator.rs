@@ -167,6 +167,10 @@ pub struct TickEstimate {
     pub screw_accel: RadiansPerSecond2,
     /// Friction torque T_r about the screw axis.
     pub friction_torque: NewtonMetres,
+    /// Axial demand W on the thread (the ball-screw identification reads it).
+    pub axial: Newtons,
+    /// Torque the thread contact takes from the screw, r_m·W·ξ.
+    pub thread_torque: NewtonMetres,
     /// Torque the model says the screw needs from the coupling.
     pub model_screw_torque: NewtonMetres,
     /// The same at the motor shaft.
@@ -384,6 +388,8 @@ impl Estimator {
             screw_speed: x.speed,
             screw_accel: x.accel,
             friction_torque: x.core.friction_torque,
+            axial: x.w,
+            thread_torque: x.core.thread_torque,
             model_screw_torque: x.model_screw_torque,
             model_motor_torque: x.model_motor_torque,
             measured_screw_torque: x.measured_screw_torque,

@@ -236,6 +236,8 @@ fn a_step_returns_the_same_bits_as_its_details() {
             assert_eq!(t.screw_speed, e.screw_speed);
             assert_eq!(t.screw_accel, e.screw_accel);
             assert_eq!(t.friction_torque, e.contact.friction_torque);
+            assert_eq!(t.axial, e.contact.axial);
+            assert_eq!(t.thread_torque, e.contact.thread_torque);
             assert_eq!(t.model_screw_torque, e.model_screw_torque);
             assert_eq!(t.model_motor_torque, e.model_motor_torque);
             assert_eq!(t.measured_screw_torque, e.measured_screw_torque);

@@ -351,6 +351,8 @@ pub fn put_tick(s: &mut impl Sink, t: &TickEstimate) {
     s.put_i32(t.screw_speed.to_bits());
     s.put_i32(t.screw_accel.to_bits());
     s.put_i32(t.friction_torque.to_bits());
+    s.put_i32(t.axial.to_bits());
+    s.put_i32(t.thread_torque.to_bits());
     s.put_i32(t.model_screw_torque.to_bits());
     s.put_i32(t.model_motor_torque.to_bits());
     s.put_i32(t.measured_screw_torque.to_bits());

@@ -174,6 +174,10 @@ pub struct FloatTick<T> {
     pub screw_accel: T,
     /// Friction torque T_r, N·m.
     pub friction_torque: T,
+    /// Axial demand W, N.
+    pub axial: T,
+    /// Thread torque r_m·W·ξ, N·m.
+    pub thread_torque: T,
     /// Torque the model says the screw needs, N·m.
     pub model_screw_torque: T,
     /// The same at the motor shaft, N·m.
@@ -421,6 +425,8 @@ impl<T: Real> FloatEstimator<T> {
             screw_speed: e.screw_speed,
             screw_accel: e.screw_accel,
             friction_torque: e.friction_torque,
+            axial: e.axial,
+            thread_torque: e.thread_torque,
             model_screw_torque: e.model_screw_torque,
             model_motor_torque: e.model_motor_torque,
             measured_screw_torque: e.measured_screw_torque,

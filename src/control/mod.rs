@@ -1053,14 +1053,14 @@ impl Controller {
         let moving = matches!(self.state, State::Lifting | State::Lowering);
         if moving {
             let e = &self.estimate;
-            let not_thread = e.model_screw_torque.sat_sub(e.contact.thread_torque);
+            let not_thread = e.model_screw_torque.sat_sub(e.thread_torque);
             let x = lube::LubeInputs {
                 driving: matches!(self.last_bridge, Bridge::Drive(_)),
                 lifting: self.state == State::Lifting,
                 reference: self.reference_speed(),
                 speed: e.screw_speed,
                 thread_torque: e.measured_screw_torque.sat_sub(not_thread),
-                axial_rated: e.contact.axial,
+                axial_rated: e.axial,
             };
             self.lube.sample(&self.cfg.lube, &x);
         } else if self.lube.in_motion() && self.state == State::Fault {

@@ -1,9 +1,11 @@
-//! The real-time friction-torque estimator: `step(now, measurements) -> Estimate`.
+//! The real-time friction-torque estimator: `step(now, measurements) -> TickEstimate`, and
+//! `details` for the whole [`Estimate`] of a tick.
 //!
 //! Every control tick it turns the motor encoder position and current into the model's view of
-//! the screw-nut contact (α, R, F₀, μ_s, N, T_r, the torque the model says the motor needs) and
-//! compares it with the torque the motor actually delivers (k_t·i through the gearbox). The
-//! residual is the basis of overload, obstruction and lubrication diagnostics.
+//! the screw-nut contact (height, T_r, the torque the model says the screw and the motor need)
+//! and the torque the motor actually delivers (k_t·i through the gearbox); on demand the rest
+//! (α, R, F₀, μ_s, ξ, N, the residual measured − model, the self-locking margin). The residual
+//! is the basis of overload, obstruction and lubrication diagnostics.
 //!
 //! Speed and acceleration come from a fading-memory α-β-γ tracking filter on the encoder count
 //! (three coincident discrete poles at `e^(−2π·f_b·T)`): it has no lag for constant acceleration,
@@ -12,12 +14,13 @@
 
 use crate::math::{div128, exp_neg_q16};
 use crate::model::friction::{CompiledLaw, FrictionLaw};
-use crate::model::geometry::{DriveConfig, Geometry, GeometryConfig, Pose};
-use crate::model::screw::{Contact, MechanicsConfig, ScrewModel};
+use crate::model::geometry::{DriveConfig, Geometry, GeometryConfig, Pose, DAMPING_TABLE};
+use crate::model::screw::{Contact, ContactCore, MechanicsConfig, ScrewModel};
 use crate::model::Scale;
+use crate::units::Angle;
 use crate::units::{
-    qmul, sat32, Amperes, Factor, Instant, Kilograms, KilogramsPerSecond, NewtonMetres, Newtons,
-    RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
+    narrow, qmul, sat32, Amperes, Factor, Instant, Kilograms, KilogramsPerSecond, Metres,
+    NewtonMetres, Newtons, RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
 };
 use crate::ConfigError;
 
@@ -151,6 +154,33 @@ pub struct Estimate {
     pub flags: EstimateFlags,
 }
 
+/// What the control tick reads of an estimate, every tick ([`Estimator::step`]); the whole
+/// [`Estimate`] of the same tick comes from [`Estimator::details`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TickEstimate {
+    /// Head height.
+    pub height: Metres,
+    /// Screw speed θ̇ from the tracking filter (clamped to ±[`SPEED_MAX`]).
+    pub screw_speed: RadiansPerSecond,
+    /// Screw acceleration θ̈ from the tracking filter (clamped to ±[`ACCEL_MAX`]).
+    pub screw_accel: RadiansPerSecond2,
+    /// Friction torque T_r about the screw axis.
+    pub friction_torque: NewtonMetres,
+    /// Axial demand W on the thread (the ball-screw identification reads it).
+    pub axial: Newtons,
+    /// Torque the thread contact takes from the screw, r_m·W·ξ.
+    pub thread_torque: NewtonMetres,
+    /// Torque the model says the screw needs from the coupling.
+    pub model_screw_torque: NewtonMetres,
+    /// The same at the motor shaft.
+    pub model_motor_torque: NewtonMetres,
+    /// Torque the motor delivers to the screw, from its current.
+    pub measured_screw_torque: NewtonMetres,
+    /// Conditions of this estimate.
+    pub flags: EstimateFlags,
+}
+
 /// The estimator's configuration and state.
 #[derive(Clone, Debug)]
 pub struct Estimator {
@@ -164,6 +194,19 @@ pub struct Estimator {
     eta_over_n: Ratio,
     inv_n_eta: Ratio,
     rest_speed: RadiansPerSecond,
+    /// 2·μ_b (pin friction, Eq 6).
+    two_mu_pin: Ratio,
+    /// Per-tick constants in fixed formats (no run-time shift amounts, docs/model.md
+    /// "Numeric envelope"): m·r_m·tan λ in Q32 (≤ 0.091 N per rad/s²), I in Q32 (≤ 0.1
+    /// kg·m²), c in Q30 (≤ 1 N·m·s/rad).
+    mass_lead_q32: i32,
+    inertia_q32: i32,
+    damping_q30: i32,
+    /// Table 1 times the lead r_m·tan λ: (α, c_x·r_m·tan λ in Q20 N per rad/s, slope per
+    /// Angle LSB in Q20·2^-28), so that the damping force c_x·ẋ is one product with θ̇.
+    damping_lead: [(i32, i32, i32); 3],
+    /// Support friction torque T₀, raw N·m bits.
+    screw_support: i32,
     /// α, β, 2γ in Q28 (each ≤ 1).
     gains: [i32; 3],
     speed_scale: Scale,
@@ -230,6 +273,21 @@ impl Estimator {
                 range: "0..50 rad/s",
             });
         }
+        // c_x·r_m·tan λ in Q20: c_x (kg/s)·r (Q24)·t (Q28) / 2^32 (≤ 58 544·0.0182·2^20).
+        let r_bits = i128::from(screw.pitch_radius().bits());
+        let tan_bits = i128::from(screw.tan_lambda().bits());
+        let mut damping_lead = [(0i32, 0i32, 0i32); 3];
+        for (i, &(deg, cx)) in DAMPING_TABLE.iter().enumerate() {
+            damping_lead[i].0 = Angle::from_degrees(fixed::types::I16F16::from_num(deg)).0;
+            damping_lead[i].1 = (i128::from(cx) * r_bits * tan_bits >> 32) as i32;
+        }
+        for i in 0..2 {
+            // Q28 per Angle LSB: |Δc/Δα| ≤ 2^30/2^27.8 (≥ 20° between entries) < 4.6, so
+            // < 2^31; the smallest lead keeps 18 significant bits.
+            let da = i64::from(damping_lead[i + 1].0 - damping_lead[i].0);
+            let dc = i64::from(damping_lead[i + 1].1 - damping_lead[i].1);
+            damping_lead[i].2 = ((dc << 28) / da) as i32;
+        }
         let n = i128::from(cfg.drive.gear_ratio.to_bits()); // Q16
         let eta = i128::from(m.gear_efficiency.bits()); // Q28
         let n_eta = Factor::from_raw(((n * eta) >> 28) as i32);
@@ -262,6 +320,16 @@ impl Estimator {
             eta_over_n,
             inv_n_eta,
             rest_speed: cfg.rest_speed,
+            two_mu_pin: Ratio::from_raw(cfg.geometry.mu_pin.bits() * 2),
+            mass_lead_q32: {
+                // m (Q12)·r_m (Q24)·tan λ (Q28) = value·2^64 → Q32; ≤ 5·0.05·0.364·2^32.
+                let m = i128::from(cfg.mechanics.nut_mass.bits());
+                (m * r_bits * tan_bits >> 32) as i32
+            },
+            inertia_q32: ((i64::from(cfg.mechanics.inertia_ukgm2) << 32) / 1_000_000) as i32,
+            damping_q30: ((i64::from(cfg.mechanics.damping_unms) << 30) / 1_000_000) as i32,
+            damping_lead,
+            screw_support: cfg.mechanics.support_torque.bits(),
             gains: [alpha as i32, beta as i32, gamma2 as i32],
             speed_scale,
             accel_scale,
@@ -300,10 +368,11 @@ impl Estimator {
 
     /// One estimator tick. Total: no panic, no wrap, whatever the inputs.
     ///
-    /// `#[inline]` with [`Self::estimate`]: the firmware has one caller (the control tick),
-    /// which then builds the estimate in place instead of copying 100 bytes out of a temporary.
+    /// Returns the fields the control tick reads ([`TickEstimate`]); [`Self::details`] gives
+    /// the whole [`Estimate`] of the same tick on demand (telemetry, tests). `#[inline]`: the
+    /// firmware has one caller (the control tick), which then builds the result in place.
     #[inline]
-    pub fn step(&mut self, now: Instant, m: &Measurements) -> Estimate {
+    pub fn step(&mut self, now: Instant, m: &Measurements) -> TickEstimate {
         self.step_at(now, m, 0)
     }
 
@@ -311,10 +380,42 @@ impl Estimator {
     /// (Q16 of a count, from the encoder's edge times: `crate::control::edges`) above
     /// `m.position_counts`. `step` is this with 0, the bare count.
     #[inline]
-    pub fn step_at(&mut self, now: Instant, m: &Measurements, fraction: u16) -> Estimate {
+    pub fn step_at(&mut self, now: Instant, m: &Measurements, fraction: u16) -> TickEstimate {
+        let (speed, accel, flags) = self.filter(now, m.position_counts, fraction);
+        let x = self.model(m, speed, accel, flags);
+        TickEstimate {
+            height: x.pose.height,
+            screw_speed: x.speed,
+            screw_accel: x.accel,
+            friction_torque: x.core.friction_torque,
+            axial: x.w,
+            thread_torque: x.core.thread_torque,
+            model_screw_torque: x.model_screw_torque,
+            model_motor_torque: x.model_motor_torque,
+            measured_screw_torque: x.measured_screw_torque,
+            flags: EstimateFlags(x.flags),
+        }
+    }
+
+    /// The whole estimate of a tick that [`Self::step`] returned `tick` for, with `m` its
+    /// measurements: the same numbers (bit for bit) plus the diagnostics (pose, R, F₀, c_x, μ,
+    /// ξ, N, residual, self-locking margin). Recomputed from the tick's inputs: about the cost
+    /// of a step, for telemetry and tests rather than every tick.
+    pub fn details(&self, m: &Measurements, tick: &TickEstimate) -> Estimate {
+        self.estimate(m, tick.screw_speed, tick.screw_accel, tick.flags.0)
+    }
+
+    /// The α-β-γ tracking filter: (speed, acceleration, flags) for this tick.
+    #[inline(always)]
+    fn filter(
+        &mut self,
+        now: Instant,
+        counts: i32,
+        fraction: u16,
+    ) -> (RadiansPerSecond, RadiansPerSecond2, u8) {
         let mut flags = 0u8;
         match self.last {
-            None => self.reset(m.position_counts),
+            None => self.reset(counts),
             Some(prev) => {
                 if now.micros_since(prev) > self.late_us {
                     flags |= EstimateFlags::LATE_TICK;
@@ -326,12 +427,18 @@ impl Estimator {
         // is kept relative to the last count (q = p − count·2^16), so the whole state is i32:
         // residual r = count·2^16 + fraction − (p + v + a/2), then p ← p + α·r, i.e.
         // q ← α·r − r + fraction.
-        // The residual is saturated to i32 (±32 768 counts per tick, beyond any drive), so
-        // each correction is one 32×32→64 product and the gains (≤ 1 in Q28) keep it in i32.
-        let moved = i64::from(m.position_counts) - i64::from(self.last_counts);
-        self.last_counts = m.position_counts;
-        let predicted = i64::from(self.q) + i64::from(self.v) + i64::from(self.a >> 1);
-        let r = sat32((moved << 16) + i64::from(fraction) - predicted);
+        // The count's move is clamped to ±32 767 counts per tick (beyond any drive: `SSAT`)
+        // and every sum saturates in i32 (`QADD`/`QSUB`), so the residual is i32 without
+        // 64-bit arithmetic and each correction is one 32×32→64 product; the gains (≤ 1 in
+        // Q28) keep it in i32.
+        let moved = counts
+            .saturating_sub(self.last_counts)
+            .clamp(-32_768, 32_767);
+        self.last_counts = counts;
+        let predicted = self.q.saturating_add(self.v).saturating_add(self.a >> 1);
+        let r = (moved << 16)
+            .saturating_add(i32::from(fraction))
+            .saturating_sub(predicted);
         let correction = |g: i32| ((i64::from(r) * i64::from(g)) >> 28) as i32;
         self.q = correction(self.gains[0])
             .saturating_sub(r)
@@ -343,19 +450,68 @@ impl Estimator {
         self.a = self.a.saturating_add(correction(self.gains[2]));
         let speed = RadiansPerSecond::from_raw(self.speed_scale.apply32(self.v));
         let accel = RadiansPerSecond2::from_raw(self.accel_scale.apply32(self.a));
-        self.estimate(m, speed, accel, flags)
+        (speed, accel, flags)
     }
 
     /// The model's estimate at a given speed and acceleration (no filtering): the function the
-    /// float64 twin is held to.
+    /// float64 twin is held to. Every field; [`Self::step`] computes the same numbers for the
+    /// fields it returns.
     #[inline]
     pub fn estimate(
         &self,
         m: &Measurements,
         speed: RadiansPerSecond,
         accel: RadiansPerSecond2,
-        mut flags: u8,
+        flags: u8,
     ) -> Estimate {
+        let x = self.model(m, speed, accel, flags);
+        // Diagnostics, off the tick path: they saturate freely.
+        let axial_load = Newtons::from_raw(sat32(
+            (i64::from(x.ws) * i64::from(x.pose.cos_alpha.bits())) >> 28,
+        ));
+        let pin_friction = Newtons::from_raw(sat32(
+            (i64::from(x.ws) * i64::from(self.two_mu_pin.bits())) >> 28,
+        ));
+        Estimate {
+            pose: x.pose,
+            screw_speed: x.speed,
+            screw_accel: x.accel,
+            axial_load,
+            pin_friction,
+            structure_damping: self.geometry.structure_damping(x.pose.alpha),
+            mu: x.mu,
+            contact: self.screw.contact_from(x.mu_s, x.w, &x.core),
+            model_screw_torque: x.model_screw_torque,
+            model_motor_torque: x.model_motor_torque,
+            measured_screw_torque: x.measured_screw_torque,
+            residual: x.measured_screw_torque.sat_sub(x.model_screw_torque),
+            self_locking_margin: self.screw.self_locking_margin(x.mu),
+            flags: EstimateFlags(x.flags),
+        }
+    }
+
+    /// The model shared by [`Self::step`] and [`Self::estimate`]: inlined into each, so a step
+    /// computes only what its result needs.
+    ///
+    /// Saturate once (docs/model.md "Numeric envelope"): the inputs are clamped to the
+    /// envelope (load 0…[`LOAD_MAX`], |θ̇| ≤ [`SPEED_MAX`], |θ̈| ≤ [`ACCEL_MAX`], μ ≤
+    /// `mu_max`; a clamp sets `SATURATED`), and within it no force can leave `Newtons`
+    /// for any validated configuration, so the force chain is plain 32×32→64 products and
+    /// adds. Only the torques, which a large screw under a large W can push past ±32 768 N·m,
+    /// saturate (and are flagged).
+    #[inline(always)]
+    fn model(
+        &self,
+        m: &Measurements,
+        speed: RadiansPerSecond,
+        accel: RadiansPerSecond2,
+        mut flags: u8,
+    ) -> Model {
+        let speed_c = speed.clamp(SPEED_MAX.sat_neg(), SPEED_MAX);
+        let accel_c = accel.clamp(ACCEL_MAX.sat_neg(), ACCEL_MAX);
+        let load = m.load.clamp(Kilograms::ZERO, LOAD_MAX);
+        let mut clamped = (speed_c != speed) | (accel_c != accel) | (load != m.load);
+        let (speed, accel) = (speed_c, accel_c);
         let pose = self.geometry.pose(m.position_counts);
         if pose.clamped {
             flags |= EstimateFlags::POSE_CLAMPED;
@@ -368,18 +524,39 @@ impl Estimator {
             flags |= EstimateFlags::AT_REST;
             m.commanded_dir.signum()
         };
-        let weight = Geometry::weight(m.load);
-        let (axial_load, pin_friction) = self.geometry.axial_and_pin(&pose, weight);
-        let c_x = self.geometry.structure_damping(pose.alpha);
-        let mu = self.law.mu(speed);
-        let w = self
-            .screw
-            .axial_demand(speed, accel, dir, axial_load, pin_friction, c_x);
-        let contact = self.screw.contact(mu, dir, w);
+        // M·g/sin α: ≤ 98.1 kN·8 (sin α ≥ sin 7°, 1/sin α saturates at 8) < 2^20 N.
+        let weight = Geometry::weight(load).bits();
+        let ws = narrow((i64::from(weight) * i64::from(pose.inv_sin_alpha.bits())) >> 28);
+        // R + F₀·dir = M·g/sin α·(cos α + 2μ_b·dir): one product; |…| ≤ 3, ≤ 2.4 MN.
+        let dir32 = i32::from(dir);
+        let pins = dir32 * self.two_mu_pin.bits();
+        let r_f0 = narrow((i64::from(ws) * i64::from(pose.cos_alpha.bits() + pins)) >> 28);
+        // c_x·ẋ = (c_x·r_m·tan λ)·θ̇: ≤ 1066 N·s/rad · 2000 rad/s < 2.2 MN (Q20·Q16 → Q8).
+        let cxl = self.damping_lead(pose.alpha);
+        let damping = narrow((i64::from(cxl) * i64::from(speed.bits())) >> 28);
+        // m·r_m·tan λ·θ̈ < 0.091·65 536 < 6 kN: the high word of Q8·Q32.
+        let inertial = narrow((i64::from(accel.bits()) * i64::from(self.mass_lead_q32)) >> 32);
+        // |W| < 4.6 MN < 2^23 N: no overflow in the sum (Q8: < 2^31).
+        let w = Newtons::from_raw(narrow(
+            i64::from(inertial) + i64::from(r_f0) + i64::from(damping),
+        ));
+        // `mu_raw` is inlined here (the detector's calls of `mu` stay calls: flash).
+        let mu_law = self.law.mu_raw(speed.bits().unsigned_abs());
+        let mu = mu_law.min(self.screw.mu_max());
+        clamped |= mu != mu_law;
+        // |μ| ≤ 4: dir·μ cannot overflow.
+        let mu_s = Ratio::from_raw(dir32 * mu.bits());
+        let core = self.screw.torques(mu_s, w);
         if w < Newtons::ZERO {
             flags |= EstimateFlags::FLANK_REVERSED;
         }
-        let model_screw_torque = self.screw.required_torque(speed, accel, dir, &contact);
+        // I·θ̈ + c·θ̇ + T₀·dir: ≤ 6554 + 2000 + 10 N·m within the envelope (I ≤ 0.1 kg·m²,
+        // c ≤ 1 N·m·s/rad), so only the thread torque's add saturates.
+        let inertia = narrow((i64::from(accel.bits()) * i64::from(self.inertia_q32)) >> 24);
+        let damping = narrow((i64::from(speed.bits()) * i64::from(self.damping_q30)) >> 30);
+        let own =
+            narrow(i64::from(inertia) + i64::from(damping) + i64::from(dir32 * self.screw_support));
+        let model_screw_torque = NewtonMetres::from_raw(own).sat_add(core.thread_torque);
         // Power flows motor → screw when the torque and the motion agree (or at rest).
         let motoring = (model_screw_torque >= NewtonMetres::ZERO) == (dir >= 0) || dir == 0;
         let model_motor_torque: NewtonMetres = if motoring {
@@ -387,44 +564,90 @@ impl Estimator {
         } else {
             qmul(model_screw_torque, self.eta_over_n)
         };
-        let motor_torque: NewtonMetres = qmul(m.motor_current, self.kt);
+        // k_t ≤ 1: |i·k_t| ≤ 32 768 N·m, no overflow; the gearbox factor can (saturated).
+        let motor_torque = NewtonMetres::from_raw(narrow(
+            (i64::from(m.motor_current.bits()) * i64::from(self.kt.bits())) >> 28,
+        ));
         let measured_motoring = (motor_torque >= NewtonMetres::ZERO) == (dir >= 0) || dir == 0;
         let measured_screw_torque: NewtonMetres = if measured_motoring {
             qmul(motor_torque, self.n_eta)
         } else {
             qmul(motor_torque, self.n_over_eta)
         };
-        let residual = measured_screw_torque.sat_sub(model_screw_torque);
         // On a saturation bound (MAX or MIN): v ^ (v >> 31) is MAX for both. Non-short-circuit
         // `|` keeps the sweep branch-free.
         let on_bound = |v: i32| (v ^ (v >> 31)) == i32::MAX;
-        if on_bound(axial_load.bits())
-            | on_bound(pin_friction.bits())
-            | on_bound(w.bits())
-            | on_bound(contact.normal.bits())
+        if clamped
+            | on_bound(core.friction_torque.bits())
+            | on_bound(core.thread_torque.bits())
             | on_bound(model_screw_torque.bits())
-            | on_bound(contact.friction_torque.bits())
+            | on_bound(model_motor_torque.bits())
             | on_bound(measured_screw_torque.bits())
-            | on_bound(speed.bits())
-            | on_bound(accel.bits())
         {
             flags |= EstimateFlags::SATURATED;
         }
-        Estimate {
+        Model {
             pose,
-            screw_speed: speed,
-            screw_accel: accel,
-            axial_load,
-            pin_friction,
-            structure_damping: c_x,
+            speed,
+            accel,
+            ws,
             mu,
-            contact,
+            mu_s,
+            w,
+            core,
             model_screw_torque,
             model_motor_torque,
             measured_screw_torque,
-            residual,
-            self_locking_margin: self.screw.self_locking_margin(mu),
-            flags: EstimateFlags(flags),
+            flags,
         }
     }
+}
+
+impl Estimator {
+    /// c_x(α)·r_m·tan λ (Q20, N per rad/s): Table 1 as [`Geometry::structure_damping`]
+    /// interpolates it (linear in α between its angles, flat outside), times the lead.
+    #[inline(always)]
+    fn damping_lead(&self, alpha: Angle) -> i32 {
+        let t = &self.damping_lead;
+        let a = alpha.0;
+        if a <= t[0].0 {
+            return t[0].1;
+        }
+        let i = if a <= t[1].0 {
+            0
+        } else if a <= t[2].0 {
+            1
+        } else {
+            return t[2].1;
+        };
+        // Within a segment: |Δα·slope| ≤ |Δc| < 2^31, so the sum stays between two entries.
+        narrow(i64::from(t[i].1) + ((i64::from(a - t[i].0) * i64::from(t[i].2)) >> 28))
+    }
+}
+
+/// The envelope of the estimator's inputs (docs/model.md "Numeric envelope"): outside it an
+/// input is clamped and the estimate flagged `SATURATED`. Far beyond any lift of the validated
+/// configurations (rated load ≤ 5 t, cruise ≤ 20 rad/s).
+pub const LOAD_MAX: Kilograms = Kilograms::lit("10000");
+/// Largest screw speed the model evaluates, rad/s.
+pub const SPEED_MAX: RadiansPerSecond = RadiansPerSecond::lit("2000");
+/// Largest screw acceleration the model evaluates, rad/s².
+pub const ACCEL_MAX: RadiansPerSecond2 = RadiansPerSecond2::lit("65536");
+
+/// Everything [`Estimator::model`] computes; each caller keeps what it returns (the rest is
+/// dead code after inlining).
+struct Model {
+    pose: Pose,
+    speed: RadiansPerSecond,
+    accel: RadiansPerSecond2,
+    /// M·g/sin α, raw Newtons bits.
+    ws: i32,
+    mu: Ratio,
+    mu_s: Ratio,
+    w: Newtons,
+    core: ContactCore,
+    model_screw_torque: NewtonMetres,
+    model_motor_torque: NewtonMetres,
+    measured_screw_torque: NewtonMetres,
+    flags: u8,
 }

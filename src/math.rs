@@ -176,6 +176,17 @@ pub fn recip_q30(d: u32) -> u32 {
     }
 }
 
+/// 1/d for d in Q4.28 with ½ ≤ d < 2 (the screw contact's 1 ∓ μ_s·tan λ), result in Q16
+/// (`2^16/d`, so 2^15 < result ≤ 2^17). One `UDIV`: d rounded to Q16 (17 significant bits),
+/// then `(2^32 − 1)/d`. Error (test): ≤ 3.5·10⁻⁵ relative over [½, 2), far inside the model's
+/// 0.2 % torque budget and ≈ 25 instructions cheaper than [`recip_q30`]'s Newton step.
+/// Total: inputs below ½ are treated as ½ (no division by zero).
+#[inline]
+pub fn recip_q16_fast(d_q28: u32) -> u32 {
+    let d = (d_q28.saturating_add(1 << 11) >> 12).max(1 << 15);
+    u32::MAX / d
+}
+
 /// Seeds of 1/√u for u = m/2^30 ∈ [1, 4) in 192 steps of 1/64, in Q16: `⌊√(2^62/m_mid)⌋` at
 /// the middle of each step, built at compile time. Relative error of a seed ≤ 0.39 %.
 const RSQRT_SEED: [u16; 192] = {
@@ -486,6 +497,22 @@ mod tests {
             let a = first_quadrant_angle(c, s);
             assert!((0..=1 << 30).contains(&a), "{c} {s}: {a}");
         }
+    }
+
+    #[test]
+    fn fast_reciprocal_is_within_3_5e5_relative_over_half_to_two() {
+        let mut worst: f64 = 0.0;
+        let mut d: u32 = 1 << 27;
+        while d < 1 << 29 {
+            let got = f64::from(recip_q16_fast(d)) / 65_536.0;
+            let want = (1u64 << 28) as f64 / f64::from(d);
+            worst = worst.max((got - want).abs() / want);
+            d += 997;
+        }
+        assert!(worst <= 3.5e-5, "{worst:e}");
+        // Below the range: clamped, no division by zero.
+        assert_eq!(recip_q16_fast(0), u32::MAX >> 15);
+        assert!(recip_q16_fast(u32::MAX) > 0);
     }
 
     #[test]

@@ -289,6 +289,16 @@ pub fn sat32(v: i64) -> i32 {
     }
 }
 
+/// An `i64` that the envelope's range analysis proves to fit in `i32` (docs/model.md
+/// "Numeric envelope"), narrowed without a run-time check on the target. Debug builds (every
+/// test, and `golden-gen`, which sweeps the envelope's corners and nonsense bit patterns)
+/// assert the proof.
+#[inline(always)]
+pub fn narrow(v: i64) -> i32 {
+    debug_assert!(i32::try_from(v).is_ok(), "range analysis violated: {v}");
+    v as i32
+}
+
 /// Shift right by `s` bits if positive, left (saturating) if negative.
 #[inline]
 fn shift_to(v: i64, s: i32) -> i64 {

@@ -6,8 +6,8 @@
 //! model is held to against its float64 twin (`model_vs_float_twin.rs`). At constant speed the
 //! power-screw formula *is* the model (ξ = tan(λ ± φ) algebraically), so the only differences are
 //! the fixed-point ones: sin α and 1/sin α (≤ 3·10⁻⁹ relative: R = M·g·cos α/sin α does not
-//! go through α itself), α (≤ 8·10⁻⁷ rad, only in c_x), the Q28 ratios and reciprocals
-//! (≤ 3·10⁻⁹ relative) and the output LSBs (Newtons Q8: 3.9 mN, i.e. 17 µN·m of thread torque;
+//! go through α itself), α (≤ 8·10⁻⁷ rad, only in c_x), the Q28 ratios (≤ 3·10⁻⁹ relative),
+//! the contact's reciprocal 1/(1 ∓ μ_s tan λ) (one `UDIV`, ≤ 3.5·10⁻⁵ relative) and the output LSBs (Newtons Q8: 3.9 mN, i.e. 17 µN·m of thread torque;
 //! NewtonMetres Q16: 15 µN·m). Measured worst case on the grid below (printed by
 //! `--nocapture`): 7 % of the allowance lifting, 3 % lowering.
 #![allow(clippy::unwrap_used, clippy::expect_used)]

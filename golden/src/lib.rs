@@ -26,7 +26,7 @@
 #![forbid(unsafe_code)]
 
 use liftfw::estimator::MotorConfig;
-use liftfw::estimator::{Estimate, Estimator, EstimatorConfig, Measurements};
+use liftfw::estimator::{Estimate, Estimator, EstimatorConfig, Measurements, TickEstimate};
 use liftfw::model::friction::{FrictionLaw, LawVariable};
 use liftfw::model::geometry::{DriveConfig, GeometryConfig};
 use liftfw::model::screw::MechanicsConfig;
@@ -345,6 +345,20 @@ pub fn put_estimate(s: &mut impl Sink, e: &Estimate) {
     s.put_u8(e.flags.0);
 }
 
+/// Every field of a tick estimate, as raw bits in a fixed order.
+pub fn put_tick(s: &mut impl Sink, t: &TickEstimate) {
+    s.put_i32(t.height.to_bits());
+    s.put_i32(t.screw_speed.to_bits());
+    s.put_i32(t.screw_accel.to_bits());
+    s.put_i32(t.friction_torque.to_bits());
+    s.put_i32(t.axial.to_bits());
+    s.put_i32(t.thread_torque.to_bits());
+    s.put_i32(t.model_screw_torque.to_bits());
+    s.put_i32(t.model_motor_torque.to_bits());
+    s.put_i32(t.measured_screw_torque.to_bits());
+    s.put_u8(t.flags.0);
+}
+
 fn put_measurements(s: &mut impl Sink, m: &Measurements) {
     s.put_i32(m.position_counts);
     s.put_i32(m.motor_current.to_bits());
@@ -407,7 +421,11 @@ pub fn evaluate(kind: u8, input: &[u8], out: &mut impl Sink) -> Result<(), Error
             for _ in 0..n {
                 let now = Instant(r.u32()?);
                 let m = read_measurements(&mut r)?;
-                put_estimate(out, &est.step(now, &m));
+                // The tick's own fields, then the whole estimate recomputed from them: both
+                // paths of the model, bit for bit.
+                let t = est.step(now, &m);
+                put_tick(out, &t);
+                put_estimate(out, &est.details(&m, &t));
             }
         }
     }

@@ -22,7 +22,9 @@ use liftfw::estimator::{Estimator, EstimatorConfig, Measurements};
 use liftfw::control::config::{ControlConfig, RampShape};
 use liftfw::control::profile::Profile;
 use liftfw::control::{Command, Controller, Inputs, State, Switches};
-use liftfw::math::{exp_neg_q16, first_quadrant_angle, recip_q30, sqrt_q30, sqrt_rsqrt_q30};
+use liftfw::math::{
+    exp_neg_q16, first_quadrant_angle, recip_q16_fast, recip_q30, sqrt_q30, sqrt_rsqrt_q30,
+};
 use liftfw::units::{
     Amperes, Angle, Instant, Kilograms, RadiansPerSecond, RadiansPerSecond2, Ratio,
 };
@@ -243,13 +245,15 @@ fn count_instructions() {
     let mut p_rf0 = Stats::new("part geometry.axial_and_pin (weight, R, F0)");
     let mut p_cx = Stats::new("part geometry.structure_damping");
     let mut p_mu = Stats::new("part law.mu");
-    let mut p_w = Stats::new("part screw.axial_demand");
-    let mut p_contact = Stats::new("part screw.contact");
-    let mut p_req = Stats::new("part screw.required_torque");
+    let mut p_w = Stats::new("part screw.axial_demand (diagnostic form)");
+    let mut p_contact = Stats::new("part screw.contact (core + xi, N)");
+    let mut p_req = Stats::new("part screw.required_torque (diagnostic form)");
+    let mut p_torques = Stats::new("part screw.torques (per-tick contact core)");
     let mut p_sqrt = Stats::new("kernel sqrt_q30 (config time only)");
     let mut p_rsqrt = Stats::new("kernel sqrt_rsqrt_q30");
     let mut p_angle = Stats::new("kernel first_quadrant_angle");
-    let mut p_recip = Stats::new("kernel recip_q30");
+    let mut p_recip = Stats::new("kernel recip_q30 (no longer per tick)");
+    let mut p_recip16 = Stats::new("kernel recip_q16_fast");
     let mut p_exp = Stats::new("kernel exp_neg_q16");
     let mut p_atan2 = Stats::new("kernel atan2 (idsp, no longer per tick)");
     for k in 0..N {
@@ -280,6 +284,10 @@ fn count_instructions() {
             overhead,
         );
         let contact = screw.contact(mu, 1, wn);
+        p_torques.push(
+            ticks((contact.mu_s, wn), |(m, wn)| screw.torques(m, wn)),
+            overhead,
+        );
         p_req.push(
             ticks((w, a, contact), |(w, a, c)| screw.required_torque(w, a, 1, &c)),
             overhead,
@@ -295,6 +303,7 @@ fn count_instructions() {
             overhead,
         );
         p_recip.push(ticks(v | 1 << 20, recip_q30), overhead);
+        p_recip16.push(ticks((v >> 3) | 1 << 27, recip_q16_fast), overhead);
         p_exp.push(ticks((k as u32) << 14, exp_neg_q16), overhead);
         p_atan2.push(
             ticks(
@@ -312,10 +321,12 @@ fn count_instructions() {
         &mut p_w,
         &mut p_contact,
         &mut p_req,
+        &mut p_torques,
         &mut p_sqrt,
         &mut p_rsqrt,
         &mut p_angle,
         &mut p_recip,
+        &mut p_recip16,
         &mut p_exp,
         &mut p_atan2,
     ] {

@@ -162,7 +162,33 @@ impl<T: Real> FloatMeasurements<T> {
     }
 }
 
-/// The float step's output: the fixed-point `Estimate`'s fields in SI units.
+/// The float step's output: the fixed-point `TickEstimate`'s fields in SI units (what the
+/// control tick reads; [`FloatEstimator::details`] gives the rest, as the core's `details`).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct FloatTick<T> {
+    /// Head height, m.
+    pub height: T,
+    /// Screw speed θ̇, rad/s.
+    pub screw_speed: T,
+    /// Screw acceleration θ̈, rad/s².
+    pub screw_accel: T,
+    /// Friction torque T_r, N·m.
+    pub friction_torque: T,
+    /// Axial demand W, N.
+    pub axial: T,
+    /// Thread torque r_m·W·ξ, N·m.
+    pub thread_torque: T,
+    /// Torque the model says the screw needs, N·m.
+    pub model_screw_torque: T,
+    /// The same at the motor shaft, N·m.
+    pub model_motor_torque: T,
+    /// Torque the motor delivers to the screw, N·m.
+    pub measured_screw_torque: T,
+    /// `liftfw::estimator::EstimateFlags` bits (no SATURATED: floats do not saturate).
+    pub flags: u8,
+}
+
+/// The float model's whole output: the fixed-point `Estimate`'s fields in SI units.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct FloatEstimate<T> {
     /// Arm angle α, rad.
@@ -371,7 +397,7 @@ impl<T: Real> FloatEstimator<T> {
     }
 
     /// One estimator tick (`now` in µs, wrapping), as `liftfw::estimator::Estimator::step`.
-    pub fn step(&mut self, now_us: u32, m: &FloatMeasurements<T>) -> FloatEstimate<T> {
+    pub fn step(&mut self, now_us: u32, m: &FloatMeasurements<T>) -> FloatTick<T> {
         let mut flags = 0u8;
         match self.last {
             None => self.reset(m.position_counts),
@@ -391,10 +417,31 @@ impl<T: Real> FloatEstimator<T> {
         self.a = self.a + r * self.gains[2];
         let speed = self.v * self.speed_scale;
         let accel = self.a * self.accel_scale;
-        self.estimate(m, speed, accel, flags)
+        // The same scope as the fixed-point step: the model inlined, only the tick's fields
+        // kept (the diagnostics are dead code).
+        let e = self.estimate(m, speed, accel, flags);
+        FloatTick {
+            height: e.height,
+            screw_speed: e.screw_speed,
+            screw_accel: e.screw_accel,
+            friction_torque: e.friction_torque,
+            axial: e.axial,
+            thread_torque: e.thread_torque,
+            model_screw_torque: e.model_screw_torque,
+            model_motor_torque: e.model_motor_torque,
+            measured_screw_torque: e.measured_screw_torque,
+            flags: e.flags,
+        }
+    }
+
+    /// The whole estimate of a tick [`Self::step`] returned `tick` for (as the core's
+    /// `Estimator::details`).
+    pub fn details(&self, m: &FloatMeasurements<T>, tick: &FloatTick<T>) -> FloatEstimate<T> {
+        self.estimate(m, tick.screw_speed, tick.screw_accel, tick.flags)
     }
 
     /// The model at a given speed (rad/s) and acceleration (rad/s²), without the filter.
+    #[inline(always)]
     pub fn estimate(
         &self,
         m: &FloatMeasurements<T>,
@@ -428,9 +475,9 @@ impl<T: Real> FloatEstimator<T> {
         let dir_t = T::of_i32(i32::from(dir));
 
         // R (Eq 1), F₀ (Eq 6), c_x (Eq 4, Table 1).
-        let weight = m.load * T::of(G);
-        let axial_load = weight * c * inv_s;
-        let pin_friction = weight * self.two_mu_pin * inv_s;
+        let ws = m.load * T::of(G) * inv_s;
+        let axial_load = ws * c;
+        let pin_friction = ws * self.two_mu_pin;
         let t = &self.damping;
         let c_x = if alpha <= t[0].0 {
             t[0].1
@@ -450,8 +497,9 @@ impl<T: Real> FloatEstimator<T> {
         .max(T::ZERO);
 
         // Contact (Eqs 7–10), either flank.
+        // R + F₀·dir in one product, as the fixed-point step.
         let w =
-            self.mass_lead * accel + axial_load + pin_friction * dir_t + c_x * self.lead * speed;
+            self.mass_lead * accel + ws * (c + self.two_mu_pin * dir_t) + c_x * self.lead * speed;
         let mu_s = mu * dir_t;
         let mt = mu_s * self.tan_l;
         let loaded = w >= T::ZERO;

@@ -164,8 +164,15 @@ fn filter_agrees<T: Real>(b: &Budget, speed_tol: f64) {
             load: Kilograms::lit("800"),
             commanded_dir: 1,
         };
-        let e = fixed.step(Instant(k * 1000), &m);
-        let f = float.step(k * 1000, &FloatMeasurements::from_fixed(&m));
+        let fm = FloatMeasurements::from_fixed(&m);
+        let t = fixed.step(Instant(k * 1000), &m);
+        let ft = float.step(k * 1000, &fm);
+        let (e, f) = (fixed.details(&m, &t), float.details(&fm, &ft));
+        assert_eq!(t.model_screw_torque, e.model_screw_torque);
+        assert_eq!(
+            ft.model_screw_torque.to_f64(),
+            f.model_screw_torque.to_f64()
+        );
         let dv = (e.screw_speed.to_f64() - f.screw_speed.to_f64()).abs();
         assert!(dv < speed_tol, "tick {k}: speed {dv}");
         // Compare the model only where the two filters agree on the friction direction.

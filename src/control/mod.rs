@@ -31,7 +31,7 @@ pub mod sense;
 pub mod speed;
 
 use crate::detect::stickslip::{DetectorInputs, Reaction, StickSlipDetector};
-use crate::estimator::{Estimate, Estimator, Measurements};
+use crate::estimator::{Estimator, Measurements, TickEstimate};
 use crate::math::div128;
 use crate::model::ballscrew::BallScrew;
 use crate::model::Scale;
@@ -383,7 +383,7 @@ pub struct Controller {
     current: Amperes,
     supply: Volts,
     switches: Switches,
-    estimate: Estimate,
+    estimate: TickEstimate,
     /// Ticks since the reference arrived (settling) and since the motion started.
     settle_ticks: u32,
     motion_ticks: u32,
@@ -516,7 +516,7 @@ impl Controller {
             current: Amperes::ZERO,
             supply: Volts::ZERO,
             switches: Switches(0),
-            estimate: Estimate::default(),
+            estimate: TickEstimate::default(),
             settle_ticks: 0,
             motion_ticks: 0,
             hold_position: position,
@@ -602,8 +602,8 @@ impl Controller {
         self.fault.as_ref()
     }
 
-    /// The last estimate.
-    pub fn estimate(&self) -> &Estimate {
+    /// The last estimate (what the tick reads; the estimator's `details` gives the rest).
+    pub fn estimate(&self) -> &TickEstimate {
         &self.estimate
     }
 
@@ -636,11 +636,11 @@ impl Controller {
     pub fn status(&self) -> Status {
         Status {
             state: self.state,
-            height: self.estimate.pose.height,
+            height: self.estimate.height,
             screw_speed: self.estimate.screw_speed,
             current: self.current,
             supply: self.supply,
-            friction_torque: self.estimate.contact.friction_torque,
+            friction_torque: self.estimate.friction_torque,
             stick_slip: self.stick_slip.output().active,
             stick_slip_amplitude: self.stick_slip.output().amplitude,
             stick_slip_episodes: self.stick_slip.output().episodes,
@@ -854,7 +854,7 @@ impl Controller {
             at: now,
             state: self.state,
             position: self.enc.position(),
-            height: self.estimate.pose.height,
+            height: self.estimate.height,
             screw_speed: self.estimate.screw_speed,
             current: self.current,
             supply: self.supply,
@@ -1053,14 +1053,14 @@ impl Controller {
         let moving = matches!(self.state, State::Lifting | State::Lowering);
         if moving {
             let e = &self.estimate;
-            let not_thread = e.model_screw_torque.sat_sub(e.contact.thread_torque);
+            let not_thread = e.model_screw_torque.sat_sub(e.thread_torque);
             let x = lube::LubeInputs {
                 driving: matches!(self.last_bridge, Bridge::Drive(_)),
                 lifting: self.state == State::Lifting,
                 reference: self.reference_speed(),
                 speed: e.screw_speed,
                 thread_torque: e.measured_screw_torque.sat_sub(not_thread),
-                axial_rated: e.contact.axial,
+                axial_rated: e.axial,
             };
             self.lube.sample(&self.cfg.lube, &x);
         } else if self.lube.in_motion() && self.state == State::Fault {

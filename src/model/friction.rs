@@ -182,7 +182,7 @@ impl CompiledLaw {
     }
 
     /// μ from the magnitude of the input in the law's input format (|θ̇| Q16, τ Q28).
-    #[inline]
+    #[inline(always)]
     pub fn mu_raw(&self, input: u32) -> Ratio {
         let input = input.min(i32::MAX as u32) as i32;
         // input ≥ 0 and rate ≥ 0: y ≥ 0, saturated to u32 (e^(−y) is 0 long before).

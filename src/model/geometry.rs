@@ -81,6 +81,8 @@ pub struct Geometry {
     inv_len_q24: i32,
     /// Nut travel per motor encoder count: x_Q24 = counts·metres_per_count.
     metres_per_count: Scale,
+    /// x/L per motor count, as a scale from counts to Q28: cos α = cos α₀ − counts·this.
+    cos_per_count: Scale,
     /// Motor counts per metre of nut travel (inverse of the above).
     counts_per_metre: Scale,
     /// Screw radians per motor count, as a scale from counts to Q16 radians.
@@ -195,6 +197,8 @@ impl Geometry {
         // metres_per_count applied to counts (Q0) gives Q24 metres: value·2^24 = num/den / 2^56.
         let metres_per_count = Scale::from_ratio(num << 16, den << 56);
         let counts_per_metre = Scale::from_ratio(den << 56, num << 16);
+        // x/L per count in Q28 = num/(den·2^64)·2^28/(L_bits/2^24) = num/(den·L_bits·2^12).
+        let cos_per_count = Scale::from_ratio(num, den * i128::from(cfg.length.bits()) << 12);
         // Screw radians per count in Q16: 2π·2^16/(counts·ratio) → num 2π(Q28)·2^16·2^16 / (den·2^28).
         let screw_rad_per_count = Scale::from_ratio(TWO_PI_Q28 << 32, den << 28);
 
@@ -218,6 +222,7 @@ impl Geometry {
             cos_hi,
             inv_len_q24,
             metres_per_count,
+            cos_per_count,
             counts_per_metre,
             screw_rad_per_count,
             damping,
@@ -260,9 +265,11 @@ impl Geometry {
 
     /// The pose for a motor encoder position (counts from fully down). Total: positions outside
     /// the mechanism are clamped and flagged.
-    #[inline]
+    /// x/L straight from the count (one scale), not through the travel `x`, which the pose
+    /// reports but the per-tick model does not need (dead code in the estimator's step).
+    #[inline(always)]
     pub fn pose(&self, counts: i32) -> Pose {
-        self.pose_at_travel(self.travel(counts))
+        self.pose_with(self.travel(counts), self.cos_per_count.apply32(counts))
     }
 
     /// The pose for a nut travel `x` (Eq 1: cos α = cos α₀ − x/L).
@@ -270,6 +277,12 @@ impl Geometry {
     pub fn pose_at_travel(&self, x: Metres) -> Pose {
         // x/L in Q28: x(Q24)·invL(Q24) → Q48 → >> 20.
         let x_over_l = sat32((i64::from(x.bits()) * i64::from(self.inv_len_q24)) >> 20);
+        self.pose_with(x, x_over_l)
+    }
+
+    /// The pose for a travel `x` and its x/L in Q28.
+    #[inline(always)]
+    fn pose_with(&self, x: Metres, x_over_l: i32) -> Pose {
         let mut c = self.cos_a0.bits().saturating_sub(x_over_l);
         let mut clamped = false;
         if c > self.cos_hi.bits() {
@@ -356,7 +369,7 @@ impl Geometry {
 
     /// Structure damping c_x(α) (Eq 4, Table 1): linear in α between the table's angles, held
     /// constant outside them.
-    #[inline]
+    #[inline(always)]
     pub fn structure_damping(&self, alpha: Angle) -> KilogramsPerSecond {
         let t = &self.damping;
         if alpha <= t[0].0 {

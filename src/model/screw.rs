@@ -7,9 +7,10 @@
 //! `r_m·W·ξ`; friction torque about the screw axis `T_r = μ_s·|N|·r_m·cos λ`
 //! (= μ_s·|W|·r_m/(1 ∓ μ_s tan λ): cos λ cancels). docs/model.md derives it.
 
-use crate::math::recip_q30;
+use crate::math::recip_q16_fast;
 use crate::model::geometry::DriveConfig;
 use crate::model::Scale;
+use crate::units::{narrow, sat32};
 use crate::units::{
     qmul, Angle, Kilograms, KilogramsPerSecond, Metres, MetresPerSecond, NewtonMetres, Newtons,
     RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
@@ -61,6 +62,22 @@ pub struct ScrewModel {
     /// c: θ̇(Q16) → N·m(Q16).
     damping: Scale,
     support_torque: NewtonMetres,
+    /// Largest μ the contact evaluates: min(4, 1/(3·tan λ)), so that 1 ∓ μ_s·tan λ stays in
+    /// [⅔, 4/3] (docs/model.md "Numeric envelope"). A law that gives more is clamped and flagged.
+    mu_max: Ratio,
+}
+
+/// The per-tick core of the contact ([`ScrewModel::torques`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct ContactCore {
+    /// 1/(1 ∓ μ_s·tan λ) in Q16.
+    pub inv_q16: u32,
+    /// tan λ ± μ_s (ξ's numerator).
+    pub num: Ratio,
+    /// T_r = μ_s·|W|·r_m/(1 ∓ μ_s·tan λ).
+    pub friction_torque: NewtonMetres,
+    /// r_m·W·ξ.
+    pub thread_torque: NewtonMetres,
 }
 
 /// The contact state at one tick.
@@ -129,6 +146,8 @@ impl ScrewModel {
         let inertia = Scale::from_ratio(i128::from(mech.inertia_ukgm2) << 8, 1_000_000);
         // T(Q16) = c·θ̇(Q16): scale = c·10⁻⁶.
         let damping = Scale::from_ratio(i128::from(mech.damping_unms), 1_000_000);
+        // 1/(3·tan λ) in Q28 (tan λ ≥ tan 0.5° > 2^-7: at most 2^36/3, below 2^34), then ≤ 4.
+        let mu_max = ((1i64 << 56) / (3 * tan_q28)).min(4 << 28) as i32;
         Ok(ScrewModel {
             r_m: drive.pitch_radius,
             tan_l: Ratio::from_raw(tan_q28 as i32),
@@ -139,7 +158,13 @@ impl ScrewModel {
             inertia,
             damping,
             support_torque: mech.support_torque,
+            mu_max: Ratio::from_raw(mu_max),
         })
+    }
+
+    /// Largest μ the contact evaluates (see the field): min(4, 1/(3·tan λ)).
+    pub fn mu_max(&self) -> Ratio {
+        self.mu_max
     }
 
     /// tan λ.
@@ -184,43 +209,70 @@ impl ScrewModel {
         inertial.sat_add(axial_load).sat_add(pins).sat_add(damping)
     }
 
-    /// The contact for friction magnitude `mu`, direction `dir` = sgn θ̇ and axial demand `w`.
+    /// The per-tick core of the contact for a signed friction coefficient `mu_s` with
+    /// |μ_s| ≤ [`Self::mu_max`] (the caller clamps) and axial demand `w`: the reciprocal of
+    /// 1 ∓ μ_s·tan λ, ξ's numerator and the two torques.
+    ///
+    /// Range (docs/model.md "Numeric envelope"): |μ_s·tan λ| ≤ ⅓, so the denominator lies in
+    /// [⅔, 4/3], its reciprocal in [¾, 3/2] (one `UDIV`, [`recip_q16_fast`]) and |tan λ ± μ_s|
+    /// < 4.4: none of these can overflow. Only the torques can leave `NewtonMetres` (±32 768
+    /// N·m) for a large |W| with a large screw; they saturate, and the caller flags it.
+    #[inline(always)]
+    pub fn torques(&self, mu_s: Ratio, w: Newtons) -> ContactCore {
+        let tan = self.tan_l.bits();
+        let mt = narrow((i64::from(mu_s.bits()) * i64::from(tan)) >> 28);
+        let loaded = w >= Newtons::ZERO;
+        let (den, num) = if loaded {
+            ((1 << 28) - mt, tan + mu_s.bits())
+        } else {
+            ((1 << 28) + mt, tan - mu_s.bits())
+        };
+        let inv_q16 = recip_q16_fast(den as u32);
+        // r_m/(1 ∓ μ_s tan λ) in Q32: Q16·Q24 = Q40 → Q32; ≤ 1.5·0.05 m·2^32 < 2^29.
+        let k = narrow(((u64::from(inv_q16) * u64::from(self.r_m.bits() as u32)) >> 8) as i64);
+        // r_m·W/(1 ∓ μ_s tan λ) once (Q8·Q32 = Q40 → Q16): T_r = μ_s·|that|, thread torque
+        // r_m·W·ξ = that·num.
+        let wk = sat32((i64::from(w.bits()) * i64::from(k)) >> 24);
+        let friction = sat32((i64::from(wk).abs() * i64::from(mu_s.bits())) >> 28);
+        let thread = sat32((i64::from(wk) * i64::from(num)) >> 28);
+        ContactCore {
+            inv_q16,
+            num: Ratio::from_raw(num),
+            friction_torque: NewtonMetres::from_raw(friction),
+            thread_torque: NewtonMetres::from_raw(thread),
+        }
+    }
+
+    /// The contact for friction magnitude `mu` (clamped to 0…[`Self::mu_max`]), direction
+    /// `dir` = sgn θ̇ and axial demand `w`.
     #[inline]
     pub fn contact(&self, mu: Ratio, dir: i8, w: Newtons) -> Contact {
+        let mu = mu.clamp(Ratio::ZERO, self.mu_max);
         let mu_s = match dir {
             d if d > 0 => mu,
             d if d < 0 => mu.sat_neg(),
             _ => Ratio::ZERO,
         };
-        let mt: Ratio = qmul(mu_s, self.tan_l);
-        let loaded = w >= Newtons::ZERO;
-        // den = 1 ∓ μ_s tan λ (> 0 for any μ < cot λ ≈ 16; clamped away from 0 for nonsense μ).
-        let den = if loaded {
-            Ratio::ONE.sat_sub(mt)
-        } else {
-            Ratio::ONE.sat_add(mt)
-        };
-        let den_q30 = (den.bits().max(1 << 20) as u32) << 2;
-        let inv = Ratio::from_raw(recip_q30(den_q30) as i32);
-        let num = if loaded {
-            self.tan_l.sat_add(mu_s)
-        } else {
-            self.tan_l.sat_sub(mu_s)
-        };
-        let xi: Ratio = qmul(num, inv);
-        let w_inv: Newtons = qmul(w, inv);
-        let normal: Newtons = qmul(w_inv, self.sec_l);
-        // r_m·W/(1 ∓ μ_s tan λ) once: T_r = μ_s·|that|, thread torque r_m·W·ξ = that·num.
-        let w_inv_rm: NewtonMetres = qmul(w_inv, self.r_m);
-        let friction_torque: NewtonMetres = qmul(w_inv_rm.sat_abs(), mu_s);
-        let thread_torque: NewtonMetres = qmul(w_inv_rm, num);
+        let core = self.torques(mu_s, w);
+        self.contact_from(mu_s, w, &core)
+    }
+
+    /// The full contact (ξ, N: diagnostics) from its per-tick core.
+    #[inline]
+    pub fn contact_from(&self, mu_s: Ratio, w: Newtons, core: &ContactCore) -> Contact {
+        let inv = i64::from(core.inv_q16);
+        let xi = Ratio::from_raw(sat32((i64::from(core.num.bits()) * inv) >> 16));
+        let w_inv = sat32((i64::from(w.bits()) * inv) >> 16);
+        let normal = Newtons::from_raw(sat32(
+            (i64::from(w_inv) * i64::from(self.sec_l.bits())) >> 28,
+        ));
         Contact {
             mu_s,
             xi,
             axial: w,
             normal,
-            friction_torque,
-            thread_torque,
+            friction_torque: core.friction_torque,
+            thread_torque: core.thread_torque,
         }
     }
 
@@ -244,6 +296,21 @@ impl ScrewModel {
             .sat_add(damping)
             .sat_add(support)
             .sat_add(contact.thread_torque)
+    }
+
+    /// m·r_m·tan λ as a scale: θ̈ (Q8) → N (Q8).
+    pub fn mass_lead(&self) -> Scale {
+        self.mass_lead
+    }
+
+    /// I as a scale: θ̈ (Q8) → N·m (Q16).
+    pub fn inertia(&self) -> Scale {
+        self.inertia
+    }
+
+    /// c as a scale: θ̇ (Q16) → N·m (Q16).
+    pub fn damping(&self) -> Scale {
+        self.damping
     }
 
     /// Self-locking margin μ − tan λ: the screw holds its load at rest while it is positive.

@@ -293,6 +293,14 @@ impl Estimator {
         let n_eta = Factor::from_raw(((n * eta) >> 28) as i32);
         let n_over_eta = Factor::from_raw(div128(n << 28, eta) as i32);
         let eta_over_n = Ratio::from_raw(div128(eta << 16, n) as i32);
+        // 1/(n·η) in Q28 must stay below 8: n·η > 1/8 (2^41 in Q44). Each factor alone is in
+        // range (n ≥ 1, η ≥ 0.1), but a direct drive with a lossy coupling is not.
+        if n * eta <= 1i128 << 41 {
+            return Err(ConfigError::Conflict {
+                field: "motor.gear_efficiency",
+                reason: "drive.gear_ratio x motor.gear_efficiency must exceed 0.125",
+            });
+        }
         let inv_n_eta = Ratio::from_raw(div128(1i128 << 72, n * eta) as i32);
 
         // Fading-memory α-β-γ gains, θ = e^(−2π f_b T), in Q28.

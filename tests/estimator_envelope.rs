@@ -110,7 +110,8 @@ fn configs() -> Vec<EstimatorConfig> {
         },
         drive: DriveConfig {
             counts_per_rev: 4,
-            gear_ratio: I16F16::ONE,
+            // The smallest n with η = 0.1 that `Estimator::new` accepts (n·η > 1/8).
+            gear_ratio: I16F16::lit("1.25002"),
             pitch_radius: Metres::lit("0.05"),
             lead_angle_deg: I16F16::lit("20"),
         },
@@ -206,6 +207,22 @@ fn the_envelope_corners_neither_overflow_nor_go_unflagged() {
         }
     }
     assert!(n > 50_000, "{n}");
+}
+
+#[test]
+fn a_direct_drive_with_a_lossy_coupling_is_refused_not_wrapped() {
+    // 1/(n·η) would be 10 and wrap the Q28 factor the motor torque is scaled by.
+    let mut cfg = EstimatorConfig::DEFAULT;
+    cfg.drive.gear_ratio = I16F16::ONE;
+    cfg.motor.gear_efficiency = Ratio::lit("0.1");
+    match Estimator::new(&cfg) {
+        Err(liftfw::ConfigError::Conflict { field, .. }) => {
+            assert_eq!(field, "motor.gear_efficiency")
+        }
+        other => panic!("expected a conflict, got {:?}", other.map(|_| ())),
+    }
+    cfg.drive.gear_ratio = I16F16::lit("1.25002");
+    assert!(Estimator::new(&cfg).is_ok());
 }
 
 #[test]

@@ -26,6 +26,7 @@ pub mod detect;
 pub mod estimator;
 pub mod math;
 pub mod model;
+pub mod text;
 pub mod units;
 
 /// A configuration value was refused.
@@ -48,14 +49,25 @@ pub enum ConfigError {
     },
 }
 
+impl ConfigError {
+    /// The message (its `Display`), written without `core::fmt`'s machinery ([`text`]).
+    pub fn write_to(&self, out: &mut dyn core::fmt::Write) -> core::fmt::Result {
+        let (field, middle, end, close) = match self {
+            ConfigError::OutOfRange { field, range } => {
+                (field, " out of range (allowed ", range, ")")
+            }
+            ConfigError::Conflict { field, reason } => (field, " refused: ", reason, ""),
+        };
+        out.write_str(field)?;
+        out.write_str(middle)?;
+        out.write_str(end)?;
+        out.write_str(close)
+    }
+}
+
 impl core::fmt::Display for ConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            ConfigError::OutOfRange { field, range } => {
-                write!(f, "{field} out of range (allowed {range})")
-            }
-            ConfigError::Conflict { field, reason } => write!(f, "{field} refused: {reason}"),
-        }
+        self.write_to(f)
     }
 }
 

@@ -144,22 +144,27 @@ pub enum FlashErrorKind {
     Other,
 }
 
-impl core::fmt::Display for StoreError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+impl StoreError {
+    /// The message (its `Display`).
+    pub fn message(&self) -> &'static str {
         match self {
-            StoreError::BadRange => {
-                f.write_str("store range is not an even number (at least 4) of whole pages")
-            }
-            StoreError::Flash(k) => f.write_str(match k {
+            StoreError::BadRange => "store range is not an even number (at least 4) of whole pages",
+            StoreError::Flash(k) => match k {
                 FlashErrorKind::NotAligned => "flash driver error (not aligned)",
                 FlashErrorKind::OutOfBounds => "flash driver error (out of bounds)",
                 FlashErrorKind::Other => "flash driver error",
-            }),
-            StoreError::Full => f.write_str("store is full"),
-            StoreError::Corrupted => f.write_str("store structure is corrupted"),
-            StoreError::Verify => f.write_str("read-back after save differs"),
-            StoreError::Internal => f.write_str("storage library error"),
+            },
+            StoreError::Full => "store is full",
+            StoreError::Corrupted => "store structure is corrupted",
+            StoreError::Verify => "read-back after save differs",
+            StoreError::Internal => "storage library error",
         }
+    }
+}
+
+impl core::fmt::Display for StoreError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.message())
     }
 }
 
@@ -236,49 +241,72 @@ impl Source {
     }
 }
 
+impl Source {
+    /// The message for the console and the log (its `Display`), written without `core::fmt`'s
+    /// machinery ([`crate::text`]).
+    pub fn write_to(&self, out: &mut dyn core::fmt::Write) -> core::fmt::Result {
+        const DEFAULTS: &str = "factory defaults in use (limits at the factory stops)";
+        // "<head>(<cause>)<tail>: factory defaults …" for the fallbacks with a cause.
+        let (head, tail) = match self {
+            Source::Stored { seq, both_copies } => {
+                out.write_str("configuration #")?;
+                crate::text::uint(out, u64::from(*seq))?;
+                out.write_str(" loaded from flash")?;
+                if !both_copies {
+                    out.write_str(
+                        " (its second copy is older or damaged; `save` rewrites it)",
+                    )?;
+                }
+                return Ok(());
+            }
+            Source::Missing => {
+                out.write_str("no stored configuration: ")?;
+                out.write_str(DEFAULTS)?;
+                return out.write_str("; `save` stores the current settings");
+            }
+            Source::Corrupt(Corruption::NoIntactRecord) => (
+                "stored configuration is corrupt (no intact record: damaged, or the first save \
+                 was interrupted",
+                None,
+            ),
+            Source::Corrupt(Corruption::Structure) => {
+                ("stored configuration is corrupt (store structure damaged", None)
+            }
+            Source::Corrupt(Corruption::Record(e)) => {
+                ("stored configuration is corrupt (", Some(Cause::Decode(e)))
+            }
+            Source::Incompatible(e) => (
+                "stored configuration not used, version mismatch (",
+                Some(Cause::Decode(e)),
+            ),
+            Source::Rejected(e) => ("stored configuration refused (", Some(Cause::Config(e))),
+            Source::Unreadable(e) => (
+                "configuration store unreadable (",
+                Some(Cause::Store(e)),
+            ),
+        };
+        out.write_str(head)?;
+        match tail {
+            Some(Cause::Decode(e)) => e.write_to(out)?,
+            Some(Cause::Config(e)) => e.write_to(out)?,
+            Some(Cause::Store(e)) => out.write_str(e.message())?,
+            None => {}
+        }
+        out.write_str("): ")?;
+        out.write_str(DEFAULTS)
+    }
+}
+
+/// The error inside a fallback's message.
+enum Cause<'a> {
+    Decode(&'a DecodeError),
+    Config(&'a ConfigError),
+    Store(&'a StoreError),
+}
+
 impl core::fmt::Display for Source {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        const DEFAULTS: &str = "factory defaults in use (limits at the factory stops)";
-        match self {
-            Source::Stored {
-                seq,
-                both_copies: true,
-            } => write!(f, "configuration #{seq} loaded from flash"),
-            Source::Stored {
-                seq,
-                both_copies: false,
-            } => write!(
-                f,
-                "configuration #{seq} loaded from flash (its second copy is older or damaged; \
-                 `save` rewrites it)"
-            ),
-            Source::Missing => write!(
-                f,
-                "no stored configuration: {DEFAULTS}; `save` stores the current settings"
-            ),
-            Source::Corrupt(Corruption::NoIntactRecord) => write!(
-                f,
-                "stored configuration is corrupt (no intact record: damaged, or the first save \
-                 was interrupted): {DEFAULTS}"
-            ),
-            Source::Corrupt(Corruption::Structure) => write!(
-                f,
-                "stored configuration is corrupt (store structure damaged): {DEFAULTS}"
-            ),
-            Source::Corrupt(Corruption::Record(e)) => {
-                write!(f, "stored configuration is corrupt ({e}): {DEFAULTS}")
-            }
-            Source::Incompatible(e) => {
-                write!(
-                    f,
-                    "stored configuration not used, version mismatch ({e}): {DEFAULTS}"
-                )
-            }
-            Source::Rejected(e) => {
-                write!(f, "stored configuration refused ({e}): {DEFAULTS}")
-            }
-            Source::Unreadable(e) => write!(f, "configuration store unreadable ({e}): {DEFAULTS}"),
-        }
+        self.write_to(f)
     }
 }
 

@@ -15,6 +15,7 @@ pub mod value;
 
 use crate::config::settings::{self, Kind, SettingId};
 use crate::config::ValidatedConfig;
+use crate::text;
 use crate::units::{Amperes, Angle, Metres, NewtonMetres, RadiansPerSecond, Ratio};
 use crate::ConfigError;
 use core::fmt::{self, Write};
@@ -217,7 +218,8 @@ fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {
         } => {
             out.write_str(unit.what)?;
             if !unit.display.is_empty() {
-                write!(out, " in {}", unit.display)?;
+                out.write_str(" in ")?;
+                out.write_str(unit.display)?;
             }
             // The ASCII spellings other than the display unit, once each.
             let mut n = 0;
@@ -242,43 +244,57 @@ fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {
 
 /// The reply to a line that was not understood.
 pub fn write_parse_error(out: &mut dyn Write, e: &ParseError<'_>) -> fmt::Result {
+    const HELP: &str = "; type `help` for the commands";
     match e {
         ParseError::NotText => out.write_str("error: line is not text (UTF-8); type `help`"),
-        ParseError::TooLong => write!(
-            out,
-            "error: line longer than {MAX_LINE} characters, ignored; type `help`"
-        ),
-        ParseError::UnknownCommand(c) => write!(
-            out,
-            "error: unknown command '{}'; type `help` for the commands",
-            Clip(c)
-        ),
-        ParseError::MissingKey(cmd) => write!(
-            out,
-            "error: `{cmd}` needs a key, e.g. `{cmd} limits.upper`; `help keys` lists them"
-        ),
-        ParseError::UnknownKey(k) => write!(
-            out,
-            "error: unknown key '{}'; `help keys` lists them",
-            Clip(k)
-        ),
+        ParseError::TooLong => {
+            out.write_str("error: line longer than ")?;
+            text::uint(out, MAX_LINE as u64)?;
+            out.write_str(" characters, ignored; type `help`")
+        }
+        ParseError::UnknownCommand(c) => {
+            out.write_str("error: unknown command '")?;
+            clip(out, c)?;
+            out.write_char('\'')?;
+            out.write_str(HELP)
+        }
+        ParseError::MissingKey(cmd) => {
+            out.write_str("error: `")?;
+            out.write_str(cmd)?;
+            out.write_str("` needs a key, e.g. `")?;
+            out.write_str(cmd)?;
+            out.write_str(" limits.upper`; `help keys` lists them")
+        }
+        ParseError::UnknownKey(k) => {
+            out.write_str("error: unknown key '")?;
+            clip(out, k)?;
+            out.write_str("'; `help keys` lists them")
+        }
         ParseError::MissingValue(id) => {
-            write!(out, "error: `set {}` needs a value: ", id.key())?;
+            out.write_str("error: `set ")?;
+            out.write_str(id.key())?;
+            out.write_str("` needs a value: ")?;
             write_expected(out, *id)
         }
         ParseError::BadValue(id, v) => {
-            write!(out, "error: bad value for {}: {v}; ", id.key())?;
+            out.write_str("error: bad value for ")?;
+            out.write_str(id.key())?;
+            out.write_str(": ")?;
+            out.write_str(v.message())?;
+            out.write_str("; ")?;
             write_expected(out, *id)
         }
-        ParseError::BadHeight(v) => write!(
-            out,
-            "error: bad height for goto: {v}; expected a length in mm (or m, cm), e.g. `goto 300mm`"
-        ),
-        ParseError::Trailing(t) => write!(
-            out,
-            "error: unexpected '{}'; type `help` for the commands",
-            Clip(t)
-        ),
+        ParseError::BadHeight(v) => {
+            out.write_str("error: bad height for goto: ")?;
+            out.write_str(v.message())?;
+            out.write_str("; expected a length in mm (or m, cm), e.g. `goto 300mm`")
+        }
+        ParseError::Trailing(t) => {
+            out.write_str("error: unexpected '")?;
+            clip(out, t)?;
+            out.write_char('\'')?;
+            out.write_str(HELP)
+        }
     }
 }
 
@@ -287,29 +303,27 @@ fn write_expected(out: &mut dyn Write, id: SettingId) -> fmt::Result {
     let s = id.setting();
     out.write_str("expected ")?;
     write_unit(out, &s.kind)?;
-    write!(out, ", range {}", s.range)
+    out.write_str(", range ")?;
+    out.write_str(s.range)
 }
 
-/// At most 24 characters of user text in a message (the rest as `…`).
-struct Clip<'a>(&'a str);
-
-impl fmt::Display for Clip<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self.0.char_indices().nth(24) {
-            Some((i, _)) => {
-                // A char boundary from `char_indices` (checked, so that no panic is linked).
-                f.write_str(self.0.get(..i).unwrap_or(self.0))?;
-                f.write_str("...")
-            }
-            None => f.write_str(self.0),
+/// At most 24 characters of user text in a message (the rest as `...`).
+fn clip(out: &mut dyn Write, s: &str) -> fmt::Result {
+    match s.char_indices().nth(24) {
+        Some((i, _)) => {
+            // A char boundary from `char_indices` (checked, so that no panic is linked).
+            out.write_str(s.get(..i).unwrap_or(s))?;
+            out.write_str("...")
         }
+        None => out.write_str(s),
     }
 }
 
 /// `key = value` for `get`.
 pub fn write_get(out: &mut dyn Write, cfg: &ValidatedConfig, id: SettingId) -> fmt::Result {
     let s = id.setting();
-    write!(out, "{} = ", s.key)?;
+    out.write_str(s.key)?;
+    out.write_str(" = ")?;
     value::format(out, &s.kind, s.get(cfg.get()))
 }
 
@@ -340,7 +354,10 @@ pub fn write_refused(
     e: &ConfigError,
     running: &ValidatedConfig,
 ) -> fmt::Result {
-    write!(out, "error: set {} refused: {e}", id.key())?;
+    out.write_str("error: set ")?;
+    out.write_str(id.key())?;
+    out.write_str(" refused: ")?;
+    e.write_to(out)?;
     let field = match e {
         ConfigError::OutOfRange { field, .. } | ConfigError::Conflict { field, .. } => *field,
     };
@@ -361,7 +378,10 @@ fn height_at(cfg: &ValidatedConfig, deg: I16F16) -> Metres {
 fn write_mm(out: &mut dyn Write, m: Metres) -> fmt::Result {
     // 0.1 mm is the resolution a person reads heights in.
     let tenths = (i64::from(m.to_bits()) * 10_000 + (1 << 23)) >> 24;
-    write!(out, "{}.{}", tenths / 10, (tenths % 10).abs())
+    // The whole millimetres (with their sign) and the tenth's digit.
+    text::int(out, tenths / 10)?;
+    out.write_char('.')?;
+    text::uint(out, (tenths % 10).unsigned_abs())
 }
 
 /// "mechanism 133.5..416.4 mm" (α₀ … α_max of the geometry).
@@ -395,10 +415,12 @@ pub fn write_key_help(out: &mut dyn Write, id: SettingId) -> fmt::Result {
 }
 
 fn key_help(out: &mut dyn Write, id: SettingId, about: Option<&str>) -> fmt::Result {
-    write!(out, "{}: ", id.key())?;
+    out.write_str(id.key())?;
+    out.write_str(": ")?;
     match about {
         Some(about) => {
-            write!(out, "{about}; ")?;
+            out.write_str(about)?;
+            out.write_str("; ")?;
             write_expected(out, id)
         }
         None => {
@@ -430,7 +452,9 @@ pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
                     out.write_str("\r\n")?;
                 }
                 let s = id.setting();
-                write!(out, "  {} [", s.key)?;
+                out.write_str("  ")?;
+                out.write_str(s.key)?;
+                out.write_str(" [")?;
                 match &s.kind {
                     Kind::Choice(_) => out.write_str("choice")?,
                     Kind::Number { unit, .. } => out.write_str(if unit.display.is_empty() {
@@ -439,7 +463,8 @@ pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
                         unit.display
                     })?,
                 }
-                write!(out, "] {}", s.range)?;
+                out.write_str("] ")?;
+                out.write_str(s.range)?;
             }
             Ok(())
         }
@@ -487,17 +512,20 @@ fn write_fixed(out: &mut dyn Write, bits: i32, frac: u32, dec: u32) -> fmt::Resu
     }
     let m = q.unsigned_abs();
     let s = scale.unsigned_abs();
-    if dec == 0 {
-        write!(out, "{m}")
-    } else {
-        write!(out, "{}.{:0w$}", m / s, m % s, w = dec as usize)
+    text::uint(out, m / s)?;
+    if dec != 0 {
+        out.write_char('.')?;
+        text::uint_padded(out, m % s, dec as usize)?;
     }
+    Ok(())
 }
 
 /// The reply to `status`: one line, `key=value` pairs a person and a script can read (a fault
 /// name's spaces are written as `-`, so every value is one word).
 pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
-    write!(out, "state={} height=", s.state)?;
+    out.write_str("state=")?;
+    out.write_str(s.state)?;
+    out.write_str(" height=")?;
     write_mm(out, s.height)?;
     out.write_str("mm speed=")?;
     write_fixed(out, s.screw_speed.to_bits(), 16, 2)?;
@@ -505,13 +533,13 @@ pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
     write_fixed(out, s.current.to_bits(), 16, 2)?;
     out.write_str("A T_r=")?;
     write_fixed(out, s.friction_torque.to_bits(), 16, 3)?;
-    write!(
-        out,
-        "Nm stick_slip={} ss_amp=",
-        if s.stick_slip { "yes" } else { "no" }
-    )?;
+    out.write_str("Nm stick_slip=")?;
+    out.write_str(if s.stick_slip { "yes" } else { "no" })?;
+    out.write_str(" ss_amp=")?;
     write_fixed(out, s.stick_slip_amplitude.to_bits(), 16, 2)?;
-    write!(out, "Nm ss_episodes={} fault=", s.stick_slip_episodes)?;
+    out.write_str("Nm ss_episodes=")?;
+    text::uint(out, u64::from(s.stick_slip_episodes))?;
+    out.write_str(" fault=")?;
     write_word(out, s.fault.unwrap_or("none"))?;
     if let Some((f, law)) = s.ball_f {
         out.write_str(" f=")?;
@@ -548,7 +576,9 @@ pub fn write_stick_slip_warning(
     amplitude: NewtonMetres,
     speed_changed: bool,
 ) -> fmt::Result {
-    write!(out, "warning: stick-slip (episode {episode}, torque drop ")?;
+    out.write_str("warning: stick-slip (episode ")?;
+    text::uint(out, u64::from(episode))?;
+    out.write_str(", torque drop ")?;
     write_fixed(out, amplitude.to_bits(), 16, 2)?;
     out.write_str(" Nm per slip)")?;
     if speed_changed {

@@ -25,6 +25,7 @@ use crate::config::store::StoreError;
 use crate::config::{record, settings, ValidatedConfig};
 use crate::control::config::ControlConfig;
 use crate::control::{Command, Controller, Fault, Refusal, Status};
+use crate::text;
 use core::fmt::{self, Write};
 
 /// The console protocol version `version` reports. Bump it when a reply a host tool parses
@@ -161,7 +162,9 @@ pub fn handle<L: Lift + ?Sized>(
         Request::FaultClear => Outcome::done(match lift.command(Command::ClearFault) {
             Ok(()) => out.write_str("ok: fault cleared"),
             Err(Refusal::NoFault) => out.write_str("ok: no fault latched"),
-            Err(r) => write!(out, "error: fault clear {r}"),
+            Err(r) => out
+                .write_str("error: fault clear ")
+                .and_then(|()| out.write_str(r.message())),
         }),
         Request::Help(topic) => Outcome::done(write_help(out, topic)),
         Request::Version => Outcome::done(write_version(out)),
@@ -191,8 +194,16 @@ fn set<L: Lift + ?Sized>(
                 reply: write_set_ok(out, running, id),
             }
         }
-        Err(r) => Outcome::done(write!(out, "error: set {} {r}; nothing changed", id.key())),
+        Err(r) => Outcome::done(write_set_refused(out, id, r)),
     }
+}
+
+fn write_set_refused(out: &mut dyn Write, id: settings::SettingId, r: Refusal) -> fmt::Result {
+    out.write_str("error: set ")?;
+    out.write_str(id.key())?;
+    out.write_char(' ')?;
+    out.write_str(r.message())?;
+    out.write_str("; nothing changed")
 }
 
 fn write_set_ok(
@@ -227,19 +238,22 @@ fn motion<L: Lift + ?Sized>(out: &mut dyn Write, lift: &mut L, cmd: Command) -> 
                 Command::Stop | Command::ClearFault => out.write_str(word),
             }
         }
-        Err(r) => write!(out, "error: {word} {r}"),
+        Err(r) => {
+            out.write_str("error: ")?;
+            out.write_str(word)?;
+            out.write_char(' ')?;
+            out.write_str(r.message())
+        }
     }
 }
 
 /// The reply to `version`: `liftfw console v1 firmware=0.1.0 schema=1a2b3c4d` (the schema is
 /// the flash record's fingerprint of the settings list, [`record::schema`]).
 pub fn write_version(out: &mut dyn Write) -> fmt::Result {
-    write!(
-        out,
-        "{VERSION_PREFIX}{PROTOCOL_VERSION} firmware={} schema={:08x}",
-        env!("CARGO_PKG_VERSION"),
-        record::schema()
-    )
+    out.write_str(VERSION_PREFIX)?;
+    text::uint(out, u64::from(PROTOCOL_VERSION))?;
+    out.write_str(concat!(" firmware=", env!("CARGO_PKG_VERSION"), " schema="))?;
+    text::hex8(out, record::schema())
 }
 
 /// The reply to `fault`, `key=value` like `status`: `fault=none`, or the fault and the state
@@ -253,13 +267,13 @@ pub fn write_fault(out: &mut dyn Write, fault: Option<&Fault>) -> fmt::Result {
     out.write_str("fault=")?;
     write_word(out, f.kind.name())?;
     let ms = f.at.0 / 1000;
-    write!(
-        out,
-        " t={}.{:03}s state={} height=",
-        ms / 1000,
-        ms % 1000,
-        f.state.name()
-    )?;
+    out.write_str(" t=")?;
+    text::uint(out, u64::from(ms / 1000))?;
+    out.write_char('.')?;
+    text::uint_padded(out, u64::from(ms % 1000), 3)?;
+    out.write_str("s state=")?;
+    out.write_str(f.state.name())?;
+    out.write_str(" height=")?;
     write_mm(out, f.height)?;
     out.write_str("mm speed=")?;
     write_fixed(out, f.screw_speed.to_bits(), 16, 2)?;
@@ -274,7 +288,10 @@ pub fn write_fault(out: &mut dyn Write, fault: Option<&Fault>) -> fmt::Result {
         out.write_char('-')?;
     }
     let p = permille.unsigned_abs();
-    write!(out, "{}.{}% torque=", p / 10, p % 10)?;
+    text::uint(out, u64::from(p / 10))?;
+    out.write_char('.')?;
+    text::uint(out, u64::from(p % 10))?;
+    out.write_str("% torque=")?;
     write_fixed(out, f.measured_torque.to_bits(), 16, 3)?;
     out.write_str("Nm model_torque=")?;
     write_fixed(out, f.model_torque.to_bits(), 16, 3)?;
@@ -285,11 +302,17 @@ pub fn write_fault(out: &mut dyn Write, fault: Option<&Fault>) -> fmt::Result {
 /// configuration #7`, or why it failed and what the flash holds.
 pub fn write_saved(out: &mut dyn Write, result: Result<u32, StoreError>) -> fmt::Result {
     match result {
-        Ok(seq) => write!(out, "ok: saved as configuration #{seq}"),
-        Err(e) => write!(
-            out,
-            "error: save failed ({e}); flash holds the previous configuration or this one, \
-             never a mix; the running settings are unchanged"
-        ),
+        Ok(seq) => {
+            out.write_str("ok: saved as configuration #")?;
+            text::uint(out, u64::from(seq))
+        }
+        Err(e) => {
+            out.write_str("error: save failed (")?;
+            out.write_str(e.message())?;
+            out.write_str(
+                "); flash holds the previous configuration or this one, never a mix; the \
+                 running settings are unchanged",
+            )
+        }
     }
 }

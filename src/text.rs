@@ -84,11 +84,18 @@ mod tests {
         for &v in &samples {
             assert_eq!(text(|o| uint(o, v)), format!("{v}"));
             for w in 0..=20 {
-                assert_eq!(text(|o| uint_padded(o, v, w)), format!("{v:0w$}"), "{v} {w}");
+                assert_eq!(
+                    text(|o| uint_padded(o, v, w)),
+                    format!("{v:0w$}"),
+                    "{v} {w}"
+                );
             }
             let s = v as i64;
             assert_eq!(text(|o| int(o, s)), format!("{s}"));
-            assert_eq!(text(|o| int(o, s.wrapping_neg())), format!("{}", s.wrapping_neg()));
+            assert_eq!(
+                text(|o| int(o, s.wrapping_neg())),
+                format!("{}", s.wrapping_neg())
+            );
             let h = v as u32;
             assert_eq!(text(|o| hex8(o, h)), format!("{h:08x}"));
         }

@@ -253,9 +253,7 @@ impl Source {
                 crate::text::uint(out, u64::from(*seq))?;
                 out.write_str(" loaded from flash")?;
                 if !both_copies {
-                    out.write_str(
-                        " (its second copy is older or damaged; `save` rewrites it)",
-                    )?;
+                    out.write_str(" (its second copy is older or damaged; `save` rewrites it)")?;
                 }
                 return Ok(());
             }
@@ -269,9 +267,10 @@ impl Source {
                  was interrupted",
                 None,
             ),
-            Source::Corrupt(Corruption::Structure) => {
-                ("stored configuration is corrupt (store structure damaged", None)
-            }
+            Source::Corrupt(Corruption::Structure) => (
+                "stored configuration is corrupt (store structure damaged",
+                None,
+            ),
             Source::Corrupt(Corruption::Record(e)) => {
                 ("stored configuration is corrupt (", Some(Cause::Decode(e)))
             }
@@ -280,10 +279,7 @@ impl Source {
                 Some(Cause::Decode(e)),
             ),
             Source::Rejected(e) => ("stored configuration refused (", Some(Cause::Config(e))),
-            Source::Unreadable(e) => (
-                "configuration store unreadable (",
-                Some(Cause::Store(e)),
-            ),
+            Source::Unreadable(e) => ("configuration store unreadable (", Some(Cause::Store(e))),
         };
         out.write_str(head)?;
         match tail {

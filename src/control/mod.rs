@@ -556,14 +556,16 @@ impl Controller {
     /// lower stop is not enforced on that run (the switch is the stop); stall, over-current and
     /// the other protections are.
     pub fn new_unhomed(cfg: &ControlConfig) -> Result<Controller, ConfigError> {
-        // Until homed, assume the lowest position: the model's load (and feed-forward) is then
-        // the largest the lift can see. (`map` rather than `?` + `Ok`: one controller copy
-        // fewer on the boot stack.)
-        Controller::new(cfg, 0).map(|mut c| {
+        // Adjusted inside the `Result` (`?` would move the 2 KiB controller out of it and back
+        // into a new one: two more copies and stack slots).
+        let mut made = Controller::new(cfg, 0);
+        if let Ok(c) = &mut made {
+            // Until homed, assume the lowest position: the model's load (and feed-forward) is
+            // then the largest the lift can see.
             c.set_position(c.switch_counts);
             c.homed = false;
-            c
-        })
+        }
+        made
     }
 
     /// The position is known (a homing run is not needed).
@@ -670,7 +672,13 @@ impl Controller {
         if matches!(self.state, State::Lifting | State::Lowering) || turning {
             return Err(Refusal::InMotion);
         }
-        let mut next = Controller::new(cfg, self.enc.position()).map_err(|_| Refusal::BadConfig)?;
+        // The candidate is adjusted inside the `Result` and moved once, into `self`: unwrapping
+        // it first (`?`) copied the 2 KiB controller into a second stack slot, and this runs
+        // in the console task with the controller's lock held (interrupts off).
+        let mut made = Controller::new(cfg, self.enc.position());
+        let Ok(next) = &mut made else {
+            return Err(Refusal::BadConfig);
+        };
         if cfg.estimator == self.cfg.estimator {
             // Same model and filter: keep the speed estimate running.
             next.est = self.est.clone();
@@ -707,7 +715,9 @@ impl Controller {
             let at = next.switch_counts;
             next.set_position(at);
         }
-        *self = next;
+        if let Ok(next) = made {
+            *self = next;
+        }
         Ok(())
     }
 

@@ -290,7 +290,7 @@ impl Estimator {
         }
         let n = i128::from(cfg.drive.gear_ratio.to_bits()); // Q16
         let eta = i128::from(m.gear_efficiency.bits()); // Q28
-        // n·η in i64 (two i32 factors: it fits), once.
+                                                        // n·η in i64 (two i32 factors: it fits), once.
         let n_eta_q44 = i128::from(
             i64::from(cfg.drive.gear_ratio.to_bits()) * i64::from(m.gear_efficiency.bits()),
         );

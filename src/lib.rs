@@ -50,18 +50,22 @@ pub enum ConfigError {
 }
 
 impl ConfigError {
-    /// The message (its `Display`), written without `core::fmt`'s machinery ([`text`]).
+    /// The message (its `Display`), written without `core::fmt`'s machinery
+    /// ([`console::fill`]).
     pub fn write_to(&self, out: &mut dyn core::fmt::Write) -> core::fmt::Result {
-        let (field, middle, end, close) = match self {
-            ConfigError::OutOfRange { field, range } => {
-                (field, " out of range (allowed ", range, ")")
-            }
-            ConfigError::Conflict { field, reason } => (field, " refused: ", reason, ""),
-        };
-        out.write_str(field)?;
-        out.write_str(middle)?;
-        out.write_str(end)?;
-        out.write_str(close)
+        use console::{fill, Arg};
+        match self {
+            ConfigError::OutOfRange { field, range } => fill(
+                out,
+                "\x01 out of range (allowed \x01)",
+                &[Arg::Str(field), Arg::Str(range)],
+            ),
+            ConfigError::Conflict { field, reason } => fill(
+                out,
+                "\x01 refused: \x01",
+                &[Arg::Str(field), Arg::Str(reason)],
+            ),
+        }
     }
 }
 

@@ -18,8 +18,8 @@
 //!   speaks another one, and the settings schema so it knows whether its own registry matches.
 
 use super::{
-    parse, write_fixed, write_get, write_help, write_limits, write_mm, write_parse_error,
-    write_refused, write_status, write_word, Feed, ParseError, Request, StatusView,
+    fill, parse, write_get, write_help, write_limits, write_parse_error, write_refused,
+    write_status, Arg, Feed, ParseError, Request, StatusView,
 };
 use crate::config::store::StoreError;
 use crate::config::{record, settings, ValidatedConfig};
@@ -162,9 +162,7 @@ pub fn handle<L: Lift + ?Sized>(
         Request::FaultClear => Outcome::done(match lift.command(Command::ClearFault) {
             Ok(()) => out.write_str("ok: fault cleared"),
             Err(Refusal::NoFault) => out.write_str("ok: no fault latched"),
-            Err(r) => out
-                .write_str("error: fault clear ")
-                .and_then(|()| out.write_str(r.message())),
+            Err(r) => fill(out, "error: fault clear \x01", &[Arg::Str(r.message())]),
         }),
         Request::Help(topic) => Outcome::done(write_help(out, topic)),
         Request::Version => Outcome::done(write_version(out)),
@@ -199,11 +197,11 @@ fn set<L: Lift + ?Sized>(
 }
 
 fn write_set_refused(out: &mut dyn Write, id: settings::SettingId, r: Refusal) -> fmt::Result {
-    out.write_str("error: set ")?;
-    out.write_str(id.key())?;
-    out.write_char(' ')?;
-    out.write_str(r.message())?;
-    out.write_str("; nothing changed")
+    fill(
+        out,
+        "error: set \x01 \x01; nothing changed",
+        &[Arg::Str(id.key()), Arg::Str(r.message())],
+    )
 }
 
 fn write_set_ok(
@@ -230,20 +228,15 @@ fn motion<L: Lift + ?Sized>(out: &mut dyn Write, lift: &mut L, cmd: Command) -> 
             match cmd {
                 Command::Up => out.write_str("lifting to limits.upper"),
                 Command::Down => out.write_str("lowering to limits.lower"),
-                Command::GoTo(h) => {
-                    out.write_str("going to ")?;
-                    write_mm(out, h)?;
-                    out.write_str(" mm")
-                }
+                Command::GoTo(h) => fill(out, "going to \x01 mm", &[Arg::Mm(h)]),
                 Command::Stop | Command::ClearFault => out.write_str(word),
             }
         }
-        Err(r) => {
-            out.write_str("error: ")?;
-            out.write_str(word)?;
-            out.write_char(' ')?;
-            out.write_str(r.message())
-        }
+        Err(r) => fill(
+            out,
+            "error: \x01 \x01",
+            &[Arg::Str(word), Arg::Str(r.message())],
+        ),
     }
 }
 
@@ -263,56 +256,40 @@ pub fn write_fault(out: &mut dyn Write, fault: Option<&Fault>) -> fmt::Result {
     let Some(f) = fault else {
         return out.write_str("fault=none");
     };
-    // The fault's name may contain spaces; `-` keeps the line `key=value`.
-    out.write_str("fault=")?;
-    write_word(out, f.kind.name())?;
-    let ms = f.at.0 / 1000;
-    out.write_str(" t=")?;
-    text::uint(out, u64::from(ms / 1000))?;
-    out.write_char('.')?;
-    text::uint_padded(out, u64::from(ms % 1000), 3)?;
-    out.write_str("s state=")?;
-    out.write_str(f.state.name())?;
-    out.write_str(" height=")?;
-    write_mm(out, f.height)?;
-    out.write_str("mm speed=")?;
-    write_fixed(out, f.screw_speed.to_bits(), 16, 2)?;
-    out.write_str("rad/s current=")?;
-    write_fixed(out, f.current.to_bits(), 16, 2)?;
-    out.write_str("A supply=")?;
-    write_fixed(out, f.supply.to_bits(), 16, 2)?;
     // Duty Q15 → per mille, rounded (|duty| ≤ 32768, so no overflow in i32).
     let permille = (i32::from(f.duty) * 1000 + if f.duty < 0 { -16384 } else { 16384 }) / 32768;
-    out.write_str("V duty=")?;
-    if permille < 0 {
-        out.write_char('-')?;
-    }
-    let p = permille.unsigned_abs();
-    text::uint(out, u64::from(p / 10))?;
-    out.write_char('.')?;
-    text::uint(out, u64::from(p % 10))?;
-    out.write_str("% torque=")?;
-    write_fixed(out, f.measured_torque.to_bits(), 16, 3)?;
-    out.write_str("Nm model_torque=")?;
-    write_fixed(out, f.model_torque.to_bits(), 16, 3)?;
-    out.write_str("Nm")
+    // Milliseconds since boot: at most 2^32 µs / 1000, an i32.
+    let ms = (f.at.0 / 1000) as i32;
+    // The fault's name may contain spaces; `-` keeps the line `key=value`.
+    fill(
+        out,
+        "fault=\x01 t=\x01s state=\x01 height=\x01mm speed=\x01rad/s current=\x01A supply=\x01V \
+         duty=\x01% torque=\x01Nm model_torque=\x01Nm",
+        &[
+            Arg::Word(f.kind.name()),
+            Arg::Deci(ms, 3),
+            Arg::Str(f.state.name()),
+            Arg::Mm(f.height),
+            Arg::Fixed(f.screw_speed.to_bits(), 16, 2),
+            Arg::Fixed(f.current.to_bits(), 16, 2),
+            Arg::Fixed(f.supply.to_bits(), 16, 2),
+            Arg::Deci(permille, 1),
+            Arg::Fixed(f.measured_torque.to_bits(), 16, 3),
+            Arg::Fixed(f.model_torque.to_bits(), 16, 3),
+        ],
+    )
 }
 
 /// The reply to `save`, once the caller has run `ConfigStore::save`: `ok: saved as
 /// configuration #7`, or why it failed and what the flash holds.
 pub fn write_saved(out: &mut dyn Write, result: Result<u32, StoreError>) -> fmt::Result {
     match result {
-        Ok(seq) => {
-            out.write_str("ok: saved as configuration #")?;
-            text::uint(out, u64::from(seq))
-        }
-        Err(e) => {
-            out.write_str("error: save failed (")?;
-            out.write_str(e.message())?;
-            out.write_str(
-                "); flash holds the previous configuration or this one, never a mix; the \
-                 running settings are unchanged",
-            )
-        }
+        Ok(seq) => fill(out, "ok: saved as configuration #\x01", &[Arg::Uint(seq)]),
+        Err(e) => fill(
+            out,
+            "error: save failed (\x01); flash holds the previous configuration or this one, \
+             never a mix; the running settings are unchanged",
+            &[Arg::Str(e.message())],
+        ),
     }
 }

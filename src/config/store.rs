@@ -246,12 +246,15 @@ impl Source {
     /// machinery ([`crate::text`]).
     pub fn write_to(&self, out: &mut dyn core::fmt::Write) -> core::fmt::Result {
         const DEFAULTS: &str = "factory defaults in use (limits at the factory stops)";
-        // "<head>(<cause>)<tail>: factory defaults …" for the fallbacks with a cause.
-        let (head, tail) = match self {
+        // "<head> (<cause>): factory defaults …" for the fallbacks with a cause.
+        const CORRUPT: &str = "stored configuration is corrupt (";
+        let (head, cause) = match self {
             Source::Stored { seq, both_copies } => {
-                out.write_str("configuration #")?;
-                crate::text::uint(out, u64::from(*seq))?;
-                out.write_str(" loaded from flash")?;
+                crate::console::fill(
+                    out,
+                    "configuration #\x01 loaded from flash",
+                    &[crate::console::Arg::Uint(*seq)],
+                )?;
                 if !both_copies {
                     out.write_str(" (its second copy is older or damaged; `save` rewrites it)")?;
                 }
@@ -263,30 +266,25 @@ impl Source {
                 return out.write_str("; `save` stores the current settings");
             }
             Source::Corrupt(Corruption::NoIntactRecord) => (
-                "stored configuration is corrupt (no intact record: damaged, or the first save \
-                 was interrupted",
-                None,
+                CORRUPT,
+                Cause::Text("no intact record: damaged, or the first save was interrupted"),
             ),
-            Source::Corrupt(Corruption::Structure) => (
-                "stored configuration is corrupt (store structure damaged",
-                None,
-            ),
-            Source::Corrupt(Corruption::Record(e)) => {
-                ("stored configuration is corrupt (", Some(Cause::Decode(e)))
+            Source::Corrupt(Corruption::Structure) => {
+                (CORRUPT, Cause::Text("store structure damaged"))
             }
+            Source::Corrupt(Corruption::Record(e)) => (CORRUPT, Cause::Decode(e)),
             Source::Incompatible(e) => (
                 "stored configuration not used, version mismatch (",
-                Some(Cause::Decode(e)),
+                Cause::Decode(e),
             ),
-            Source::Rejected(e) => ("stored configuration refused (", Some(Cause::Config(e))),
-            Source::Unreadable(e) => ("configuration store unreadable (", Some(Cause::Store(e))),
+            Source::Rejected(e) => ("stored configuration refused (", Cause::Config(e)),
+            Source::Unreadable(e) => ("configuration store unreadable (", Cause::Text(e.message())),
         };
         out.write_str(head)?;
-        match tail {
-            Some(Cause::Decode(e)) => e.write_to(out)?,
-            Some(Cause::Config(e)) => e.write_to(out)?,
-            Some(Cause::Store(e)) => out.write_str(e.message())?,
-            None => {}
+        match cause {
+            Cause::Decode(e) => e.write_to(out)?,
+            Cause::Config(e) => e.write_to(out)?,
+            Cause::Text(t) => out.write_str(t)?,
         }
         out.write_str("): ")?;
         out.write_str(DEFAULTS)
@@ -297,7 +295,7 @@ impl Source {
 enum Cause<'a> {
     Decode(&'a DecodeError),
     Config(&'a ConfigError),
-    Store(&'a StoreError),
+    Text(&'static str),
 }
 
 impl core::fmt::Display for Source {
@@ -589,5 +587,89 @@ impl<F: NorFlash> ConfigStore<F> {
     /// Give the flash back.
     pub fn into_flash(self) -> F {
         self.flash
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    extern crate std;
+    use std::format;
+    use std::string::ToString;
+
+    /// Every message as the `write!` form before `write_to` spelled it.
+    #[test]
+    fn source_messages_are_those_of_the_write_forms() {
+        const DEFAULTS: &str = "factory defaults in use (limits at the factory stops)";
+        let decode = DecodeError::Version { found: 7 };
+        let config = ConfigError::OutOfRange {
+            field: "limits.upper",
+            range: "the mechanism's height range (see `limits`)",
+        };
+        let store = StoreError::Flash(FlashErrorKind::OutOfBounds);
+        let cases = [
+            (
+                Source::Stored {
+                    seq: 42,
+                    both_copies: true,
+                },
+                "configuration #42 loaded from flash".to_string(),
+            ),
+            (
+                Source::Stored {
+                    seq: u32::MAX,
+                    both_copies: false,
+                },
+                format!(
+                    "configuration #{} loaded from flash (its second copy is older or damaged; \
+                     `save` rewrites it)",
+                    u32::MAX
+                ),
+            ),
+            (
+                Source::Missing,
+                format!("no stored configuration: {DEFAULTS}; `save` stores the current settings"),
+            ),
+            (
+                Source::Corrupt(Corruption::NoIntactRecord),
+                format!(
+                    "stored configuration is corrupt (no intact record: damaged, or the first \
+                     save was interrupted): {DEFAULTS}"
+                ),
+            ),
+            (
+                Source::Corrupt(Corruption::Structure),
+                format!("stored configuration is corrupt (store structure damaged): {DEFAULTS}"),
+            ),
+            (
+                Source::Corrupt(Corruption::Record(DecodeError::BadCrc)),
+                format!("stored configuration is corrupt (record fails its CRC): {DEFAULTS}"),
+            ),
+            (
+                Source::Incompatible(decode),
+                format!(
+                    "stored configuration not used, version mismatch (record is format version \
+                     7, this firmware reads version {}): {DEFAULTS}",
+                    record::VERSION
+                ),
+            ),
+            (
+                Source::Rejected(config),
+                format!(
+                    "stored configuration refused (limits.upper out of range (allowed the \
+                     mechanism's height range (see `limits`))): {DEFAULTS}"
+                ),
+            ),
+            (
+                Source::Unreadable(store),
+                format!(
+                    "configuration store unreadable (flash driver error (out of bounds)): \
+                     {DEFAULTS}"
+                ),
+            ),
+        ];
+        for (source, want) in cases {
+            assert_eq!(source.to_string(), want);
+        }
     }
 }

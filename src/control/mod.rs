@@ -439,7 +439,7 @@ impl Controller {
                 .counts_for_height(h)
                 .ok_or(ConfigError::OutOfRange {
                     field,
-                    range: "the mechanism's height range",
+                    range: "the mechanism's height range (see `limits`)",
                 })
         };
         let lower_counts = counts(cfg.limits.lower, "limits.lower")?;

@@ -458,7 +458,10 @@ impl Controller {
         // Cruise: rad/s → Q32 counts/tick = ω·counts/rad·T·2^32.
         let per_tick_q32 = |speed: RadiansPerSecond| {
             div128(
-                i128::from(speed.bits()) * i128::from(counts_per_rad_q16) * i128::from(tick_us),
+                crate::math::mul128(
+                    i128::from(speed.bits()),
+                    i128::from(counts_per_rad_q16) * i128::from(tick_us),
+                ),
                 1_000_000,
             ) as i64
         };

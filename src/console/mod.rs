@@ -224,7 +224,10 @@ fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {
             // The ASCII spellings other than the display unit, once each.
             let mut n = 0;
             for (s, _) in unit.accepts {
-                if s.eq_ignore_ascii_case(unit.display) || !s.is_ascii() || s.contains('*') {
+                if s.eq_ignore_ascii_case(unit.display)
+                    || !s.is_ascii()
+                    || s.bytes().any(|b| b == b'*')
+                {
                     continue;
                 }
                 out.write_str(if n == 0 { " (or " } else { ", " })?;

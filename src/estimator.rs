@@ -290,28 +290,34 @@ impl Estimator {
         }
         let n = i128::from(cfg.drive.gear_ratio.to_bits()); // Q16
         let eta = i128::from(m.gear_efficiency.bits()); // Q28
-        let n_eta = Factor::from_raw(((n * eta) >> 28) as i32);
+                                                        // n·η in i64 (two i32 factors: it fits), once.
+        let n_eta_q44 = i128::from(
+            i64::from(cfg.drive.gear_ratio.to_bits()) * i64::from(m.gear_efficiency.bits()),
+        );
+        let n_eta = Factor::from_raw((n_eta_q44 >> 28) as i32);
         let n_over_eta = Factor::from_raw(div128(n << 28, eta) as i32);
         let eta_over_n = Ratio::from_raw(div128(eta << 16, n) as i32);
         // 1/(n·η) in Q28 must stay below 8: n·η > 1/8 (2^41 in Q44). Each factor alone is in
         // range (n ≥ 1, η ≥ 0.1), but a direct drive with a lossy coupling is not.
-        if n * eta <= 1i128 << 41 {
+        if n_eta_q44 <= 1i128 << 41 {
             return Err(ConfigError::Conflict {
                 field: "motor.gear_efficiency",
                 reason: "drive.gear_ratio x motor.gear_efficiency must exceed 0.125",
             });
         }
-        let inv_n_eta = Ratio::from_raw(div128(1i128 << 72, n * eta) as i32);
+        let inv_n_eta = Ratio::from_raw(div128(1i128 << 72, n_eta_q44) as i32);
 
         // Fading-memory α-β-γ gains, θ = e^(−2π f_b T), in Q28.
         const TWO_PI_Q16: u64 = 411_775;
         let wt_q16 = (TWO_PI_Q16 * u64::from(cfg.speed_bandwidth_hz) * u64::from(cfg.tick_us)
             / 1_000_000) as u32;
-        let theta = i128::from(exp_neg_q16(wt_q16)) >> 4; // Q28
-        let one = 1i128 << 28;
+        // In i64: 0 ≤ θ ≤ 2^28, so every product stays below 2^59 (the i128 form it replaces
+        // gives the same bits; 128-bit multiplies are long inline code on the board).
+        let theta = i64::from(exp_neg_q16(wt_q16)) >> 4; // Q28
+        let one = 1i64 << 28;
         let om = one - theta; // 1 − θ
-        let alpha = one - (theta * theta >> 28) * theta / one;
-        let beta = 3 * (om * om >> 28) * (one + theta) / (2 * one);
+        let alpha = one - ((theta * theta >> 28) * theta >> 28);
+        let beta = 3 * (om * om >> 28) * (one + theta) >> 29;
         let gamma2 = (om * om >> 28) * om >> 28;
         // Screw rad/s (Q16) from counts/tick (Q16): × rad/count × ticks/s.
         let rpc = geometry.screw_rad_per_count(); // counts → Q16 rad

@@ -26,6 +26,7 @@ pub mod detect;
 pub mod estimator;
 pub mod math;
 pub mod model;
+pub mod text;
 pub mod units;
 
 /// A configuration value was refused.
@@ -48,14 +49,29 @@ pub enum ConfigError {
     },
 }
 
+impl ConfigError {
+    /// The message (its `Display`), written without `core::fmt`'s machinery
+    /// ([`console::fill`]).
+    pub fn write_to(&self, out: &mut dyn core::fmt::Write) -> core::fmt::Result {
+        use console::{fill, Arg};
+        match self {
+            ConfigError::OutOfRange { field, range } => fill(
+                out,
+                "\x01 out of range (allowed \x01)",
+                &[Arg::Str(field), Arg::Str(range)],
+            ),
+            ConfigError::Conflict { field, reason } => fill(
+                out,
+                "\x01 refused: \x01",
+                &[Arg::Str(field), Arg::Str(reason)],
+            ),
+        }
+    }
+}
+
 impl core::fmt::Display for ConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            ConfigError::OutOfRange { field, range } => {
-                write!(f, "{field} out of range (allowed {range})")
-            }
-            ConfigError::Conflict { field, reason } => write!(f, "{field} refused: {reason}"),
-        }
+        self.write_to(f)
     }
 }
 

@@ -406,11 +406,11 @@ async fn storage(store: &'static mut ConfigStore<StoreFlash>) {
 /// An unsolicited console line (`warning:` prefix: host tools show and skip them).
 fn write_notice(out: &mut dyn core::fmt::Write, e: &Event) -> core::fmt::Result {
     match *e {
-        Event::Fault(f) => write!(
-            out,
-            "warning: fault latched: {} (`fault` shows the snapshot, `fault clear` clears it)",
-            f.kind.name()
-        ),
+        Event::Fault(f) => {
+            out.write_str("warning: fault latched: ")?;
+            out.write_str(f.kind.name())?;
+            out.write_str(" (`fault` shows the snapshot, `fault clear` clears it)")
+        }
         Event::Homed { .. } => out.write_str("warning: homed on the lower limit switch"),
         Event::SwitchStop => {
             out.write_str("warning: a limit switch stopped the lift before the soft stop")
@@ -496,9 +496,12 @@ async fn console_task(
     let mut lift = SharedLift;
     // Greeting: protocol version, where the configuration came from, whether to home.
     let _ = service::write_version(reply);
-    let _ = write!(reply, "\r\n{source}\r\n");
+    let _ = reply.write_str("\r\n");
+    let _ = source.write_to(reply);
+    let _ = reply.write_str("\r\n");
     if !lift.status().homed {
-        let _ = write!(reply, "{}\r\n", Refusal::NotHomed);
+        let _ = reply.write_str(Refusal::NotHomed.message());
+        let _ = reply.write_str("\r\n");
     }
     if uart.write_all(reply.as_bytes()).await.is_err() {
         warn!("console write failed");

@@ -36,6 +36,14 @@ pub fn udiv128(n: u128, d: u128) -> u128 {
     q
 }
 
+/// `a·b` like `*` on `i128`, out of line: Arm has no 128-bit multiply, so each `*` on `i128`
+/// is expanded inline (≈ 10 multiplies and their carries); the configuration-time code
+/// multiplies through this one copy instead. Not for the tick path (a call per product).
+#[inline(never)]
+pub fn mul128(a: i128, b: i128) -> i128 {
+    a * b
+}
+
 /// `n / d` truncated toward zero like `/` on `i128` (`d = 0` gives 0, `i128::MIN / −1` wraps),
 /// through the one [`udiv128`].
 #[inline]

@@ -117,23 +117,35 @@ pub enum DecodeError {
     },
 }
 
-impl core::fmt::Display for DecodeError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+impl DecodeError {
+    /// The message (its `Display`), written without `core::fmt`'s machinery
+    /// ([`crate::text`]).
+    pub fn write_to(&self, out: &mut dyn core::fmt::Write) -> core::fmt::Result {
         match self {
-            DecodeError::BadLength => f.write_str("record has a wrong length"),
-            DecodeError::BadMagic => f.write_str("record has no LFCF magic"),
-            DecodeError::BadCrc => f.write_str("record fails its CRC"),
+            DecodeError::BadLength => out.write_str("record has a wrong length"),
+            DecodeError::BadMagic => out.write_str("record has no LFCF magic"),
+            DecodeError::BadCrc => out.write_str("record fails its CRC"),
             DecodeError::Version { found } => {
-                write!(
-                    f,
-                    "record is format version {found}, this firmware reads version {VERSION}"
-                )
+                out.write_str("record is format version ")?;
+                crate::text::uint(out, u64::from(*found))?;
+                out.write_str(", this firmware reads version ")?;
+                crate::text::uint(out, u64::from(VERSION))
             }
             DecodeError::Schema => {
-                f.write_str("record lists other settings than this firmware (schema mismatch)")
+                out.write_str("record lists other settings than this firmware (schema mismatch)")
             }
-            DecodeError::BadField { field } => write!(f, "record value of {field} does not fit"),
+            DecodeError::BadField { field } => {
+                out.write_str("record value of ")?;
+                out.write_str(field)?;
+                out.write_str(" does not fit")
+            }
         }
+    }
+}
+
+impl core::fmt::Display for DecodeError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        self.write_to(f)
     }
 }
 

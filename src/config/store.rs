@@ -144,22 +144,27 @@ pub enum FlashErrorKind {
     Other,
 }
 
-impl core::fmt::Display for StoreError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+impl StoreError {
+    /// The message (its `Display`).
+    pub fn message(&self) -> &'static str {
         match self {
-            StoreError::BadRange => {
-                f.write_str("store range is not an even number (at least 4) of whole pages")
-            }
-            StoreError::Flash(k) => f.write_str(match k {
+            StoreError::BadRange => "store range is not an even number (at least 4) of whole pages",
+            StoreError::Flash(k) => match k {
                 FlashErrorKind::NotAligned => "flash driver error (not aligned)",
                 FlashErrorKind::OutOfBounds => "flash driver error (out of bounds)",
                 FlashErrorKind::Other => "flash driver error",
-            }),
-            StoreError::Full => f.write_str("store is full"),
-            StoreError::Corrupted => f.write_str("store structure is corrupted"),
-            StoreError::Verify => f.write_str("read-back after save differs"),
-            StoreError::Internal => f.write_str("storage library error"),
+            },
+            StoreError::Full => "store is full",
+            StoreError::Corrupted => "store structure is corrupted",
+            StoreError::Verify => "read-back after save differs",
+            StoreError::Internal => "storage library error",
         }
+    }
+}
+
+impl core::fmt::Display for StoreError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.message())
     }
 }
 
@@ -236,49 +241,66 @@ impl Source {
     }
 }
 
+impl Source {
+    /// The message for the console and the log (its `Display`), written without `core::fmt`'s
+    /// machinery ([`crate::text`]).
+    pub fn write_to(&self, out: &mut dyn core::fmt::Write) -> core::fmt::Result {
+        const DEFAULTS: &str = "factory defaults in use (limits at the factory stops)";
+        // "<head> (<cause>): factory defaults …" for the fallbacks with a cause.
+        const CORRUPT: &str = "stored configuration is corrupt (";
+        let (head, cause) = match self {
+            Source::Stored { seq, both_copies } => {
+                crate::console::fill(
+                    out,
+                    "configuration #\x01 loaded from flash",
+                    &[crate::console::Arg::Uint(*seq)],
+                )?;
+                if !both_copies {
+                    out.write_str(" (its second copy is older or damaged; `save` rewrites it)")?;
+                }
+                return Ok(());
+            }
+            Source::Missing => {
+                out.write_str("no stored configuration: ")?;
+                out.write_str(DEFAULTS)?;
+                return out.write_str("; `save` stores the current settings");
+            }
+            Source::Corrupt(Corruption::NoIntactRecord) => (
+                CORRUPT,
+                Cause::Text("no intact record: damaged, or the first save was interrupted"),
+            ),
+            Source::Corrupt(Corruption::Structure) => {
+                (CORRUPT, Cause::Text("store structure damaged"))
+            }
+            Source::Corrupt(Corruption::Record(e)) => (CORRUPT, Cause::Decode(e)),
+            Source::Incompatible(e) => (
+                "stored configuration not used, version mismatch (",
+                Cause::Decode(e),
+            ),
+            Source::Rejected(e) => ("stored configuration refused (", Cause::Config(e)),
+            Source::Unreadable(e) => ("configuration store unreadable (", Cause::Text(e.message())),
+        };
+        out.write_str(head)?;
+        match cause {
+            Cause::Decode(e) => e.write_to(out)?,
+            Cause::Config(e) => e.write_to(out)?,
+            Cause::Text(t) => out.write_str(t)?,
+        }
+        out.write_str("): ")?;
+        out.write_str(DEFAULTS)
+    }
+}
+
+/// The error inside a fallback's message.
+enum Cause<'a> {
+    Decode(&'a DecodeError),
+    Config(&'a ConfigError),
+    Text(&'static str),
+}
+
 impl core::fmt::Display for Source {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        const DEFAULTS: &str = "factory defaults in use (limits at the factory stops)";
-        match self {
-            Source::Stored {
-                seq,
-                both_copies: true,
-            } => write!(f, "configuration #{seq} loaded from flash"),
-            Source::Stored {
-                seq,
-                both_copies: false,
-            } => write!(
-                f,
-                "configuration #{seq} loaded from flash (its second copy is older or damaged; \
-                 `save` rewrites it)"
-            ),
-            Source::Missing => write!(
-                f,
-                "no stored configuration: {DEFAULTS}; `save` stores the current settings"
-            ),
-            Source::Corrupt(Corruption::NoIntactRecord) => write!(
-                f,
-                "stored configuration is corrupt (no intact record: damaged, or the first save \
-                 was interrupted): {DEFAULTS}"
-            ),
-            Source::Corrupt(Corruption::Structure) => write!(
-                f,
-                "stored configuration is corrupt (store structure damaged): {DEFAULTS}"
-            ),
-            Source::Corrupt(Corruption::Record(e)) => {
-                write!(f, "stored configuration is corrupt ({e}): {DEFAULTS}")
-            }
-            Source::Incompatible(e) => {
-                write!(
-                    f,
-                    "stored configuration not used, version mismatch ({e}): {DEFAULTS}"
-                )
-            }
-            Source::Rejected(e) => {
-                write!(f, "stored configuration refused ({e}): {DEFAULTS}")
-            }
-            Source::Unreadable(e) => write!(f, "configuration store unreadable ({e}): {DEFAULTS}"),
-        }
+        self.write_to(f)
     }
 }
 
@@ -565,5 +587,89 @@ impl<F: NorFlash> ConfigStore<F> {
     /// Give the flash back.
     pub fn into_flash(self) -> F {
         self.flash
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    extern crate std;
+    use std::format;
+    use std::string::ToString;
+
+    /// Every message as the `write!` form before `write_to` spelled it.
+    #[test]
+    fn source_messages_are_those_of_the_write_forms() {
+        const DEFAULTS: &str = "factory defaults in use (limits at the factory stops)";
+        let decode = DecodeError::Version { found: 7 };
+        let config = ConfigError::OutOfRange {
+            field: "limits.upper",
+            range: "the mechanism's height range (see `limits`)",
+        };
+        let store = StoreError::Flash(FlashErrorKind::OutOfBounds);
+        let cases = [
+            (
+                Source::Stored {
+                    seq: 42,
+                    both_copies: true,
+                },
+                "configuration #42 loaded from flash".to_string(),
+            ),
+            (
+                Source::Stored {
+                    seq: u32::MAX,
+                    both_copies: false,
+                },
+                format!(
+                    "configuration #{} loaded from flash (its second copy is older or damaged; \
+                     `save` rewrites it)",
+                    u32::MAX
+                ),
+            ),
+            (
+                Source::Missing,
+                format!("no stored configuration: {DEFAULTS}; `save` stores the current settings"),
+            ),
+            (
+                Source::Corrupt(Corruption::NoIntactRecord),
+                format!(
+                    "stored configuration is corrupt (no intact record: damaged, or the first \
+                     save was interrupted): {DEFAULTS}"
+                ),
+            ),
+            (
+                Source::Corrupt(Corruption::Structure),
+                format!("stored configuration is corrupt (store structure damaged): {DEFAULTS}"),
+            ),
+            (
+                Source::Corrupt(Corruption::Record(DecodeError::BadCrc)),
+                format!("stored configuration is corrupt (record fails its CRC): {DEFAULTS}"),
+            ),
+            (
+                Source::Incompatible(decode),
+                format!(
+                    "stored configuration not used, version mismatch (record is format version \
+                     7, this firmware reads version {}): {DEFAULTS}",
+                    record::VERSION
+                ),
+            ),
+            (
+                Source::Rejected(config),
+                format!(
+                    "stored configuration refused (limits.upper out of range (allowed the \
+                     mechanism's height range (see `limits`))): {DEFAULTS}"
+                ),
+            ),
+            (
+                Source::Unreadable(store),
+                format!(
+                    "configuration store unreadable (flash driver error (out of bounds)): \
+                     {DEFAULTS}"
+                ),
+            ),
+        ];
+        for (source, want) in cases {
+            assert_eq!(source.to_string(), want);
+        }
     }
 }

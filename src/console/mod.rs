@@ -15,6 +15,7 @@ pub mod value;
 
 use crate::config::settings::{self, Kind, SettingId};
 use crate::config::ValidatedConfig;
+use crate::text;
 use crate::units::{Amperes, Angle, Metres, NewtonMetres, RadiansPerSecond, Ratio};
 use crate::ConfigError;
 use core::fmt::{self, Write};
@@ -217,12 +218,16 @@ fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {
         } => {
             out.write_str(unit.what)?;
             if !unit.display.is_empty() {
-                write!(out, " in {}", unit.display)?;
+                out.write_str(" in ")?;
+                out.write_str(unit.display)?;
             }
             // The ASCII spellings other than the display unit, once each.
             let mut n = 0;
             for (s, _) in unit.accepts {
-                if s.eq_ignore_ascii_case(unit.display) || !s.is_ascii() || s.contains('*') {
+                if s.eq_ignore_ascii_case(unit.display)
+                    || !s.is_ascii()
+                    || s.bytes().any(|b| b == b'*')
+                {
                     continue;
                 }
                 out.write_str(if n == 0 { " (or " } else { ", " })?;
@@ -242,44 +247,51 @@ fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {
 
 /// The reply to a line that was not understood.
 pub fn write_parse_error(out: &mut dyn Write, e: &ParseError<'_>) -> fmt::Result {
-    match e {
-        ParseError::NotText => out.write_str("error: line is not text (UTF-8); type `help`"),
-        ParseError::TooLong => write!(
-            out,
-            "error: line longer than {MAX_LINE} characters, ignored; type `help`"
+    let (template, args): (&str, &[Arg<'_>]) = match e {
+        ParseError::NotText => ("error: line is not text (UTF-8); type `help`", &[]),
+        ParseError::TooLong => (
+            "error: line longer than \x01 characters, ignored; type `help`",
+            &[Arg::Uint(MAX_LINE as u32)],
         ),
-        ParseError::UnknownCommand(c) => write!(
-            out,
-            "error: unknown command '{}'; type `help` for the commands",
-            Clip(c)
+        ParseError::UnknownCommand(c) => (
+            "error: unknown command '\x01'; type `help` for the commands",
+            &[Arg::Clip(c)],
         ),
-        ParseError::MissingKey(cmd) => write!(
-            out,
-            "error: `{cmd}` needs a key, e.g. `{cmd} limits.upper`; `help keys` lists them"
+        ParseError::MissingKey(cmd) => (
+            "error: `\x01` needs a key, e.g. `\x01 limits.upper`; `help keys` lists them",
+            &[Arg::Str(cmd), Arg::Str(cmd)],
         ),
-        ParseError::UnknownKey(k) => write!(
-            out,
-            "error: unknown key '{}'; `help keys` lists them",
-            Clip(k)
+        ParseError::UnknownKey(k) => (
+            "error: unknown key '\x01'; `help keys` lists them",
+            &[Arg::Clip(k)],
         ),
         ParseError::MissingValue(id) => {
-            write!(out, "error: `set {}` needs a value: ", id.key())?;
-            write_expected(out, *id)
+            fill(
+                out,
+                "error: `set \x01` needs a value: ",
+                &[Arg::Str(id.key())],
+            )?;
+            return write_expected(out, *id);
         }
         ParseError::BadValue(id, v) => {
-            write!(out, "error: bad value for {}: {v}; ", id.key())?;
-            write_expected(out, *id)
+            fill(
+                out,
+                "error: bad value for \x01: \x01; ",
+                &[Arg::Str(id.key()), Arg::Str(v.message())],
+            )?;
+            return write_expected(out, *id);
         }
-        ParseError::BadHeight(v) => write!(
-            out,
-            "error: bad height for goto: {v}; expected a length in mm (or m, cm), e.g. `goto 300mm`"
+        ParseError::BadHeight(v) => (
+            "error: bad height for goto: \x01; expected a length in mm (or m, cm), e.g. \
+             `goto 300mm`",
+            &[Arg::Str(v.message())],
         ),
-        ParseError::Trailing(t) => write!(
-            out,
-            "error: unexpected '{}'; type `help` for the commands",
-            Clip(t)
+        ParseError::Trailing(t) => (
+            "error: unexpected '\x01'; type `help` for the commands",
+            &[Arg::Clip(t)],
         ),
-    }
+    };
+    fill(out, template, args)
 }
 
 /// "expected a length in mm (or m, cm, um), range …".
@@ -287,29 +299,27 @@ fn write_expected(out: &mut dyn Write, id: SettingId) -> fmt::Result {
     let s = id.setting();
     out.write_str("expected ")?;
     write_unit(out, &s.kind)?;
-    write!(out, ", range {}", s.range)
+    out.write_str(", range ")?;
+    out.write_str(s.range)
 }
 
-/// At most 24 characters of user text in a message (the rest as `…`).
-struct Clip<'a>(&'a str);
-
-impl fmt::Display for Clip<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self.0.char_indices().nth(24) {
-            Some((i, _)) => {
-                // A char boundary from `char_indices` (checked, so that no panic is linked).
-                f.write_str(self.0.get(..i).unwrap_or(self.0))?;
-                f.write_str("...")
-            }
-            None => f.write_str(self.0),
+/// At most 24 characters of user text in a message (the rest as `...`).
+fn clip(out: &mut dyn Write, s: &str) -> fmt::Result {
+    match s.char_indices().nth(24) {
+        Some((i, _)) => {
+            // A char boundary from `char_indices` (checked, so that no panic is linked).
+            out.write_str(s.get(..i).unwrap_or(s))?;
+            out.write_str("...")
         }
+        None => out.write_str(s),
     }
 }
 
 /// `key = value` for `get`.
 pub fn write_get(out: &mut dyn Write, cfg: &ValidatedConfig, id: SettingId) -> fmt::Result {
     let s = id.setting();
-    write!(out, "{} = ", s.key)?;
+    out.write_str(s.key)?;
+    out.write_str(" = ")?;
     value::format(out, &s.kind, s.get(cfg.get()))
 }
 
@@ -340,7 +350,8 @@ pub fn write_refused(
     e: &ConfigError,
     running: &ValidatedConfig,
 ) -> fmt::Result {
-    write!(out, "error: set {} refused: {e}", id.key())?;
+    fill(out, "error: set \x01 refused: ", &[Arg::Str(id.key())])?;
+    e.write_to(out)?;
     let field = match e {
         ConfigError::OutOfRange { field, .. } | ConfigError::Conflict { field, .. } => *field,
     };
@@ -361,29 +372,33 @@ fn height_at(cfg: &ValidatedConfig, deg: I16F16) -> Metres {
 fn write_mm(out: &mut dyn Write, m: Metres) -> fmt::Result {
     // 0.1 mm is the resolution a person reads heights in.
     let tenths = (i64::from(m.to_bits()) * 10_000 + (1 << 23)) >> 24;
-    write!(out, "{}.{}", tenths / 10, (tenths % 10).abs())
+    // The whole millimetres (with their sign) and the tenth's digit.
+    text::int(out, tenths / 10)?;
+    out.write_char('.')?;
+    text::uint(out, (tenths % 10).unsigned_abs())
 }
 
 /// "mechanism 133.5..416.4 mm" (α₀ … α_max of the geometry).
 fn write_mechanism(out: &mut dyn Write, cfg: &ValidatedConfig) -> fmt::Result {
     let g = &cfg.get().estimator.geometry;
-    out.write_str("mechanism ")?;
-    write_mm(out, height_at(cfg, g.alpha0_deg))?;
-    out.write_str("..")?;
-    write_mm(out, height_at(cfg, g.alpha_max_deg))?;
-    out.write_str(" mm")
+    fill(
+        out,
+        "mechanism \x01..\x01 mm",
+        &[
+            Arg::Mm(height_at(cfg, g.alpha0_deg)),
+            Arg::Mm(height_at(cfg, g.alpha_max_deg)),
+        ],
+    )
 }
 
 /// The reply to `limits`.
 pub fn write_limits(out: &mut dyn Write, cfg: &ValidatedConfig) -> fmt::Result {
     let l = &cfg.get().limits;
-    out.write_str("limits.lower = ")?;
-    write_mm(out, l.lower)?;
-    out.write_str(" mm, limits.upper = ")?;
-    write_mm(out, l.upper)?;
-    out.write_str(" mm, limits.switch_lower = ")?;
-    write_mm(out, l.switch_lower)?;
-    out.write_str(" mm; ")?;
+    fill(
+        out,
+        "limits.lower = \x01 mm, limits.upper = \x01 mm, limits.switch_lower = \x01 mm; ",
+        &[Arg::Mm(l.lower), Arg::Mm(l.upper), Arg::Mm(l.switch_lower)],
+    )?;
     write_mechanism(out, cfg)
 }
 
@@ -395,10 +410,12 @@ pub fn write_key_help(out: &mut dyn Write, id: SettingId) -> fmt::Result {
 }
 
 fn key_help(out: &mut dyn Write, id: SettingId, about: Option<&str>) -> fmt::Result {
-    write!(out, "{}: ", id.key())?;
+    out.write_str(id.key())?;
+    out.write_str(": ")?;
     match about {
         Some(about) => {
-            write!(out, "{about}; ")?;
+            out.write_str(about)?;
+            out.write_str("; ")?;
             write_expected(out, id)
         }
         None => {
@@ -430,7 +447,9 @@ pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
                     out.write_str("\r\n")?;
                 }
                 let s = id.setting();
-                write!(out, "  {} [", s.key)?;
+                out.write_str("  ")?;
+                out.write_str(s.key)?;
+                out.write_str(" [")?;
                 match &s.kind {
                     Kind::Choice(_) => out.write_str("choice")?,
                     Kind::Number { unit, .. } => out.write_str(if unit.display.is_empty() {
@@ -439,7 +458,8 @@ pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
                         unit.display
                     })?,
                 }
-                write!(out, "] {}", s.range)?;
+                out.write_str("] ")?;
+                out.write_str(s.range)?;
             }
             Ok(())
         }
@@ -487,50 +507,122 @@ fn write_fixed(out: &mut dyn Write, bits: i32, frac: u32, dec: u32) -> fmt::Resu
     }
     let m = q.unsigned_abs();
     let s = scale.unsigned_abs();
-    if dec == 0 {
-        write!(out, "{m}")
-    } else {
-        write!(out, "{}.{:0w$}", m / s, m % s, w = dec as usize)
+    text::uint(out, m / s)?;
+    if dec != 0 {
+        out.write_char('.')?;
+        text::uint_padded(out, m % s, dec as usize)?;
     }
+    Ok(())
 }
 
 /// The reply to `status`: one line, `key=value` pairs a person and a script can read (a fault
 /// name's spaces are written as `-`, so every value is one word).
 pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
-    write!(out, "state={} height=", s.state)?;
-    write_mm(out, s.height)?;
-    out.write_str("mm speed=")?;
-    write_fixed(out, s.screw_speed.to_bits(), 16, 2)?;
-    out.write_str("rad/s current=")?;
-    write_fixed(out, s.current.to_bits(), 16, 2)?;
-    out.write_str("A T_r=")?;
-    write_fixed(out, s.friction_torque.to_bits(), 16, 3)?;
-    write!(
+    fill(
         out,
-        "Nm stick_slip={} ss_amp=",
-        if s.stick_slip { "yes" } else { "no" }
+        "state=\x01 height=\x01mm speed=\x01rad/s current=\x01A T_r=\x01Nm stick_slip=\x01 \
+         ss_amp=\x01Nm ss_episodes=\x01 fault=\x01",
+        &[
+            Arg::Str(s.state),
+            Arg::Mm(s.height),
+            Arg::Fixed(s.screw_speed.to_bits(), 16, 2),
+            Arg::Fixed(s.current.to_bits(), 16, 2),
+            Arg::Fixed(s.friction_torque.to_bits(), 16, 3),
+            Arg::Str(if s.stick_slip { "yes" } else { "no" }),
+            Arg::Fixed(s.stick_slip_amplitude.to_bits(), 16, 2),
+            Arg::Uint(s.stick_slip_episodes),
+            Arg::Word(s.fault.unwrap_or("none")),
+        ],
     )?;
-    write_fixed(out, s.stick_slip_amplitude.to_bits(), 16, 2)?;
-    write!(out, "Nm ss_episodes={} fault=", s.stick_slip_episodes)?;
-    write_word(out, s.fault.unwrap_or("none"))?;
-    if let Some((f, law)) = s.ball_f {
-        out.write_str(" f=")?;
-        write_fixed(out, f.to_bits(), 28, 5)?;
-        out.write_str(" f_law=")?;
-        write_fixed(out, law.to_bits(), 28, 5)?;
+    match s.ball_f {
+        Some((f, law)) => fill(
+            out,
+            " f=\x01 f_law=\x01",
+            &[
+                Arg::Fixed(f.to_bits(), 28, 5),
+                Arg::Fixed(law.to_bits(), 28, 5),
+            ],
+        ),
+        None => Ok(()),
     }
-    Ok(())
 }
 
 /// The console warning of a ball screw whose identified friction coefficient left the band
 /// around the law (`control::lube`), one line.
 pub fn write_lube_warning(out: &mut dyn Write, f: Ratio, law: Ratio) -> fmt::Result {
-    out.write_str("warning: ball-screw friction f=")?;
-    write_fixed(out, f.to_bits(), 28, 5)?;
-    out.write_str(if f > law { " above" } else { " below" })?;
-    out.write_str(" the law's ")?;
-    write_fixed(out, law.to_bits(), 28, 5)?;
-    out.write_str(" beyond ballscrew.lube_band (check lubrication and wear)")
+    fill(
+        out,
+        "warning: ball-screw friction f=\x01\x01 the law's \x01 beyond ballscrew.lube_band \
+         (check lubrication and wear)",
+        &[
+            Arg::Fixed(f.to_bits(), 28, 5),
+            Arg::Str(if f > law { " above" } else { " below" }),
+            Arg::Fixed(law.to_bits(), 28, 5),
+        ],
+    )
+}
+
+/// One value in a reply template ([`fill`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Arg<'a> {
+    /// Text as it is.
+    Str(&'a str),
+    /// A name as one `key=value` word ([`write_word`]).
+    Word(&'a str),
+    /// User text, at most 24 characters of it ([`clip`]).
+    Clip(&'a str),
+    /// An unsigned integer in decimal.
+    Uint(u32),
+    /// A fixed-point value: its bits, fractional bits and the decimals shown
+    /// ([`write_fixed`]).
+    Fixed(i32, u8, u8),
+    /// A height in mm with one decimal ([`write_mm`]).
+    Mm(Metres),
+    /// An integer count of 10^−d units with `d` decimals (`Deci(-5, 1)`: `-0.5`).
+    Deci(i32, u8),
+}
+
+/// The placeholder in a [`fill`] template.
+pub(crate) const SLOT: u8 = 0x01;
+
+/// `template` with each [`SLOT`] byte replaced by the next of `args` (a slot without an
+/// argument writes nothing). One call with one string per reply instead of a `write_str` per
+/// piece: on the board each piece cost ≈ 16 B of code, an argument ≈ half that.
+pub(crate) fn fill(out: &mut dyn Write, template: &str, args: &[Arg<'_>]) -> fmt::Result {
+    let mut args = args.iter();
+    let mut rest = template;
+    loop {
+        // SLOT is ASCII: the split is at a char boundary (checked, so that no panic is linked).
+        let Some((piece, tail)) = rest
+            .bytes()
+            .position(|b| b == SLOT)
+            .and_then(|i| rest.split_at_checked(i))
+        else {
+            return out.write_str(rest);
+        };
+        out.write_str(piece)?;
+        match args.next() {
+            Some(Arg::Str(t)) => out.write_str(t)?,
+            Some(Arg::Word(t)) => write_word(out, t)?,
+            Some(Arg::Clip(t)) => clip(out, t)?,
+            Some(Arg::Uint(v)) => text::uint(out, u64::from(*v))?,
+            Some(&Arg::Fixed(bits, frac, dec)) => {
+                write_fixed(out, bits, u32::from(frac), u32::from(dec))?
+            }
+            Some(Arg::Mm(m)) => write_mm(out, *m)?,
+            Some(&Arg::Deci(v, d)) => {
+                if v < 0 {
+                    out.write_char('-')?;
+                }
+                let scale = 10u32.pow(u32::from(d));
+                text::uint(out, u64::from(v.unsigned_abs() / scale))?;
+                out.write_char('.')?;
+                text::uint_padded(out, u64::from(v.unsigned_abs() % scale), usize::from(d))?;
+            }
+            None => {}
+        }
+        rest = tail.get(1..).unwrap_or("");
+    }
 }
 
 /// A name as one `key=value` word: spaces become `-` ("encoder lost" → `encoder-lost`).
@@ -548,9 +640,11 @@ pub fn write_stick_slip_warning(
     amplitude: NewtonMetres,
     speed_changed: bool,
 ) -> fmt::Result {
-    write!(out, "warning: stick-slip (episode {episode}, torque drop ")?;
-    write_fixed(out, amplitude.to_bits(), 16, 2)?;
-    out.write_str(" Nm per slip)")?;
+    fill(
+        out,
+        "warning: stick-slip (episode \x01, torque drop \x01 Nm per slip)",
+        &[Arg::Uint(episode), Arg::Fixed(amplitude.to_bits(), 16, 2)],
+    )?;
     if speed_changed {
         out.write_str(", cruise changed to stickslip.escape_speed")?;
     }
@@ -625,7 +719,231 @@ impl LineBuffer {
 mod tests {
     use super::*;
     extern crate std;
+    use crate::control::protect::FaultKind;
+    use crate::control::{Fault, State};
+    use crate::units::{Instant, Volts};
+    use std::format;
     use std::string::String;
+
+    /// The `write!` forms the replies had before [`fill`], kept as twins.
+    mod reference {
+        use super::*;
+
+        pub fn fixed(bits: i32, frac: u32, dec: u32) -> String {
+            let scale = 10i64.pow(dec);
+            let v = i64::from(bits) * scale;
+            let half = 1i64 << (frac - 1);
+            let q = if v >= 0 {
+                (v + half) >> frac
+            } else {
+                -((-v + half) >> frac)
+            };
+            let sign = if q < 0 { "-" } else { "" };
+            let m = q.unsigned_abs();
+            let s = scale.unsigned_abs();
+            if dec == 0 {
+                format!("{sign}{m}")
+            } else {
+                format!("{sign}{}.{:0w$}", m / s, m % s, w = dec as usize)
+            }
+        }
+
+        pub fn mm(m: Metres) -> String {
+            let tenths = (i64::from(m.to_bits()) * 10_000 + (1 << 23)) >> 24;
+            format!("{}.{}", tenths / 10, (tenths % 10).abs())
+        }
+
+        pub fn word(name: &str) -> String {
+            name.chars()
+                .map(|c| if c.is_whitespace() { '-' } else { c })
+                .collect()
+        }
+
+        pub fn status(s: &StatusView) -> String {
+            let ball = match s.ball_f {
+                Some((f, law)) => format!(
+                    " f={} f_law={}",
+                    fixed(f.to_bits(), 28, 5),
+                    fixed(law.to_bits(), 28, 5)
+                ),
+                None => String::new(),
+            };
+            format!(
+                "state={} height={}mm speed={}rad/s current={}A T_r={}Nm stick_slip={} \
+                 ss_amp={}Nm ss_episodes={} fault={}{ball}",
+                s.state,
+                mm(s.height),
+                fixed(s.screw_speed.to_bits(), 16, 2),
+                fixed(s.current.to_bits(), 16, 2),
+                fixed(s.friction_torque.to_bits(), 16, 3),
+                if s.stick_slip { "yes" } else { "no" },
+                fixed(s.stick_slip_amplitude.to_bits(), 16, 2),
+                s.stick_slip_episodes,
+                word(s.fault.unwrap_or("none"))
+            )
+        }
+
+        pub fn fault(f: &Fault) -> String {
+            let ms = f.at.0 / 1000;
+            let permille =
+                (i32::from(f.duty) * 1000 + if f.duty < 0 { -16384 } else { 16384 }) / 32768;
+            let p = permille.unsigned_abs();
+            format!(
+                "fault={} t={}.{:03}s state={} height={}mm speed={}rad/s current={}A supply={}V \
+                 duty={}{}.{}% torque={}Nm model_torque={}Nm",
+                word(f.kind.name()),
+                ms / 1000,
+                ms % 1000,
+                f.state.name(),
+                mm(f.height),
+                fixed(f.screw_speed.to_bits(), 16, 2),
+                fixed(f.current.to_bits(), 16, 2),
+                fixed(f.supply.to_bits(), 16, 2),
+                if permille < 0 { "-" } else { "" },
+                p / 10,
+                p % 10,
+                fixed(f.measured_torque.to_bits(), 16, 3),
+                fixed(f.model_torque.to_bits(), 16, 3)
+            )
+        }
+    }
+
+    /// Values over the whole range of each field (xorshift), with the edges.
+    fn samples() -> impl Iterator<Item = u64> {
+        let mut x = 0x2545_F491_4F6C_DD1Du64;
+        [
+            0,
+            1,
+            u64::MAX,
+            1 << 63,
+            (1 << 63) - 1,
+            1 << 31,
+            (1 << 31) - 1,
+        ]
+        .into_iter()
+        .chain(core::iter::from_fn(move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            Some(x >> (x % 48))
+        }))
+        .take(3000)
+    }
+
+    #[test]
+    fn parse_errors_are_those_of_the_write_forms() {
+        let id = settings::find("limits.upper").unwrap();
+        let mut expected = String::new();
+        write_expected(&mut expected, id).unwrap();
+        let long = "a-very-long-word-that-is-clipped-after-24-chars";
+        let cases = [
+            (
+                ParseError::NotText,
+                String::from("error: line is not text (UTF-8); type `help`"),
+            ),
+            (
+                ParseError::TooLong,
+                format!("error: line longer than {MAX_LINE} characters, ignored; type `help`"),
+            ),
+            (
+                ParseError::UnknownCommand(long),
+                format!(
+                    "error: unknown command '{}...'; type `help` for the commands",
+                    &long[..24]
+                ),
+            ),
+            (
+                ParseError::MissingKey("get"),
+                String::from(
+                    "error: `get` needs a key, e.g. `get limits.upper`; `help keys` lists them",
+                ),
+            ),
+            (
+                ParseError::UnknownKey("x"),
+                String::from("error: unknown key 'x'; `help keys` lists them"),
+            ),
+            (
+                ParseError::MissingValue(id),
+                format!("error: `set limits.upper` needs a value: {expected}"),
+            ),
+            (
+                ParseError::BadValue(id, ValueError::WrongUnit),
+                format!("error: bad value for limits.upper: unit not accepted; {expected}"),
+            ),
+            (
+                ParseError::BadHeight(ValueError::NotANumber),
+                String::from(
+                    "error: bad height for goto: not a number; expected a length in mm (or m, \
+                     cm), e.g. `goto 300mm`",
+                ),
+            ),
+            (
+                ParseError::Trailing("now"),
+                String::from("error: unexpected 'now'; type `help` for the commands"),
+            ),
+        ];
+        for (e, want) in cases {
+            let mut out = String::new();
+            write_parse_error(&mut out, &e).unwrap();
+            assert_eq!(out, want);
+        }
+    }
+
+    #[test]
+    fn status_and_fault_lines_are_those_of_the_write_forms() {
+        let kinds = [
+            FaultKind::OverCurrent,
+            FaultKind::EncoderLost,
+            FaultKind::LimitSwitch,
+        ];
+        for (i, v) in samples().enumerate() {
+            let b = |k: u32| (v.rotate_left(k) as u32) as i32;
+            let s = StatusView {
+                state: ["idle", "lifting", "fault"][i % 3],
+                height: Metres::from_bits(b(0)),
+                screw_speed: RadiansPerSecond::from_bits(b(7)),
+                current: Amperes::from_bits(b(13)),
+                friction_torque: NewtonMetres::from_bits(b(21)),
+                stick_slip: i % 2 == 0,
+                stick_slip_amplitude: NewtonMetres::from_bits(b(29)),
+                stick_slip_episodes: b(37) as u32,
+                fault: [None, Some("encoder lost"), Some("over-current")][i % 3],
+                ball_f: (i % 4 == 1).then(|| (Ratio::from_bits(b(47)), Ratio::from_bits(b(53)))),
+            };
+            let mut out = String::new();
+            write_status(&mut out, &s).unwrap();
+            assert_eq!(out, reference::status(&s));
+            let f = Fault {
+                kind: kinds[i % 3],
+                at: Instant(b(3) as u32),
+                state: [State::Lifting, State::Lowering, State::Idle][i % 3],
+                position: b(5),
+                height: Metres::from_bits(b(11)),
+                screw_speed: RadiansPerSecond::from_bits(b(17)),
+                current: Amperes::from_bits(b(19)),
+                supply: Volts::from_bits(b(23)),
+                duty: b(31) as i16,
+                measured_torque: NewtonMetres::from_bits(b(41)),
+                model_torque: NewtonMetres::from_bits(b(43)),
+            };
+            let mut out = String::new();
+            service::write_fault(&mut out, Some(&f)).unwrap();
+            assert_eq!(out, reference::fault(&f));
+            let (lf, law) = (Ratio::from_bits(b(59)), Ratio::from_bits(b(61)));
+            let mut out = String::new();
+            write_lube_warning(&mut out, lf, law).unwrap();
+            assert_eq!(
+                out,
+                format!(
+                    "warning: ball-screw friction f={} {} the law's {} beyond \
+                     ballscrew.lube_band (check lubrication and wear)",
+                    reference::fixed(lf.to_bits(), 28, 5),
+                    if lf > law { "above" } else { "below" },
+                    reference::fixed(law.to_bits(), 28, 5)
+                )
+            );
+        }
+    }
 
     /// Host builds have the help lines (`help-text`, turned on by host-sim and liftctl); the
     /// firmware's `help <key>` without them still says what the key takes and where the

@@ -18,13 +18,14 @@
 //!   speaks another one, and the settings schema so it knows whether its own registry matches.
 
 use super::{
-    parse, write_fixed, write_get, write_help, write_limits, write_mm, write_parse_error,
-    write_refused, write_status, write_word, Feed, ParseError, Request, StatusView,
+    fill, parse, write_get, write_help, write_limits, write_parse_error, write_refused,
+    write_status, Arg, Feed, ParseError, Request, StatusView,
 };
 use crate::config::store::StoreError;
 use crate::config::{record, settings, ValidatedConfig};
 use crate::control::config::ControlConfig;
 use crate::control::{Command, Controller, Fault, Refusal, Status};
+use crate::text;
 use core::fmt::{self, Write};
 
 /// The console protocol version `version` reports. Bump it when a reply a host tool parses
@@ -161,7 +162,7 @@ pub fn handle<L: Lift + ?Sized>(
         Request::FaultClear => Outcome::done(match lift.command(Command::ClearFault) {
             Ok(()) => out.write_str("ok: fault cleared"),
             Err(Refusal::NoFault) => out.write_str("ok: no fault latched"),
-            Err(r) => write!(out, "error: fault clear {r}"),
+            Err(r) => fill(out, "error: fault clear \x01", &[Arg::Str(r.message())]),
         }),
         Request::Help(topic) => Outcome::done(write_help(out, topic)),
         Request::Version => Outcome::done(write_version(out)),
@@ -191,8 +192,16 @@ fn set<L: Lift + ?Sized>(
                 reply: write_set_ok(out, running, id),
             }
         }
-        Err(r) => Outcome::done(write!(out, "error: set {} {r}; nothing changed", id.key())),
+        Err(r) => Outcome::done(write_set_refused(out, id, r)),
     }
+}
+
+fn write_set_refused(out: &mut dyn Write, id: settings::SettingId, r: Refusal) -> fmt::Result {
+    fill(
+        out,
+        "error: set \x01 \x01; nothing changed",
+        &[Arg::Str(id.key()), Arg::Str(r.message())],
+    )
 }
 
 fn write_set_ok(
@@ -219,27 +228,25 @@ fn motion<L: Lift + ?Sized>(out: &mut dyn Write, lift: &mut L, cmd: Command) -> 
             match cmd {
                 Command::Up => out.write_str("lifting to limits.upper"),
                 Command::Down => out.write_str("lowering to limits.lower"),
-                Command::GoTo(h) => {
-                    out.write_str("going to ")?;
-                    write_mm(out, h)?;
-                    out.write_str(" mm")
-                }
+                Command::GoTo(h) => fill(out, "going to \x01 mm", &[Arg::Mm(h)]),
                 Command::Stop | Command::ClearFault => out.write_str(word),
             }
         }
-        Err(r) => write!(out, "error: {word} {r}"),
+        Err(r) => fill(
+            out,
+            "error: \x01 \x01",
+            &[Arg::Str(word), Arg::Str(r.message())],
+        ),
     }
 }
 
 /// The reply to `version`: `liftfw console v1 firmware=0.1.0 schema=1a2b3c4d` (the schema is
 /// the flash record's fingerprint of the settings list, [`record::schema`]).
 pub fn write_version(out: &mut dyn Write) -> fmt::Result {
-    write!(
-        out,
-        "{VERSION_PREFIX}{PROTOCOL_VERSION} firmware={} schema={:08x}",
-        env!("CARGO_PKG_VERSION"),
-        record::schema()
-    )
+    out.write_str(VERSION_PREFIX)?;
+    text::uint(out, u64::from(PROTOCOL_VERSION))?;
+    out.write_str(concat!(" firmware=", env!("CARGO_PKG_VERSION"), " schema="))?;
+    text::hex8(out, record::schema())
 }
 
 /// The reply to `fault`, `key=value` like `status`: `fault=none`, or the fault and the state
@@ -249,47 +256,40 @@ pub fn write_fault(out: &mut dyn Write, fault: Option<&Fault>) -> fmt::Result {
     let Some(f) = fault else {
         return out.write_str("fault=none");
     };
-    // The fault's name may contain spaces; `-` keeps the line `key=value`.
-    out.write_str("fault=")?;
-    write_word(out, f.kind.name())?;
-    let ms = f.at.0 / 1000;
-    write!(
-        out,
-        " t={}.{:03}s state={} height=",
-        ms / 1000,
-        ms % 1000,
-        f.state.name()
-    )?;
-    write_mm(out, f.height)?;
-    out.write_str("mm speed=")?;
-    write_fixed(out, f.screw_speed.to_bits(), 16, 2)?;
-    out.write_str("rad/s current=")?;
-    write_fixed(out, f.current.to_bits(), 16, 2)?;
-    out.write_str("A supply=")?;
-    write_fixed(out, f.supply.to_bits(), 16, 2)?;
     // Duty Q15 → per mille, rounded (|duty| ≤ 32768, so no overflow in i32).
     let permille = (i32::from(f.duty) * 1000 + if f.duty < 0 { -16384 } else { 16384 }) / 32768;
-    out.write_str("V duty=")?;
-    if permille < 0 {
-        out.write_char('-')?;
-    }
-    let p = permille.unsigned_abs();
-    write!(out, "{}.{}% torque=", p / 10, p % 10)?;
-    write_fixed(out, f.measured_torque.to_bits(), 16, 3)?;
-    out.write_str("Nm model_torque=")?;
-    write_fixed(out, f.model_torque.to_bits(), 16, 3)?;
-    out.write_str("Nm")
+    // Milliseconds since boot: at most 2^32 µs / 1000, an i32.
+    let ms = (f.at.0 / 1000) as i32;
+    // The fault's name may contain spaces; `-` keeps the line `key=value`.
+    fill(
+        out,
+        "fault=\x01 t=\x01s state=\x01 height=\x01mm speed=\x01rad/s current=\x01A supply=\x01V \
+         duty=\x01% torque=\x01Nm model_torque=\x01Nm",
+        &[
+            Arg::Word(f.kind.name()),
+            Arg::Deci(ms, 3),
+            Arg::Str(f.state.name()),
+            Arg::Mm(f.height),
+            Arg::Fixed(f.screw_speed.to_bits(), 16, 2),
+            Arg::Fixed(f.current.to_bits(), 16, 2),
+            Arg::Fixed(f.supply.to_bits(), 16, 2),
+            Arg::Deci(permille, 1),
+            Arg::Fixed(f.measured_torque.to_bits(), 16, 3),
+            Arg::Fixed(f.model_torque.to_bits(), 16, 3),
+        ],
+    )
 }
 
 /// The reply to `save`, once the caller has run `ConfigStore::save`: `ok: saved as
 /// configuration #7`, or why it failed and what the flash holds.
 pub fn write_saved(out: &mut dyn Write, result: Result<u32, StoreError>) -> fmt::Result {
     match result {
-        Ok(seq) => write!(out, "ok: saved as configuration #{seq}"),
-        Err(e) => write!(
+        Ok(seq) => fill(out, "ok: saved as configuration #\x01", &[Arg::Uint(seq)]),
+        Err(e) => fill(
             out,
-            "error: save failed ({e}); flash holds the previous configuration or this one, \
-             never a mix; the running settings are unchanged"
+            "error: save failed (\x01); flash holds the previous configuration or this one, \
+             never a mix; the running settings are unchanged",
+            &[Arg::Str(e.message())],
         ),
     }
 }

@@ -29,9 +29,10 @@ pub enum ValueError {
     NotAChoice,
 }
 
-impl fmt::Display for ValueError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
+impl ValueError {
+    /// The message (its `Display`).
+    pub fn message(&self) -> &'static str {
+        match self {
             ValueError::Missing => "no value given",
             ValueError::NotANumber => "not a number",
             ValueError::WrongUnit => "unit not accepted",
@@ -39,7 +40,13 @@ impl fmt::Display for ValueError {
             ValueError::TooLarge => "far outside the range",
             ValueError::TooManyDigits => "more than 18 significant digits",
             ValueError::NotAChoice => "not one of the choices",
-        })
+        }
+    }
+}
+
+impl fmt::Display for ValueError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.message())
     }
 }
 
@@ -317,13 +324,14 @@ fn write_shortest(out: &mut dyn Write, raw: i64, frac: u32, pow10: i32) -> fmt::
     if raw < 0 && (ip != 0 || digits != 0) {
         out.write_char('-')?;
     }
-    write!(out, "{ip}")?;
+    crate::text::uint(out, ip)?;
     while n > 0 && digits.is_multiple_of(10) {
         digits /= 10;
         n -= 1;
     }
     if n > 0 {
-        write!(out, ".{digits:0w$}", w = n as usize)?;
+        out.write_char('.')?;
+        crate::text::uint_padded(out, digits, n as usize)?;
     }
     Ok(())
 }

@@ -439,7 +439,7 @@ impl Controller {
                 .counts_for_height(h)
                 .ok_or(ConfigError::OutOfRange {
                     field,
-                    range: "the mechanism's height range",
+                    range: "the mechanism's height range (see `limits`)",
                 })
         };
         let lower_counts = counts(cfg.limits.lower, "limits.lower")?;
@@ -458,7 +458,10 @@ impl Controller {
         // Cruise: rad/s → Q32 counts/tick = ω·counts/rad·T·2^32.
         let per_tick_q32 = |speed: RadiansPerSecond| {
             div128(
-                i128::from(speed.bits()) * i128::from(counts_per_rad_q16) * i128::from(tick_us),
+                crate::math::mul128(
+                    i128::from(speed.bits()),
+                    i128::from(counts_per_rad_q16) * i128::from(tick_us),
+                ),
                 1_000_000,
             ) as i64
         };
@@ -556,14 +559,16 @@ impl Controller {
     /// lower stop is not enforced on that run (the switch is the stop); stall, over-current and
     /// the other protections are.
     pub fn new_unhomed(cfg: &ControlConfig) -> Result<Controller, ConfigError> {
-        // Until homed, assume the lowest position: the model's load (and feed-forward) is then
-        // the largest the lift can see. (`map` rather than `?` + `Ok`: one controller copy
-        // fewer on the boot stack.)
-        Controller::new(cfg, 0).map(|mut c| {
+        // Adjusted inside the `Result` (`?` would move the 2 KiB controller out of it and back
+        // into a new one: two more copies and stack slots).
+        let mut made = Controller::new(cfg, 0);
+        if let Ok(c) = &mut made {
+            // Until homed, assume the lowest position: the model's load (and feed-forward) is
+            // then the largest the lift can see.
             c.set_position(c.switch_counts);
             c.homed = false;
-            c
-        })
+        }
+        made
     }
 
     /// The position is known (a homing run is not needed).
@@ -670,7 +675,13 @@ impl Controller {
         if matches!(self.state, State::Lifting | State::Lowering) || turning {
             return Err(Refusal::InMotion);
         }
-        let mut next = Controller::new(cfg, self.enc.position()).map_err(|_| Refusal::BadConfig)?;
+        // The candidate is adjusted inside the `Result` and moved once, into `self`: unwrapping
+        // it first (`?`) copied the 2 KiB controller into a second stack slot, and this runs
+        // in the console task with the controller's lock held (interrupts off).
+        let mut made = Controller::new(cfg, self.enc.position());
+        let Ok(next) = &mut made else {
+            return Err(Refusal::BadConfig);
+        };
         if cfg.estimator == self.cfg.estimator {
             // Same model and filter: keep the speed estimate running.
             next.est = self.est.clone();
@@ -707,7 +718,9 @@ impl Controller {
             let at = next.switch_counts;
             next.set_position(at);
         }
-        *self = next;
+        if let Ok(next) = made {
+            *self = next;
+        }
         Ok(())
     }
 

@@ -7,7 +7,7 @@
 //! ≤ 0.05 mm of nut travel at 50 N·m).
 
 use crate::check_range as check;
-use crate::math::{first_quadrant_angle, sqrt_q30, sqrt_rsqrt_q30};
+use crate::math::{first_quadrant_angle, mul128, sqrt_q30, sqrt_rsqrt_q30};
 use crate::model::Scale;
 use crate::units::{sat32, Angle, Kilograms, KilogramsPerSecond, Metres, Newtons, Ratio, Q};
 use crate::ConfigError;
@@ -193,7 +193,10 @@ impl Geometry {
         const TWO_PI_Q28: i128 = 1_686_629_713; // 2π·2^28
                                                 // r_m(Q24)·tan(Q28)·2π(Q28) over counts·ratio(Q16); the extra 2^16 below cancels the ratio's Q16.
         let den = i128::from(drive.counts_per_rev) * i128::from(drive.gear_ratio.to_bits());
-        let num = i128::from(drive.pitch_radius.bits()) * tan_q28 * TWO_PI_Q28;
+        let num = mul128(
+            mul128(i128::from(drive.pitch_radius.bits()), tan_q28),
+            TWO_PI_Q28,
+        );
         // metres_per_count applied to counts (Q0) gives Q24 metres: value·2^24 = num/den / 2^56.
         let metres_per_count = Scale::from_ratio(num << 16, den << 56);
         let counts_per_metre = Scale::from_ratio(den << 56, num << 16);

@@ -90,7 +90,10 @@ impl Scale {
 
     /// This constant times `num/den` (exact integer arithmetic, configuration time only).
     pub fn times(self, num: i128, den: i128) -> Scale {
-        Scale::from_ratio(i128::from(self.mant) * num, den << self.shift)
+        Scale::from_ratio(
+            crate::math::mul128(i128::from(self.mant), num),
+            den << self.shift,
+        )
     }
 
     /// Mantissa and shift: the constant is `mant·2^−shift`.

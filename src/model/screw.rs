@@ -138,10 +138,11 @@ impl ScrewModel {
         let r = i128::from(drive.pitch_radius.bits()); // Q24
         let t = i128::from(tan_q28); // Q28
                                      // ẋ(Q24) = r·t·θ̇(Q16): value r_m tanλ = r·t/2^52 → scale = r·t·2^24/(2^52·2^16).
-        let lead = Scale::from_ratio(r * t, 1i128 << 44);
+        let rt = crate::math::mul128(r, t);
+        let lead = Scale::from_ratio(rt, 1i128 << 44);
         // F(Q8) = m·r_m·tanλ·θ̈(Q8): m in Q12 → m·r·t/2^64, scale = that·2^8/2^8.
         let m = i128::from(mech.nut_mass.bits());
-        let mass_lead = Scale::from_ratio(m * r * t, 1i128 << 64);
+        let mass_lead = Scale::from_ratio(crate::math::mul128(m, rt), 1i128 << 64);
         // T(Q16) = I·θ̈(Q8): I in µkg·m² → scale = I·10⁻⁶·2^16/2^8.
         let inertia = Scale::from_ratio(i128::from(mech.inertia_ukgm2) << 8, 1_000_000);
         // T(Q16) = c·θ̇(Q16): scale = c·10⁻⁶.

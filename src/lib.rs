@@ -60,11 +60,9 @@ impl ConfigError {
                 "\x01 out of range (allowed \x01)",
                 &[Arg::Str(field), Arg::Str(range)],
             ),
-            ConfigError::Conflict { field, reason } => fill(
-                out,
-                "\x01 refused: \x01",
-                &[Arg::Str(field), Arg::Str(reason)],
-            ),
+            ConfigError::Conflict { field, reason } => {
+                fill(out, "\x01: \x01", &[Arg::Str(field), Arg::Str(reason)])
+            }
         }
     }
 }

@@ -176,7 +176,7 @@ fn out_of_range_set_is_refused_naming_field_and_range() {
     let r = settings::apply(&cfg, k, raw);
     assert_eq!(
         reply(|s| console::write_set(s, k, &r, &cfg)),
-        "error: set limits.lower refused: limits.lower refused: must be at least 10 mm below \
+        "error: set limits.lower refused: limits.lower: must be at least 10 mm below \
          limits.upper; mechanism 133.5..416.4 mm"
     );
     let Ok(Some(Request::Set(k, raw))) = parse(b"set limits.upper 450mm") else {

@@ -144,7 +144,7 @@ fn refused_values_change_nothing() {
         ),
         (
             "set limits.lower 405mm",
-            "error: set limits.lower refused: limits.lower refused: must be at least 10 mm below \
+            "error: set limits.lower refused: limits.lower: must be at least 10 mm below \
              limits.upper; mechanism 133.5..416.4 mm",
         ),
         (

@@ -13,10 +13,58 @@
 //! - **Any other fault** shorts the motor (dynamic brake) instead of letting it coast: a
 //!   back-driven motor with shorted windings sinks the load slowly (≈ k_e²/R of damping)
 //!   instead of dropping it, whatever is wrong with the sensors.
+//! - **Holding brake** (`drive.brake = spring`, either screw kind): a spring-applied brake is
+//!   engaged whenever its output ([`super::Outputs::brake_release`]) is off, so it holds at
+//!   boot, without power and on every fault. The core powers it only while a motion runs: a
+//!   motion first waits `drive.brake_ms` with the motor holding the load (the ball screw's
+//!   hold, wound up to where the motor last held it, or to the model's twist after a boot or a
+//!   fault) while the brake lets go, then the profile starts; at rest the output goes off at
+//!   once and the motor keeps holding for `drive.brake_ms` while the brake closes, then lets
+//!   go (the lead screw's rest bridge: shorted once slow) and the holding current falls to
+//!   zero. The coupling unwinds through the motor then; the runaway reference follows it for
+//!   the settling time, as after a stop.
 
-use super::config::ScrewKind;
+use super::config::{BrakeConfig, ScrewKind};
 use super::{Bridge, Controller, FaultKind, State};
-use crate::units::RadiansPerSecond;
+use crate::units::{RadiansPerSecond, Q};
+
+/// The holding brake's output and its timing.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct BrakeState {
+    present: bool,
+    /// Release (and engage) time, ticks.
+    delay: u32,
+    /// The output: coil powered, brake released.
+    pub(super) release: bool,
+    /// Ticks since `release` last changed (saturating; boots as long ago).
+    ticks: u32,
+    /// A motion has held the load since the boot or the last fault: `hold_target` is where the
+    /// motor held it, with the coupling wound up.
+    wound: bool,
+}
+
+impl BrakeState {
+    pub(super) fn new(cfg: &BrakeConfig, tick_us: u32) -> BrakeState {
+        BrakeState {
+            present: cfg.present,
+            delay: (cfg.delay_ms.saturating_mul(1000) / tick_us.max(1)).max(1),
+            release: false,
+            ticks: u32::MAX,
+            wound: false,
+        }
+    }
+
+    /// Keep the output's timing across a reconfiguration at rest.
+    pub(super) fn keep_timing(&mut self, old: &BrakeState) {
+        self.release = old.release && self.present;
+        self.ticks = old.ticks;
+    }
+
+    /// Forget where the motor held the load (a fault let it go).
+    pub(super) fn unwound(&mut self) {
+        self.wound = false;
+    }
+}
 
 impl Controller {
     /// Whether this lift must be held at rest (ball screw).
@@ -27,6 +75,15 @@ impl Controller {
     /// The bridge at rest for either screw kind: the lead screw's [`Controller::rest_bridge`],
     /// or the ball screw's active hold / fault reaction.
     pub(super) fn at_rest_bridge(&mut self) -> Bridge {
+        let b = self.brake;
+        if b.present && self.state != State::Fault && b.ticks >= b.delay {
+            // The brake holds: the motor lets go and the coupling unwinds through it, a
+            // commanded motion the runaway reference follows for the settling time.
+            if b.ticks - b.delay <= self.ticks.settle {
+                self.hold_position = self.enc.position();
+            }
+            return self.rest_bridge();
+        }
         if !self.holds_actively() {
             return self.rest_bridge();
         }
@@ -35,6 +92,41 @@ impl Controller {
             (State::Fault, _) => Bridge::Brake,
             _ => self.hold_bridge(),
         }
+    }
+
+    /// The brake's output for this tick: released only while a motion runs (never in a fault,
+    /// at rest or without a brake).
+    pub(super) fn brake_step(&mut self) {
+        let want = self.brake.present && matches!(self.state, State::Lifting | State::Lowering);
+        if want != self.brake.release {
+            self.brake.release = want;
+            self.brake.ticks = 0;
+        } else {
+            self.brake.ticks = self.brake.ticks.saturating_add(1);
+        }
+    }
+
+    /// While the brake releases at the start of a motion, the bridge that holds the load (the
+    /// profile waits, and so does the overload check's hold-off); `None` once it is released.
+    pub(super) fn releasing_brake(&mut self) -> Option<Bridge> {
+        let b = self.brake;
+        if !b.release || b.ticks >= b.delay {
+            self.brake.wound = true;
+            return None;
+        }
+        self.motion_ticks = 0;
+        if !self.holds_actively() {
+            return Some(self.rest_bridge());
+        }
+        if b.ticks == 0 && !b.wound {
+            // Nothing has held the load since the boot or a fault: wind the coupling up to the
+            // model's at-rest torque (the rated load's) before the brake lets go.
+            let twist = self
+                .twist_scale
+                .apply32(self.estimate.model_screw_torque.bits());
+            self.hold_target = self.enc.position().saturating_add(twist);
+        }
+        Some(self.hold_bridge())
     }
 
     /// Speed loop at zero speed with the position error to `hold_target`.

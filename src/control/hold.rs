@@ -41,6 +41,10 @@ pub(super) struct BrakeState {
     /// A motion has held the load since the boot or the last fault: `hold_target` is where the
     /// motor held it, with the coupling wound up.
     wound: bool,
+    /// At rest the motor has let go of the load, and the encoder's expected unwinding:
+    /// (where the motor held, where the coupling is relaxed), counts.
+    let_go: bool,
+    unwind: (i32, i32),
 }
 
 impl BrakeState {
@@ -51,6 +55,8 @@ impl BrakeState {
             release: false,
             ticks: u32::MAX,
             wound: false,
+            let_go: false,
+            unwind: (0, 0),
         }
     }
 
@@ -63,6 +69,7 @@ impl BrakeState {
     /// Forget where the motor held the load (a fault let it go).
     pub(super) fn unwound(&mut self) {
         self.wound = false;
+        self.let_go = false;
     }
 }
 
@@ -77,12 +84,21 @@ impl Controller {
     pub(super) fn at_rest_bridge(&mut self) -> Bridge {
         let b = self.brake;
         if b.present && self.state != State::Fault && b.ticks >= b.delay {
-            // The brake holds: the motor lets go and the coupling unwinds through it, a
-            // commanded motion the runaway reference follows for the settling time.
-            if b.ticks - b.delay <= self.ticks.settle {
-                self.hold_position = self.enc.position();
+            // The brake holds: the motor lets go (shorted) and the coupling unwinds through
+            // it, from where the motor held to where the coupling is relaxed. That travel is
+            // expected: the runaway reference follows the encoder within it, so only travel
+            // beyond it (a slipping brake) counts.
+            let enc = self.enc.position();
+            if !b.let_go {
+                let twist = self
+                    .twist_scale
+                    .apply32(self.estimate.measured_screw_torque.bits());
+                self.brake.let_go = true;
+                self.brake.unwind = (enc, enc.saturating_sub(twist));
             }
-            return self.rest_bridge();
+            let (from, to) = self.brake.unwind;
+            self.hold_position = enc.clamp(from.min(to), from.max(to));
+            return Bridge::Brake;
         }
         if !self.holds_actively() {
             return self.rest_bridge();
@@ -101,6 +117,7 @@ impl Controller {
         if want != self.brake.release {
             self.brake.release = want;
             self.brake.ticks = 0;
+            self.brake.let_go = false;
         } else {
             self.brake.ticks = self.brake.ticks.saturating_add(1);
         }

@@ -25,7 +25,7 @@
 //!   the settling time, as after a stop.
 
 use super::config::{BrakeConfig, ScrewKind};
-use super::{Bridge, Controller, FaultKind, State};
+use super::{Bridge, Controller, FaultKind, State, ARRIVED_COUNTS};
 use crate::units::{RadiansPerSecond, Q};
 
 /// The holding brake's output and its timing.
@@ -45,6 +45,10 @@ pub(super) struct BrakeState {
     /// (where the motor held, where the coupling is relaxed), counts.
     let_go: bool,
     unwind: (i32, i32),
+    /// This motion's motor has taken the load (the brake may release), and the ticks it has
+    /// tried to.
+    taken: bool,
+    take_ticks: u32,
 }
 
 impl BrakeState {
@@ -57,6 +61,8 @@ impl BrakeState {
             wound: false,
             let_go: false,
             unwind: (0, 0),
+            taken: false,
+            take_ticks: 0,
         }
     }
 
@@ -113,7 +119,12 @@ impl Controller {
     /// The brake's output for this tick: released only while a motion runs (never in a fault,
     /// at rest or without a brake).
     pub(super) fn brake_step(&mut self) {
-        let want = self.brake.present && matches!(self.state, State::Lifting | State::Lowering);
+        let moving = matches!(self.state, State::Lifting | State::Lowering);
+        if !moving {
+            self.brake.taken = false;
+            self.brake.take_ticks = 0;
+        }
+        let want = self.brake.present && moving && self.brake.taken;
         if want != self.brake.release {
             self.brake.release = want;
             self.brake.ticks = 0;
@@ -123,25 +134,36 @@ impl Controller {
         }
     }
 
-    /// While the brake releases at the start of a motion, the bridge that holds the load (the
-    /// profile waits, and so does the overload check's hold-off); `None` once it is released.
+    /// Before a motion with a brake: first the motor takes the load with the brake still
+    /// engaged (the hold winds the coupling up to `hold_target`, until the encoder is there and
+    /// still, at most 4 × `drive.brake_ms`), then the output releases the brake and the motor
+    /// holds through `drive.brake_ms`. Meanwhile the profile waits, and so does the overload
+    /// check's hold-off. `None` once the brake is released (or without one).
     pub(super) fn releasing_brake(&mut self) -> Option<Bridge> {
         let b = self.brake;
-        if !b.release || b.ticks >= b.delay {
+        if !b.present || (b.release && b.ticks >= b.delay) {
             self.brake.wound = true;
             return None;
         }
         self.motion_ticks = 0;
         if !self.holds_actively() {
+            self.brake.taken = true;
             return Some(self.rest_bridge());
         }
-        if b.ticks == 0 && !b.wound {
-            // Nothing has held the load since the boot or a fault: wind the coupling up to the
-            // model's at-rest torque (the rated load's) before the brake lets go.
-            let twist = self
-                .twist_scale
-                .apply32(self.estimate.model_screw_torque.bits());
-            self.hold_target = self.enc.position().saturating_add(twist);
+        if !b.taken {
+            if b.take_ticks == 0 && !b.wound {
+                // Nothing has held the load since the boot or a fault: wind the coupling up to
+                // the model's at-rest torque (the rated load's) before the brake lets go.
+                let twist = self
+                    .twist_scale
+                    .apply32(self.estimate.model_screw_torque.bits());
+                self.hold_target = self.enc.position().saturating_add(twist);
+            }
+            self.brake.take_ticks = b.take_ticks.saturating_add(1);
+            let there = self.hold_target.saturating_sub(self.enc.position()).abs()
+                <= ARRIVED_COUNTS
+                && self.estimate.screw_speed.sat_abs() < self.cfg.estimator.rest_speed;
+            self.brake.taken = there || b.take_ticks >= b.delay.saturating_mul(4);
         }
         Some(self.hold_bridge())
     }

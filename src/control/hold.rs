@@ -164,6 +164,12 @@ impl Controller {
                 <= ARRIVED_COUNTS
                 && self.estimate.screw_speed.sat_abs() < self.cfg.estimator.rest_speed;
             self.brake.taken = there || b.take_ticks >= b.delay.saturating_mul(4);
+            // The brake holds the screw: only the coupling winds up, so the position gain may
+            // be 4× the hold's (16 /s).
+            let error = self.hold_target.saturating_sub(self.enc.position());
+            return Some(Bridge::Drive(
+                self.speed_duty(RadiansPerSecond::ZERO, error.saturating_mul(4)),
+            ));
         }
         Some(self.hold_bridge())
     }

@@ -6,7 +6,7 @@
 //!   voltage over from the motion (it is not reset when a motion ends or starts), and the
 //!   model's at-rest torque (the load torque without friction) is its feed-forward. The motor
 //!   draws the holding current (host-sim, 4008 at rated load: 9.7 A at 16°, 3.5 A at 30°) for
-//!   as long as the lift stands; a spring-applied brake would save that (docs/control.md).
+//!   as long as the lift stands, unless a holding brake is fitted (below).
 //! - **Back-driving** is uncommanded travel: at rest beyond `protect.runaway_travel`, or faster
 //!   than commanded while lowering. Either latches [`FaultKind::Runaway`]; the reaction is to
 //!   hold the screw where it tripped (same loop, current-limited), not to let go.
@@ -16,9 +16,11 @@
 //! - **Holding brake** (`drive.brake = spring`, either screw kind): a spring-applied brake is
 //!   engaged whenever its output ([`super::Outputs::brake_release`]) is off, so it holds at
 //!   boot, without power and on every fault. The core powers it only while a motion runs: a
-//!   motion first waits `drive.brake_ms` with the motor holding the load (the ball screw's
-//!   hold, wound up to where the motor last held it, or to the model's twist after a boot or a
-//!   fault) while the brake lets go, then the profile starts; at rest the output goes off at
+//!   motion first lets the motor take the load with the brake still engaged (a ball screw's
+//!   hold winds the coupling up to where the motor last held the load, or to the model's
+//!   twist after a boot or a fault, until the encoder is there and still, at most
+//!   4 × `drive.brake_ms`), then powers the brake and holds through `drive.brake_ms` while it
+//!   lets go, then the profile starts; at rest the output goes off at
 //!   once and the motor keeps holding for `drive.brake_ms` while the brake closes, then lets
 //!   go (the lead screw's rest bridge: shorted once slow) and the holding current falls to
 //!   zero. The coupling unwinds through the motor then; the runaway reference follows it for

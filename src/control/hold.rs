@@ -22,9 +22,11 @@
 //!   4 × `drive.brake_ms`), then powers the brake and holds through `drive.brake_ms` while it
 //!   lets go, then the profile starts; at rest the output goes off at
 //!   once and the motor keeps holding for `drive.brake_ms` while the brake closes, then lets
-//!   go (the lead screw's rest bridge: shorted once slow) and the holding current falls to
-//!   zero. The coupling unwinds through the motor then; the runaway reference follows it for
-//!   the settling time, as after a stop.
+//!   go (the lead screw's rest bridge: shorted once slow): the battery supplies nothing, and
+//!   the current the unwinding coupling drives through the shorted windings dies away. The
+//!   runaway reference follows the encoder over that expected travel (to where the measured
+//!   torque's twist says the coupling is relaxed); travel beyond it (a slipping brake) trips.
+//!   A STOP during the take-up still releases and then re-engages the brake.
 
 use super::config::{BrakeConfig, ScrewKind};
 use super::{Bridge, Controller, FaultKind, State, ARRIVED_COUNTS};

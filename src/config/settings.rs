@@ -808,6 +808,28 @@ mod tests {
     }
 
     #[test]
+    fn brake_settings_are_validated() {
+        let cfg = ValidatedConfig::factory();
+        assert!(!cfg.get().brake.present);
+        let brake = find("drive.brake").unwrap();
+        let on = apply(&cfg, brake, 1).unwrap();
+        assert!(on.get().brake.present);
+        assert!(apply(&cfg, brake, 2).is_err());
+        let ms = find("drive.brake_ms").unwrap();
+        assert_eq!(apply(&on, ms, 5).unwrap().get().brake.delay_ms, 5);
+        assert_eq!(apply(&on, ms, 1000).unwrap().get().brake.delay_ms, 1000);
+        for bad in [0, 4, 1001] {
+            assert_eq!(
+                apply(&on, ms, bad).unwrap_err(),
+                ConfigError::OutOfRange {
+                    field: "drive.brake_ms",
+                    range: "5..1000 ms"
+                }
+            );
+        }
+    }
+
+    #[test]
     fn refused_change_names_the_field_and_keeps_the_config() {
         let cfg = ValidatedConfig::factory();
         let lower = find("limits.lower").unwrap();

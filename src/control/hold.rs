@@ -92,23 +92,9 @@ impl Controller {
     /// The bridge at rest for either screw kind: the lead screw's [`Controller::rest_bridge`],
     /// or the ball screw's active hold / fault reaction.
     pub(super) fn at_rest_bridge(&mut self) -> Bridge {
-        let b = self.brake;
+        let b = &self.brake;
         if b.present && self.state != State::Fault && b.ticks >= b.delay {
-            // The brake holds: the motor lets go (shorted) and the coupling unwinds through
-            // it, from where the motor held to where the coupling is relaxed. That travel is
-            // expected: the runaway reference follows the encoder within it, so only travel
-            // beyond it (a slipping brake) counts.
-            let enc = self.enc.position();
-            if !b.let_go {
-                let twist = self
-                    .twist_scale
-                    .apply32(self.estimate.measured_screw_torque.bits());
-                self.brake.let_go = true;
-                self.brake.unwind = (enc, enc.saturating_sub(twist));
-            }
-            let (from, to) = self.brake.unwind;
-            self.hold_position = enc.clamp(from.min(to), from.max(to));
-            return Bridge::Brake;
+            return self.braked_rest();
         }
         if !self.holds_actively() {
             return self.rest_bridge();
@@ -122,13 +108,18 @@ impl Controller {
 
     /// The brake's output for this tick: released only while a motion runs (never in a fault,
     /// at rest or without a brake).
+    #[inline]
     pub(super) fn brake_step(&mut self) {
+        if !self.brake.present {
+            // `release` stays false.
+            return;
+        }
         let moving = matches!(self.state, State::Lifting | State::Lowering);
         if !moving {
             self.brake.taken = false;
             self.brake.take_ticks = 0;
         }
-        let want = self.brake.present && moving && self.brake.taken;
+        let want = moving && self.brake.taken;
         if want != self.brake.release {
             self.brake.release = want;
             self.brake.ticks = 0;
@@ -143,16 +134,27 @@ impl Controller {
     /// still, at most 4 × `drive.brake_ms`), then the output releases the brake and the motor
     /// holds through `drive.brake_ms`. Meanwhile the profile waits, and so does the overload
     /// check's hold-off. `None` once the brake is released (or without one).
+    #[inline]
     pub(super) fn releasing_brake(&mut self) -> Option<Bridge> {
-        let b = self.brake;
-        if !b.present || (b.release && b.ticks >= b.delay) {
+        let b = &self.brake;
+        if !b.present {
+            return None;
+        }
+        if b.release && b.ticks >= b.delay {
             self.brake.wound = true;
             return None;
         }
+        Some(self.take_up())
+    }
+
+    /// The bridge while the brake is still engaged or releasing at the start of a motion.
+    #[inline(never)]
+    fn take_up(&mut self) -> Bridge {
+        let b = self.brake;
         self.motion_ticks = 0;
         if !self.holds_actively() {
             self.brake.taken = true;
-            return Some(self.rest_bridge());
+            return self.rest_bridge();
         }
         if !b.taken {
             if b.take_ticks == 0 && !b.wound {
@@ -171,11 +173,28 @@ impl Controller {
             // The brake holds the screw: only the coupling winds up, so the position gain may
             // be 4× the hold's (16 /s).
             let error = self.hold_target.saturating_sub(self.enc.position());
-            return Some(Bridge::Drive(
-                self.speed_duty(RadiansPerSecond::ZERO, error.saturating_mul(4)),
-            ));
+            return Bridge::Drive(self.speed_duty(RadiansPerSecond::ZERO, error.saturating_mul(4)));
         }
-        Some(self.hold_bridge())
+        self.hold_bridge()
+    }
+
+    /// At rest with the brake engaged: the motor lets go (the rest bridge: shorted once slow)
+    /// and the coupling unwinds through it, from where the motor held to where the coupling is
+    /// relaxed. That travel is expected: the runaway reference follows the encoder within it,
+    /// so only travel beyond it (a slipping brake) counts.
+    #[inline(never)]
+    fn braked_rest(&mut self) -> Bridge {
+        let enc = self.enc.position();
+        if !self.brake.let_go {
+            let twist = self
+                .twist_scale
+                .apply32(self.estimate.measured_screw_torque.bits());
+            self.brake.let_go = true;
+            self.brake.unwind = (enc, enc.saturating_sub(twist));
+        }
+        let (from, to) = self.brake.unwind;
+        self.hold_position = enc.clamp(from.min(to), from.max(to));
+        self.rest_bridge()
     }
 
     /// Speed loop at zero speed with the position error to `hold_target`.

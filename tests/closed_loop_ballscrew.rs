@@ -628,3 +628,34 @@ fn with_a_brake_a_lift_from_16_degrees_that_trips_does_not_sink() {
     assert!(sinks[0] > 0.05, "the premise: {:.3} mm", sinks[0]);
     assert!(sinks[1].abs() < 0.01, "with the brake: {:.4} mm", sinks[1]);
 }
+
+#[test]
+fn a_brake_that_does_not_hold_is_caught_as_back_driving_and_held() {
+    // A brake that does not hold (worn out: no torque): once the motor lets go, the coupling
+    // unwinds through the shorted motor, then the screw sinks as with a shorted motor alone.
+    // The travel beyond the coupling's expected unwinding trips `Runaway` (after
+    // `protect.runaway_travel` of nut travel), and the motor holds the load again.
+    let mut s = with_brake(Scenario::ball_screw(RATED, 20.0, 9.0));
+    s.brake = Some(host_sim::plant::BrakeParams {
+        holding_torque: 0.0,
+        ..host_sim::plant::BrakeParams::SCREW_100NM
+    });
+    let target = height_at(20.0) + 0.005;
+    let r = run(
+        &s,
+        command_at(0.05, Command::GoTo(Metres::from_f64(target))),
+    );
+    let (t, f) = r.first_fault().expect("the slip must be detected");
+    assert_eq!(f.kind, FaultKind::Runaway, "{:?}", r.events);
+    let held = height_at_time(&r, t);
+    let sink = (held - r.final_height()) * 1e3;
+    let lost = (target - r.final_height()) * 1e3;
+    println!("brake without torque: runaway at {t:.3} s, then {sink:.3} mm more, {lost:.3} mm under the target at the end");
+    assert!(r
+        .ticks
+        .iter()
+        .filter(|k| k.t >= t)
+        .all(|k| !k.brake_release));
+    assert!(sink.abs() < 0.5, "sank {sink:.3} mm after the trip");
+    assert!(lost < 1.5, "{lost:.3} mm under the target");
+}

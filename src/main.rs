@@ -320,9 +320,11 @@ async fn control(mut board: Board, mut park: ParkLog) {
             // Unreachable by construction (main installs the controller first); coast and
             // let the watchdog reset the board.
             board.bridge.apply(Bridge::Coast);
+            board.brake.apply(false);
             continue;
         };
         board.bridge.apply(outputs.bridge);
+        board.brake.apply(outputs.brake_release);
         if outputs.feed_watchdog {
             board.watchdog.feed();
         } else {

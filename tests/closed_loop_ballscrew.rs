@@ -366,3 +366,296 @@ fn no_friction_is_identified_where_the_pins_take_the_lowering() {
     assert_eq!(r.controller.status().lube, None);
     assert_eq!(lube_events(&r), 0);
 }
+
+// ---- The holding brake (`drive.brake = spring`) ----
+
+/// The ball-screw scenario with a spring-applied brake in the plant and `drive.brake = spring`.
+fn with_brake(mut s: Scenario) -> Scenario {
+    s.brake = Some(host_sim::plant::BrakeParams::SCREW_100NM);
+    s.control.brake.present = true;
+    s.control.brake.delay_ms = 60;
+    s
+}
+
+/// A hook that makes the current sensor read full scale (≈ 66 A) for one tick at `at`: an
+/// over-current trip, a fault that shorts the motor.
+fn current_spike_at(at: f64) -> Box<dyn FnMut(&mut Tick<'_>) + Send> {
+    let mut done = false;
+    Box::new(move |k: &mut Tick<'_>| {
+        if !done && k.t >= at {
+            done = true;
+            k.inputs.current_raw = 4095;
+        }
+    })
+}
+
+/// Height at the first record at or after `t`, m.
+fn height_at_time(r: &Run, t: f64) -> f64 {
+    r.trace
+        .records
+        .iter()
+        .find(|x| x.t >= t)
+        .map_or(f64::NAN, |x| x.height)
+}
+
+#[test]
+fn with_a_brake_a_fault_at_rated_load_does_not_sink() {
+    // Over-current at rest at 0.5 s: every fault but a back-drive shorts the motor. Without a
+    // brake the shorted motor only slows the sinking; with one the output goes off at once and
+    // the brake holds.
+    for deg in [16.0, 30.0] {
+        let mut sinks = [0.0; 2];
+        for (i, brake) in [false, true].into_iter().enumerate() {
+            let mut s = Scenario::ball_screw(RATED, deg, 2.0);
+            if brake {
+                s = with_brake(s);
+            }
+            let r = run(&s, current_spike_at(0.5));
+            let (t, f) = r.first_fault().expect("the spike trips");
+            assert_eq!(f.kind, FaultKind::OverCurrent);
+            assert!((t - 0.5).abs() < 0.002, "{t}");
+            assert!(r
+                .ticks
+                .iter()
+                .filter(|k| k.t >= 0.5)
+                .all(|k| !k.brake_release && k.bridge == Bridge::Brake));
+            sinks[i] = (height_at_time(&r, 0.5) - r.final_height()) * 1e3;
+        }
+        println!(
+            "{deg}°, fault at rest, 1.5 s later: shorted motor sank {:.3} mm, with the brake {:.4} mm",
+            sinks[0], sinks[1]
+        );
+        assert!(sinks[0] > 0.05, "{deg}°: the premise: {:.3} mm", sinks[0]);
+        assert!(sinks[1].abs() < 0.01, "{deg}°: {:.4} mm", sinks[1]);
+    }
+}
+
+#[test]
+fn with_a_brake_a_fault_while_lifting_does_not_sink() {
+    // The fault during a lift (0.55 s after the command of a 5 mm move from 20°): the brake
+    // engages within its 40 ms; the load may coast on a little but must not sink after it.
+    for brake in [false, true] {
+        let mut s = Scenario::ball_screw(RATED, 20.0, 2.0);
+        if brake {
+            s = with_brake(s);
+        }
+        let target = height_at(20.0) + 0.005;
+        let mut go = command_at(0.05, Command::GoTo(Metres::from_f64(target)));
+        let mut spike = current_spike_at(0.6);
+        let r = run(
+            &s,
+            Box::new(move |k: &mut Tick<'_>| {
+                go(k);
+                spike(k);
+            }),
+        );
+        let (t, f) = r.first_fault().expect("the spike trips");
+        assert_eq!(f.kind, FaultKind::OverCurrent);
+        let top = r
+            .trace
+            .records
+            .iter()
+            .filter(|x| x.t >= t)
+            .map(|x| x.height)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let sink = (top - r.final_height()) * 1e3;
+        println!("fault while lifting, brake {brake}: sank {sink:.3} mm from the highest point");
+        if brake {
+            assert!(sink < 0.05, "sank {sink:.3} mm");
+        } else {
+            assert!(sink > 0.05, "the premise: {sink:.3} mm");
+        }
+    }
+}
+
+#[test]
+fn with_a_brake_the_motor_lets_go_at_rest_and_moves_without_a_drop() {
+    // Up 5 mm from 20° and back down, brake fitted: at each start the motor takes the load
+    // before the brake releases, at each stop it holds until the brake has closed, then the
+    // current falls to zero and the head stays put.
+    let s = with_brake(Scenario::ball_screw(RATED, 20.0, 8.0));
+    let h0 = height_at(20.0);
+    let up = Metres::from_f64(h0 + 0.005);
+    let down = Metres::from_f64(h0);
+    let mut first = command_at(0.05, Command::GoTo(up));
+    let mut second = command_at(4.5, Command::GoTo(down));
+    let r = run(
+        &s,
+        Box::new(move |k: &mut Tick<'_>| {
+            first(k);
+            second(k);
+        }),
+    );
+    assert!(r.first_fault().is_none(), "{:?}", r.events);
+    assert_eq!(r.controller.state(), State::Holding);
+    let arrivals: Vec<f64> = r
+        .events
+        .iter()
+        .filter_map(|(t, e)| match e {
+            Event::State {
+                to: State::Holding, ..
+            } => Some(*t),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(arrivals.len(), 2, "{:?}", r.events);
+    // Released only while moving, never before the command.
+    assert!(r
+        .ticks
+        .iter()
+        .filter(|k| k.t < 0.05)
+        .all(|k| !k.brake_release));
+    assert!(r
+        .ticks
+        .iter()
+        .filter(|k| k.t > arrivals[0] + 0.002 && k.t < 4.5)
+        .all(|k| !k.brake_release));
+    let window = |a: f64, b: f64| r.trace.records.iter().filter(move |x| x.t >= a && x.t < b);
+    // Start: no drop below the start while the brake releases and the lift sets off.
+    let start_drop = (h0
+        - window(0.0, 0.6)
+            .map(|x| x.height)
+            .fold(f64::INFINITY, f64::min))
+        * 1e3;
+    // Stops: no drop below where the lift came to rest, and still within 0.05 mm once the
+    // motor let go; the holding current falls to zero.
+    let mut worst_drift = 0.0f64;
+    let mut stop_drop = 0.0f64;
+    for (i, &ta) in arrivals.iter().enumerate() {
+        let end = if i == 0 { 4.5 } else { 8.0 };
+        let ha = height_at_time(&r, ta);
+        let low = window(ta, end)
+            .map(|x| x.height)
+            .fold(f64::INFINITY, f64::min);
+        stop_drop = stop_drop.max((ha - low) * 1e3);
+        let settled = ta + 0.5;
+        let hs = height_at_time(&r, settled);
+        let drift = window(settled, end)
+            .map(|x| (x.height - hs).abs())
+            .fold(0.0, f64::max)
+            * 1e3;
+        worst_drift = worst_drift.max(drift);
+        // Once the brake has closed (60 ms) the bridge shorts the motor (coasting while it turns
+        // too fast for that): the battery supplies nothing, and the current the unwinding coupling drives through the shorted windings
+        // dies away.
+        let let_go = ta + 0.065;
+        assert!(r
+            .ticks
+            .iter()
+            .filter(|k| k.t >= let_go && k.t < end)
+            .all(|k| !matches!(k.bridge, Bridge::Drive(_)) && !k.brake_release));
+        let under_1a = window(ta, end)
+            .find(|x| x.t > let_go && x.current.abs() < 1.0)
+            .map_or(f64::NAN, |x| x.t - ta);
+        let i_end = window(end - 0.1, end)
+            .map(|x| x.current.abs())
+            .fold(0.0, f64::max);
+        let i_hold = window(ta + 0.05, ta + 0.06)
+            .map(|x| x.current.abs())
+            .fold(0.0, f64::max);
+        println!(
+            "stop {i} at {ta:.3} s: drift {drift:.4} mm from 0.5 s on, holding {i_hold:.2} A, \
+             under 1 A {under_1a:.2} s after the stop, {i_end:.3} A {:.1} s after it",
+            end - ta
+        );
+        assert!(i_hold > 1.0, "stop {i}: the motor held {i_hold:.2} A");
+        assert!(
+            i_end < 0.05 * i_hold,
+            "stop {i}: {i_end:.3} A at the end of the rest"
+        );
+    }
+    // The second start (lowering, from a hold point the motor wound up to before): the head
+    // stays put while the motor takes the load, while the brake releases (60 ms) and just
+    // after.
+    let ts = 4.5;
+    let released = |from: f64| {
+        r.ticks
+            .iter()
+            .find(|k| k.t >= from && k.brake_release)
+            .map_or(f64::NAN, |k| k.t)
+    };
+    println!(
+        "brake output on {:.3} s after the first command, {:.3} s after the second",
+        released(0.05) - 0.05,
+        released(ts) - ts
+    );
+    let hs = height_at_time(&r, ts);
+    let second_start = window(ts, released(ts) + 0.08)
+        .map(|x| (x.height - hs).abs())
+        .fold(0.0, f64::max)
+        * 1e3;
+    println!(
+        "start drop {start_drop:.4} mm, stop drop {stop_drop:.4} mm, drift at rest {worst_drift:.4} mm, \
+         second start moved {second_start:.4} mm until 80 ms after the release"
+    );
+    assert!(start_drop < 0.1, "start drop {start_drop:.3} mm");
+    assert!(stop_drop < 0.1, "stop drop {stop_drop:.3} mm");
+    assert!(worst_drift < 0.05, "drift {worst_drift:.3} mm");
+    assert!(second_start < 0.1, "{second_start:.3} mm");
+    let err = (r.final_height() - h0) * 1e3;
+    assert!(err.abs() < 0.5, "final error {err:.3} mm");
+}
+
+#[test]
+fn with_a_brake_a_lift_from_16_degrees_that_trips_does_not_sink() {
+    // A rated-load lift from α₀ = 16° with the factory protections trips over-current (45 A)
+    // at the breakaway (a known limit of the 4008 configuration at the bottom, issue 9). The
+    // shorted motor then lets the load sink below where it started; the brake holds it.
+    let start = height_at(16.0);
+    let mut sinks = [0.0; 2];
+    for (i, brake) in [false, true].into_iter().enumerate() {
+        let mut s = Scenario::ball_screw(RATED, 16.0, 2.0);
+        if brake {
+            s = with_brake(s);
+        }
+        let r = run(
+            &s,
+            command_at(0.05, Command::GoTo(Metres::from_f64(start + 0.005))),
+        );
+        let (t, f) = r.first_fault().expect("the breakaway trips");
+        assert_eq!(f.kind, FaultKind::OverCurrent, "brake {brake}");
+        sinks[i] = (height_at_time(&r, t) - r.final_height()) * 1e3;
+        let below = (start - r.extreme_height(false)) * 1e3;
+        println!(
+            "16° lift, brake {brake}: over-current at {t:.3} s, sank {:.3} mm after it, \
+             lowest {below:.3} mm under the start",
+            sinks[i]
+        );
+        if brake {
+            assert!(below < 0.05, "{below:.3} mm under the start");
+        }
+    }
+    assert!(sinks[0] > 0.05, "the premise: {:.3} mm", sinks[0]);
+    assert!(sinks[1].abs() < 0.01, "with the brake: {:.4} mm", sinks[1]);
+}
+
+#[test]
+fn a_brake_that_does_not_hold_is_caught_as_back_driving_and_held() {
+    // A brake that does not hold (worn out: no torque): once the motor lets go, the coupling
+    // unwinds through the shorted motor, then the screw sinks as with a shorted motor alone.
+    // The travel beyond the coupling's expected unwinding trips `Runaway` (after
+    // `protect.runaway_travel` of nut travel), and the motor holds the load again.
+    let mut s = with_brake(Scenario::ball_screw(RATED, 20.0, 9.0));
+    s.brake = Some(host_sim::plant::BrakeParams {
+        holding_torque: 0.0,
+        ..host_sim::plant::BrakeParams::SCREW_100NM
+    });
+    let target = height_at(20.0) + 0.005;
+    let r = run(
+        &s,
+        command_at(0.05, Command::GoTo(Metres::from_f64(target))),
+    );
+    let (t, f) = r.first_fault().expect("the slip must be detected");
+    assert_eq!(f.kind, FaultKind::Runaway, "{:?}", r.events);
+    let held = height_at_time(&r, t);
+    let sink = (held - r.final_height()) * 1e3;
+    let lost = (target - r.final_height()) * 1e3;
+    println!("brake without torque: runaway at {t:.3} s, then {sink:.3} mm more, {lost:.3} mm under the target at the end");
+    assert!(r
+        .ticks
+        .iter()
+        .filter(|k| k.t >= t)
+        .all(|k| !k.brake_release));
+    assert!(sink.abs() < 0.5, "sank {sink:.3} mm after the trip");
+    assert!(lost < 1.5, "{lost:.3} mm under the target");
+}

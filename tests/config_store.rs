@@ -331,17 +331,17 @@ fn encoded(cfg: &ControlConfig) -> Vec<u8> {
 #[test]
 fn record_of_another_version_is_not_used_and_says_why() {
     let mut rec = encoded(&ControlConfig::DEFAULT);
-    // Version 4: a future format (this firmware writes 3 and also reads 1 and 2).
-    rec[4..6].copy_from_slice(&4u16.to_le_bytes());
+    // Version 5: a future format (this firmware writes 4 and also reads 1 to 3).
+    rec[4..6].copy_from_slice(&5u16.to_le_bytes());
     let (loaded, _) = load(store_raw(&with_crc(rec)));
     assert_eq!(
         loaded.source,
-        Source::Incompatible(DecodeError::Version { found: 4 })
+        Source::Incompatible(DecodeError::Version { found: 5 })
     );
     assert_eq!(loaded.config, ValidatedConfig::factory());
     let msg = format!("{}", loaded.source);
     assert!(msg.contains("version mismatch"), "{msg}");
-    assert!(msg.contains("version 4"), "{msg}");
+    assert!(msg.contains("version 5"), "{msg}");
 }
 
 #[test]

@@ -109,6 +109,9 @@ impl OpenLoopDuty {
 /// A custom bridge commander: `(t, inputs) -> bridge`.
 pub type Commander = Box<dyn FnMut(f64, &Inputs) -> Bridge + Send>;
 
+/// A custom board: `(t, inputs) -> outputs` (bridge and brake output).
+pub type Board = Box<dyn FnMut(f64, &Inputs) -> liftfw::control::Outputs + Send>;
+
 /// What moves the coupling's input side.
 pub enum Driver {
     /// Fig. 2 profile: θ_i prescribed, no motor.
@@ -117,8 +120,10 @@ pub enum Driver {
     Core(Box<Controller>),
     /// Fixed duty with soft start.
     OpenLoop(OpenLoopDuty),
-    /// Any closure `(t, inputs) -> bridge`.
+    /// Any closure `(t, inputs) -> bridge` (a brake in the plant stays released).
     Custom(Commander),
+    /// Any closure `(t, inputs) -> outputs`: the bridge and the brake output.
+    Board(Board),
 }
 
 impl Driver {
@@ -134,6 +139,7 @@ impl fmt::Debug for Driver {
             Driver::Core(_) => write!(f, "Core"),
             Driver::OpenLoop(o) => write!(f, "OpenLoop({o:?})"),
             Driver::Custom(_) => write!(f, "Custom"),
+            Driver::Board(_) => write!(f, "Board"),
         }
     }
 }
@@ -195,6 +201,9 @@ pub struct SimConfig {
     pub seed: u64,
     /// Window over which the summary averages T_r and measures the twist oscillation, s.
     pub window: (f64, f64),
+    /// A spring-applied holding brake on the screw, driven by the board's brake output
+    /// ([`Driver::Core`], [`Driver::Board`]); none by default.
+    pub brake: Option<crate::plant::BrakeParams>,
 }
 
 /// Default base step, s (docs/plant.md, convergence study).
@@ -223,6 +232,7 @@ impl SimConfig {
             ),
             seed: 0,
             window: (0.999, 1.0),
+            brake: None,
         }
     }
 }
@@ -381,6 +391,8 @@ pub struct Sim {
     events: u64,
     evaluations: Cell<u64>,
     late: (f64, f64),
+    /// The holding brake's engagement, 0 (released) … 1 (engaged; it starts unpowered).
+    brake_level: f64,
 }
 
 struct Eval {
@@ -442,6 +454,7 @@ impl Sim {
             events: 0,
             evaluations: Cell::new(0),
             late: (0.0, 0.0),
+            brake_level: 1.0,
             cfg,
             driver,
         })
@@ -880,16 +893,39 @@ impl Sim {
         let inputs = self
             .sensors
             .sample(t, y.motor_angle, y.current, bus, sensing, h);
-        let cmd = match &mut self.driver {
+        let (cmd, release) = match &mut self.driver {
             Driver::Paper(_) => return,
             Driver::Core(c) => {
-                c.step(Instant((t * 1e6).round() as u64 as u32), &inputs)
-                    .bridge
+                let o = c.step(Instant((t * 1e6).round() as u64 as u32), &inputs);
+                (o.bridge, o.brake_release)
             }
-            Driver::OpenLoop(o) => o.command(t, &inputs),
-            Driver::Custom(f) => f(t, &inputs),
+            Driver::OpenLoop(o) => (o.command(t, &inputs), true),
+            Driver::Custom(f) => (f(t, &inputs), true),
+            Driver::Board(f) => {
+                let o = f(t, &inputs);
+                (o.bridge, o.brake_release)
+            }
         };
         self.bridge = BridgeState::from_command(cmd);
+        if let Some(b) = self.cfg.brake {
+            self.brake_level = b.step(self.brake_level, release, 1.0 / self.cfg.control_rate);
+            self.kernel.plant.screw.support_torque =
+                self.cfg.plant.screw.support_torque + self.brake_level * b.holding_torque;
+            // A stuck screw the brake no longer holds breaks away now.
+            if self.phase == Phase::Stick {
+                let next = self.next_phase(t, &self.state);
+                if next != Phase::Stick {
+                    self.phase = next;
+                    self.events += 1;
+                    let (theta_i, _) = self.input(t, &self.state);
+                    self.trace.phases.push(PhaseChange {
+                        t,
+                        phase: next,
+                        twist: self.state.theta - theta_i,
+                    });
+                }
+            }
+        }
     }
 
     /// Live stepping (`host-sim serve`): advances `n` base steps from where the previous call

@@ -22,6 +22,7 @@
 //! | PB14 | GPIO in, pull-up  | UP button, NO to GND (low = pressed)            |
 //! | PB15 | GPIO in, pull-up  | DOWN button, NO to GND (low = pressed)          |
 //! | PB5  | GPIO in, pull-up  | STOP button, NC to GND (high = pressed)         |
+//! | PB9  | GPIO out          | holding-brake coil driver (high = released)     |
 //!
 //! Timers: TIM1 = bridge PWM (its CH4, no pin, triggers the current ADC), TIM2 = embassy-time
 //! driver (cargo feature `time-driver-tim2`), TIM4 = encoder. SWD stays on PA13/PA14.
@@ -90,6 +91,27 @@ pub struct Board {
     pub sensors: Sensors,
     /// The independent watchdog, configured; the control task starts it.
     pub watchdog: Watchdog,
+    /// The spring-applied holding brake's coil driver.
+    pub brake: BrakeOutput,
+}
+
+/// The holding brake's output (PB9, push-pull, driving the gate of the coil's low-side
+/// MOSFET; docs/board.md). Low, the brake's springs hold it engaged: at reset, while the pin
+/// floats (10 kΩ gate pull-down), on a HardFault and whenever the core says so.
+pub struct BrakeOutput {
+    pin: embassy_stm32::gpio::Output<'static>,
+}
+
+impl BrakeOutput {
+    /// Power the coil (release the brake) or not (engaged), as
+    /// [`liftfw::control::Outputs::brake_release`] says.
+    pub fn apply(&mut self, release: bool) {
+        if release {
+            self.pin.set_high();
+        } else {
+            self.pin.set_low();
+        }
+    }
 }
 
 /// Flash range of the configuration store, as offsets from the start of flash: the last four
@@ -101,6 +123,14 @@ impl Board {
     /// before anything else runs. The flash goes to the configuration store.
     pub fn new(p: Peripherals) -> (Self, ConsolePins, Peri<'static, FLASH>) {
         let bridge = HBridge::new(p.TIM1, p.PA8, p.PA9, p.PB12, p.PB13);
+        // The brake stays engaged (low) from the first instruction on.
+        let brake = BrakeOutput {
+            pin: embassy_stm32::gpio::Output::new(
+                p.PB9,
+                embassy_stm32::gpio::Level::Low,
+                embassy_stm32::gpio::Speed::Low,
+            ),
+        };
         let sensors = Sensors::new(sensors::SensorPeripherals {
             encoder_timer: p.TIM4,
             encoder_a: p.PB6,
@@ -128,6 +158,7 @@ impl Board {
                 bridge,
                 sensors,
                 watchdog,
+                brake,
             },
             console,
             p.FLASH,
@@ -165,13 +196,15 @@ unsafe fn NonMaskableInt() {
 /// Every fault exception ends here, and so does every panic when core is built with
 /// `-Cpanic=immediate-abort` (scripts/fw-build's default on the Debian route; panic-probe's
 /// handler also ends in a HardFault). The bridge's enables go low at once (BTS7960 R_EN =
-/// PB12, L_EN = PB13: both half-bridges off, the motor coasts) instead of the last duty running
+/// PB12, L_EN = PB13: both half-bridges off, the motor coasts), and so does the holding
+/// brake's output (PB9: the brake engages), instead of the last duty running
 /// on until the watchdog resets the chip (up to [`WATCHDOG_TIMEOUT_US`]); then wait for that
 /// reset (or for a probe, which halts on the HardFault).
 #[cortex_m_rt::exception(trampoline = false)]
 unsafe fn HardFault() -> ! {
     // Atomic set/reset register: touches only these two pins' outputs.
     embassy_stm32::pac::GPIOB.bsrr().write(|w| {
+        w.set_br(9, true);
         w.set_br(12, true);
         w.set_br(13, true);
     });

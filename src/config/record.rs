@@ -23,9 +23,9 @@ use crate::control::config::ControlConfig;
 /// Record magic, "LFCF".
 pub const MAGIC: [u8; 4] = *b"LFCF";
 /// Format version written by this firmware. 2: `drive.screw` added; 3: the ball screw's
-/// `ballscrew.*` settings added. Older records are read with their own key list, the settings
+/// `ballscrew.*` settings added; 4: the holding brake's `drive.brake`, `drive.brake_ms`. Older records are read with their own key list, the settings
 /// they lack keep their factory value (see docs/config-store.md).
-pub const VERSION: u16 = 3;
+pub const VERSION: u16 = 4;
 /// Bytes before the settings.
 pub const HEADER_LEN: usize = 16;
 
@@ -64,6 +64,8 @@ fn added_in(key: &str) -> u16 {
         2
     } else if key.starts_with("ballscrew.") {
         3
+    } else if key.starts_with("drive.brake") {
+        4
     } else {
         1
     }
@@ -280,8 +282,8 @@ mod tests {
         let len = old_record(&cfg, 1, &mut b);
         assert_eq!(
             len,
-            record_len() - 8 * 16,
-            "v1 lacks drive.screw and ballscrew.*"
+            record_len() - 8 * 18,
+            "v1 lacks drive.screw, ballscrew.* and drive.brake*"
         );
         assert_eq!(decode(&b[..len]), Ok((cfg, 3)));
         // The same bytes labelled version 2 are refused: the key list differs.
@@ -301,16 +303,33 @@ mod tests {
         cfg.protection.runaway_travel = crate::units::Metres::lit("0.001");
         let mut b = [0u8; MAX_RECORD_LEN];
         let len = old_record(&cfg, 2, &mut b);
-        assert_eq!(len, record_len() - 8 * 15);
+        assert_eq!(len, record_len() - 8 * 17);
         assert_eq!(decode(&b[..len]), Ok((cfg, 3)));
-        // A version-3 record keeps a changed ball screw; a future version is refused.
+    }
+
+    /// A version-3 record (no `drive.brake*`) keeps its changed ball screw and gets no brake;
+    /// a version-4 record keeps a brake; a future version is refused.
+    #[test]
+    fn version_3_record_decodes_without_a_brake() {
+        let mut cfg = ControlConfig::ball_screw_4008().unwrap();
         cfg.ball_screw.preload = crate::units::Newtons::lit("1500");
         cfg.lube.band = crate::units::Ratio::lit("0.3");
-        let len = encode(&cfg, 4, &mut b).unwrap();
-        assert_eq!(decode(&b[..len]), Ok((cfg, 4)));
+        let mut b = [0u8; MAX_RECORD_LEN];
+        let len = old_record(&cfg, 3, &mut b);
+        assert_eq!(len, record_len() - 8 * 2);
+        assert_eq!(decode(&b[..len]), Ok((cfg, 3)));
+        // The same bytes labelled version 4 are refused: the key list differs.
         b[4..6].copy_from_slice(&4u16.to_le_bytes());
         let crc = crc32(&b[..len - 4]);
         b[len - 4..len].copy_from_slice(&crc.to_le_bytes());
-        assert_eq!(decode(&b[..len]), Err(DecodeError::Version { found: 4 }));
+        assert_eq!(decode(&b[..len]), Err(DecodeError::Schema));
+        cfg.brake.present = true;
+        cfg.brake.delay_ms = 120;
+        let len = encode(&cfg, 4, &mut b).unwrap();
+        assert_eq!(decode(&b[..len]), Ok((cfg, 4)));
+        b[4..6].copy_from_slice(&5u16.to_le_bytes());
+        let crc = crc32(&b[..len - 4]);
+        b[len - 4..len].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(decode(&b[..len]), Err(DecodeError::Version { found: 5 }));
     }
 }

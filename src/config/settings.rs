@@ -355,7 +355,7 @@ pub const LAW_PRESETS: [FrictionLaw; 4] = [
 
 /// Every setting. The flash record's layout follows this order (the `stored` ones): changing
 /// it changes the record's schema fingerprint (see [`crate::config::record`]).
-pub static SETTINGS: [Setting; 70] = [
+pub static SETTINGS: [Setting; 72] = [
     setting!("limits.lower", LEN, "the mechanism's height range (see `limits`)",
         "lowest head height the lift drives to", q32 limits.lower),
     setting!("limits.upper", LEN, "the mechanism's height range (see `limits`)",
@@ -481,6 +481,26 @@ pub static SETTINGS: [Setting; 70] = [
             true
         },
     },
+    Setting {
+        key: "drive.brake",
+        kind: Kind::Choice(&(&["none", "spring"] as &[&str])),
+        range: "none or spring",
+        #[cfg(feature = "help-text")]
+        about: "holding brake: none, or spring-applied (engaged unless the brake output is on)",
+        stored: true,
+        width: Width::I64,
+        get: |c| i64::from(c.brake.present),
+        set: |c, v| {
+            c.brake.present = match v {
+                0 => false,
+                1 => true,
+                _ => return false,
+            };
+            true
+        },
+    },
+    setting!("drive.brake_ms", num(0, &MILLIS), "5..1000 ms",
+        "time the brake takes to release or engage", int u32, brake.delay_ms),
     setting!("mech.inertia", num(0, &MICRO_KGM2), "0..100000 ukgm2",
         "screw inertia I", int i32, estimator.mechanics.inertia_ukgm2),
     setting!("mech.damping", num(0, &MICRO_NMS), "0..1e6 uNms/rad",
@@ -645,7 +665,7 @@ mod tests {
     /// in the flash record, whose schema word then changes).
     #[test]
     fn registry_covers_every_field() {
-        use crate::control::config::LubeConfig;
+        use crate::control::config::{BrakeConfig, LubeConfig};
         use crate::control::config::{LimitStops, MotionConfig, ProtectionConfig, SensingConfig};
         use crate::detect::stickslip::StickSlipConfig;
         use crate::estimator::{EstimatorConfig, MotorConfig};
@@ -766,10 +786,15 @@ mod tests {
                     min_speed: _,
                     no_load_current: _,
                 },
+            brake:
+                BrakeConfig {
+                    present: _,
+                    delay_ms: _,
+                },
         } = ControlConfig::DEFAULT;
-        // 69 fields above, one key each (the ball screw's law variable is fixed), plus the
+        // 71 fields above, one key each (the ball screw's law variable is fixed), plus the
         // `friction.law` preset selector.
-        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 69);
+        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 71);
     }
 
     #[test]
@@ -779,6 +804,28 @@ mod tests {
             let mut d = c;
             assert!(s.set(&mut d, s.get(&c)), "{}", s.key);
             assert_eq!(d, c, "{}", s.key);
+        }
+    }
+
+    #[test]
+    fn brake_settings_are_validated() {
+        let cfg = ValidatedConfig::factory();
+        assert!(!cfg.get().brake.present);
+        let brake = find("drive.brake").unwrap();
+        let on = apply(&cfg, brake, 1).unwrap();
+        assert!(on.get().brake.present);
+        assert!(apply(&cfg, brake, 2).is_err());
+        let ms = find("drive.brake_ms").unwrap();
+        assert_eq!(apply(&on, ms, 5).unwrap().get().brake.delay_ms, 5);
+        assert_eq!(apply(&on, ms, 1000).unwrap().get().brake.delay_ms, 1000);
+        for bad in [0, 4, 1001] {
+            assert_eq!(
+                apply(&on, ms, bad).unwrap_err(),
+                ConfigError::OutOfRange {
+                    field: "drive.brake_ms",
+                    range: "5..1000 ms"
+                }
+            );
         }
     }
 

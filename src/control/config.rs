@@ -61,6 +61,33 @@ impl ScrewKind {
     }
 }
 
+/// A spring-applied (fail-safe) holding brake on the drive: engaged whenever its output is
+/// off (unpowered, at boot, on a fault), released by the core only while the lift moves
+/// (`control::hold`, docs/control.md "Holding brake").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BrakeConfig {
+    /// A brake is fitted and wired to the brake output.
+    pub present: bool,
+    /// Time the brake takes to release or to engage once its output changes, 5…1000 ms: a
+    /// motion waits this long (the motor holding the load) before the profile starts, and at
+    /// rest the motor holds this long after the output went off before it lets go.
+    pub delay_ms: u32,
+}
+
+impl BrakeConfig {
+    /// No brake (the factory setting: a brake must be fitted and wired before it is used).
+    pub const NONE: BrakeConfig = BrakeConfig {
+        present: false,
+        delay_ms: 60,
+    };
+
+    /// Check the delay.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        range(self.delay_ms, 5, 1000, "drive.brake_ms", "5..1000 ms")
+    }
+}
+
 /// Speed profile and button behaviour.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -251,6 +278,8 @@ pub struct ControlConfig {
     pub ball_screw: BallScrewConfig,
     /// The identification's sampling and the lubrication warning's band.
     pub lube: LubeConfig,
+    /// The holding brake (none by default).
+    pub brake: BrakeConfig,
 }
 
 impl ControlConfig {
@@ -266,6 +295,7 @@ impl ControlConfig {
         screw: ScrewKind::Lead,
         ball_screw: BallScrewConfig::SEED_001_4008,
         lube: LubeConfig::DEFAULT,
+        brake: BrakeConfig::NONE,
     };
 
     /// The default lift with seed 001's 4008 ball screw (r_m = 20 mm, lead 8 mm, λ = 3.64°) in
@@ -425,6 +455,7 @@ impl ControlConfig {
         self.stick_slip.validate()?;
         self.ball_screw.compile()?;
         self.lube.validate()?;
+        self.brake.validate()?;
         self.limits.validate(geometry)
     }
 }

@@ -111,6 +111,9 @@ pub struct Outputs {
     pub bridge: Bridge,
     /// True when this tick completed normally: only then may the board feed the watchdog.
     pub feed_watchdog: bool,
+    /// Power the spring-applied holding brake's coil (release it). False (engaged) at rest,
+    /// on every fault and whenever `drive.brake` is `none` (`hold.rs`).
+    pub brake_release: bool,
     /// Something worth a log line happened this tick.
     pub event: Option<Event>,
 }
@@ -422,6 +425,8 @@ pub struct Controller {
     lube: lube::LubeMonitor,
     /// A lubrication warning (of `lube`'s latest report) waits for a tick without another event.
     lube_notice: bool,
+    /// The holding brake (`hold.rs`).
+    brake: hold::BrakeState,
 }
 
 impl Controller {
@@ -549,6 +554,7 @@ impl Controller {
             ball_screw,
             lube: lube::LubeMonitor::new(cfg),
             lube_notice: false,
+            brake: hold::BrakeState::new(&cfg.brake, tick_us),
         })
     }
 
@@ -703,6 +709,7 @@ impl Controller {
         next.release_ticks = self.release_ticks;
         next.prev_buttons = self.prev_buttons;
         next.pending_event = self.pending_event;
+        next.brake.keep_timing(&self.brake);
         if cfg.ball_screw == self.cfg.ball_screw
             && cfg.lube == self.cfg.lube
             && cfg.estimator == self.cfg.estimator
@@ -876,6 +883,7 @@ impl Controller {
             model_torque: self.estimate.model_screw_torque,
         };
         self.fault = Some(f);
+        self.brake.unwound();
         self.held_button = 0;
         self.hold_target = self.enc.position();
         if !self.keeps_integrator(Some(kind)) {
@@ -1004,7 +1012,8 @@ impl Controller {
         // 4. Buttons.
         self.buttons(inputs.switches.0);
 
-        // 5–6. Motion.
+        // 5–6. Motion (the brake's output first: a motion waits for it to release).
+        self.brake_step();
         let bridge = match self.state {
             State::Lifting | State::Lowering => self.drive(),
             _ => {
@@ -1030,6 +1039,7 @@ impl Controller {
         Outputs {
             bridge,
             feed_watchdog: true,
+            brake_release: self.brake.release,
             event: self.pending_event.take(),
         }
     }
@@ -1151,6 +1161,9 @@ impl Controller {
 
     /// Profile → speed loop → bridge, and the arrival check.
     fn drive(&mut self) -> Bridge {
+        if let Some(releasing) = self.releasing_brake() {
+            return releasing;
+        }
         let r = self.profile.step();
         self.last_ref_speed = r.speed;
         self.last_ref_counts = r.counts();

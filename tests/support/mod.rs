@@ -7,7 +7,7 @@ use host_sim::physics::Lubricant;
 use host_sim::sim::{Driver, Sim, SimConfig, Summary};
 use host_sim::trace::Trace;
 use liftfw::control::config::ControlConfig;
-use liftfw::control::{Bridge, Controller, Event, Inputs};
+use liftfw::control::{Bridge, Controller, Event, Inputs, Outputs};
 use liftfw::model::friction::FrictionLaw;
 use liftfw::units::{Instant, Kilograms, Metres};
 use std::sync::{Arc, Mutex};
@@ -50,6 +50,8 @@ pub struct Scenario {
     pub ball_friction_factor: f64,
     /// The motor's own friction (Coulomb and viscous) multiplied by this (1: host-sim's motor).
     pub motor_friction_factor: f64,
+    /// A spring-applied holding brake in the plant, driven by the core's brake output.
+    pub brake: Option<host_sim::plant::BrakeParams>,
 }
 
 impl Scenario {
@@ -70,6 +72,7 @@ impl Scenario {
             ball_screw: false,
             ball_friction_factor: 1.0,
             motor_friction_factor: 1.0,
+            brake: None,
         }
     }
 
@@ -118,6 +121,8 @@ pub struct TickLog {
     pub bridge: Bridge,
     /// Whether the watchdog was fed.
     pub fed: bool,
+    /// The core's brake output (true: released).
+    pub brake_release: bool,
 }
 
 /// The outcome of a closed-loop run.
@@ -180,6 +185,7 @@ pub fn run(s: &Scenario, mut hook: Hook) -> Run {
     cfg.drive.battery_voltage = s.battery;
     cfg.drive.motor_coulomb *= s.motor_friction_factor;
     cfg.drive.motor_viscous *= s.motor_friction_factor;
+    cfg.brake = s.brake;
     if s.ball_screw {
         let mut bs = host_sim::physics::ballscrew::BallScrewFriction::seed_001_4008();
         bs.law.base *= s.ball_friction_factor;
@@ -202,8 +208,13 @@ pub fn run(s: &Scenario, mut hook: Hook) -> Run {
         Vec::<TickLog>::new(),
     )));
     let inner = Arc::clone(&shared);
-    let mut last = Bridge::Coast;
-    let driver = Driver::Custom(Box::new(move |t: f64, inputs: &Inputs| {
+    let mut last = Outputs {
+        bridge: Bridge::Coast,
+        feed_watchdog: false,
+        brake_release: false,
+        event: None,
+    };
+    let driver = Driver::Board(Box::new(move |t: f64, inputs: &Inputs| {
         let mut g = inner.lock().expect("not poisoned");
         let (c, events, ticks) = &mut *g;
         let mut inputs = *inputs;
@@ -218,8 +229,9 @@ pub fn run(s: &Scenario, mut hook: Hook) -> Run {
         if tick.skip {
             ticks.push(TickLog {
                 t,
-                bridge: last,
+                bridge: last.bridge,
                 fed: false,
+                brake_release: last.brake_release,
             });
             return last;
         }
@@ -235,9 +247,11 @@ pub fn run(s: &Scenario, mut hook: Hook) -> Run {
             t,
             bridge: out.bridge,
             fed: out.feed_watchdog,
+            brake_release: out.brake_release,
         });
-        last = out.bridge;
-        out.bridge
+        out.event = None;
+        last = out;
+        out
     }));
     let mut sim = Sim::new(cfg, driver).expect("valid sim config");
     let summary = sim.run();

@@ -45,6 +45,8 @@ pub struct Profile {
     cruise_room: i64,
     /// a²/4 (Q64), the discriminant's constant term.
     accel_sq_4: i128,
+    /// The last two braking roots, newest first: the next one's guess ([`braking_speed`]).
+    roots: [u32; 2],
     shape: RampShape,
     // Trapezoid generator state.
     p: i64,
@@ -67,16 +69,24 @@ const ONE: i64 = 1 << 32;
 
 /// Largest next speed v' from which the ramp still stops on the target after this step moves
 /// (v + v')/2: v'² ≤ 2a(d − (v + v')/2), i.e. v' = √(a²/4 + a·room) − a/2 with
-/// room = 2|d| − v·dir. Q32 operands give a Q64 discriminant; its Q40 root is Q20. Kept out of
-/// line: only the braking ticks need it.
+/// room = 2|d| − v·dir. Q32 operands give a Q64 discriminant; its Q40 root is Q20, exact
+/// (`isqrt_u64_near`) from a guess extrapolated from the last two roots in `roots` (newest
+/// first; updated here): braking at a constant rate the root moves almost linearly, so the
+/// guess is within 1 on nearly every tick (≈ 15 instructions instead of ≈ 95 for the full
+/// root); a stale or wrong guess only costs the full root. Kept out of line: only the braking
+/// ticks need it.
 #[inline(never)]
-fn braking_speed(accel: i64, a2_4: i128, room: i64) -> i64 {
+fn braking_speed(accel: i64, a2_4: i128, room: i64, roots: &mut [u32; 2]) -> i64 {
     let disc = a2_4 + i128::from(accel) * i128::from(room);
     if disc <= 0 {
         0
     } else {
         let q40 = u64::try_from(disc >> 24).unwrap_or(u64::MAX);
-        ((i64::from(crate::math::isqrt_u64(q40)) << 12) - accel / 2).max(0)
+        let [r0, r1] = *roots;
+        let guess = (2 * i64::from(r0) - i64::from(r1)).clamp(0, i64::from(u32::MAX)) as u32;
+        let root = crate::math::isqrt_u64_near(q40, guess);
+        *roots = [root, r0];
+        ((i64::from(root) << 12) - accel / 2).max(0)
     }
 }
 
@@ -110,6 +120,7 @@ impl Profile {
             cruise,
             cruise_room: cruise_room(cruise, accel),
             accel_sq_4: i128::from(accel) * i128::from(accel) / 4,
+            roots: [0; 2],
             shape,
             p,
             v: 0,
@@ -213,7 +224,7 @@ impl Profile {
         let brake = if room >= self.cruise_room {
             self.cruise
         } else {
-            braking_speed(self.accel, self.accel_sq_4, room)
+            braking_speed(self.accel, self.accel_sq_4, room, &mut self.roots)
         };
         let v_goal = dir * brake.min(self.cruise);
         let v_new = if v_goal > self.v {

@@ -77,11 +77,23 @@ const ONE: i64 = 1 << 32;
 /// ticks need it.
 #[inline(never)]
 fn braking_speed(accel: i64, a2_4: i128, room: i64, roots: &mut [u32; 2]) -> i64 {
-    let disc = a2_4 + i128::from(accel) * i128::from(room);
-    if disc <= 0 {
+    // accel ≥ 1 and a²/4 ≥ 0 (`Profile::new`); with room ≥ 0 (no overshoot: every braking
+    // tick in practice) the product is unsigned, 64 × 64 bits, half the instructions of the
+    // signed one. |a²/4 + a·room| < 2^102: no overflow either way.
+    let q = if let Ok(r) = u64::try_from(room) {
+        (a2_4.unsigned_abs() + u128::from(accel.unsigned_abs()) * u128::from(r)) >> 24
+    } else {
+        let disc = a2_4 + i128::from(accel) * i128::from(room);
+        if disc <= 0 {
+            return 0;
+        }
+        disc.unsigned_abs() >> 24
+    };
+    if q == 0 {
+        // √0 − a/2 < 0.
         0
     } else {
-        let q40 = u64::try_from(disc >> 24).unwrap_or(u64::MAX);
+        let q40 = u64::try_from(q).unwrap_or(u64::MAX);
         let [r0, r1] = *roots;
         let guess = (2 * i64::from(r0) - i64::from(r1)).clamp(0, i64::from(u32::MAX)) as u32;
         let root = crate::math::isqrt_u64_near(q40, guess);
@@ -372,6 +384,33 @@ mod tests {
                 worst >> 32
             );
             assert!(refs.iter().all(|r| r.speed * dir >= 0), "moved backwards");
+        }
+    }
+
+    proptest::proptest! {
+        /// The braking root (unsigned product, root from a guess) is the plain formula
+        /// ⌊√⌊(a²/4 + a·room)/2^24⌋⌋·2^12 − a/2 (≥ 0) for any room and any guess history.
+        #[test]
+        fn braking_speed_is_the_exact_formula(
+            accel in 1i64..(1 << 38),
+            room in proptest::prelude::any::<i64>(),
+            small in -(1i64 << 34)..(1i64 << 42),
+            roots in proptest::prelude::any::<[u32; 2]>(),
+        ) {
+            for room in [room, small] {
+                let a2_4 = i128::from(accel) * i128::from(accel) / 4;
+                let disc = a2_4 + i128::from(accel) * i128::from(room);
+                let want = if disc <= 0 {
+                    0
+                } else {
+                    let q = u64::try_from(disc >> 24).unwrap_or(u64::MAX);
+                    ((i64::from(q.isqrt() as u32) << 12) - accel / 2).max(0)
+                };
+                let mut r = roots;
+                proptest::prop_assert_eq!(braking_speed(accel, a2_4, room, &mut r), want);
+                // Again from the history it left (the guess path).
+                proptest::prop_assert_eq!(braking_speed(accel, a2_4, room, &mut r), want);
+            }
         }
     }
 

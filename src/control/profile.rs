@@ -44,7 +44,7 @@ pub struct Profile {
     /// square root can be skipped (see [`Self::step_trapezoid`]).
     cruise_room: i64,
     /// a²/4 (Q64), the discriminant's constant term.
-    accel_sq_4: i128,
+    accel_sq_4: u128,
     /// The last two braking roots, newest first: the next one's guess ([`braking_speed`]).
     roots: [u32; 2],
     shape: RampShape,
@@ -76,18 +76,18 @@ const ONE: i64 = 1 << 32;
 /// root); a stale or wrong guess only costs the full root. Kept out of line: only the braking
 /// ticks need it.
 #[inline(never)]
-fn braking_speed(accel: i64, a2_4: i128, room: i64, roots: &mut [u32; 2]) -> i64 {
-    // accel ≥ 1 and a²/4 ≥ 0 (`Profile::new`); with room ≥ 0 (no overshoot: every braking
-    // tick in practice) the product is unsigned, 64 × 64 bits, half the instructions of the
-    // signed one. |a²/4 + a·room| < 2^102: no overflow either way.
+fn braking_speed(accel: u64, a2_4: u128, room: i64, roots: &mut [u32; 2]) -> i64 {
+    // Unsigned, 64 × 64-bit products (half the instructions of signed ones): with room ≥ 0 (no
+    // overshoot, every braking tick in practice) a²/4 + a·room, else a²/4 − a·|room|.
+    // a ≤ 2^38 and |room| < 2^63: no overflow.
     let q = if let Ok(r) = u64::try_from(room) {
-        (a2_4.unsigned_abs() + u128::from(accel.unsigned_abs()) * u128::from(r)) >> 24
+        (a2_4 + u128::from(accel) * u128::from(r)) >> 24
     } else {
-        let disc = a2_4 + i128::from(accel) * i128::from(room);
-        if disc <= 0 {
+        let back = u128::from(accel) * u128::from(room.unsigned_abs());
+        if a2_4 <= back {
             return 0;
         }
-        disc.unsigned_abs() >> 24
+        (a2_4 - back) >> 24
     };
     if q == 0 {
         // √0 − a/2 < 0.
@@ -98,7 +98,8 @@ fn braking_speed(accel: i64, a2_4: i128, room: i64, roots: &mut [u32; 2]) -> i64
         let guess = (2 * i64::from(r0) - i64::from(r1)).clamp(0, i64::from(u32::MAX)) as u32;
         let root = crate::math::isqrt_u64_near(q40, guess);
         *roots = [root, r0];
-        ((i64::from(root) << 12) - accel / 2).max(0)
+        // a/2 < 2^37.
+        ((i64::from(root) << 12) - (accel / 2) as i64).max(0)
     }
 }
 
@@ -131,7 +132,7 @@ impl Profile {
             accel,
             cruise,
             cruise_room: cruise_room(cruise, accel),
-            accel_sq_4: i128::from(accel) * i128::from(accel) / 4,
+            accel_sq_4: u128::from(accel.unsigned_abs()).pow(2) / 4,
             roots: [0; 2],
             shape,
             p,
@@ -236,7 +237,8 @@ impl Profile {
         let brake = if room >= self.cruise_room {
             self.cruise
         } else {
-            braking_speed(self.accel, self.accel_sq_4, room, &mut self.roots)
+            // accel ≥ 1 (`new`).
+            braking_speed(self.accel as u64, self.accel_sq_4, room, &mut self.roots)
         };
         let v_goal = dir * brake.min(self.cruise);
         let v_new = if v_goal > self.v {
@@ -400,6 +402,7 @@ mod tests {
             for room in [room, small] {
                 let a2_4 = i128::from(accel) * i128::from(accel) / 4;
                 let disc = a2_4 + i128::from(accel) * i128::from(room);
+                let (au, a2u) = (accel as u64, a2_4 as u128);
                 let want = if disc <= 0 {
                     0
                 } else {
@@ -407,9 +410,9 @@ mod tests {
                     ((i64::from(q.isqrt() as u32) << 12) - accel / 2).max(0)
                 };
                 let mut r = roots;
-                proptest::prop_assert_eq!(braking_speed(accel, a2_4, room, &mut r), want);
+                proptest::prop_assert_eq!(braking_speed(au, a2u, room, &mut r), want);
                 // Again from the history it left (the guess path).
-                proptest::prop_assert_eq!(braking_speed(accel, a2_4, room, &mut r), want);
+                proptest::prop_assert_eq!(braking_speed(au, a2u, room, &mut r), want);
             }
         }
     }

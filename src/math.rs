@@ -271,6 +271,31 @@ pub fn isqrt_u64(n: u64) -> u32 {
     r as u32
 }
 
+/// ⌊√n⌋ for any `u64`, exact, from a guess: when the guess is within 1 of the root, two or
+/// three exact products decide (≈ 15 instructions); otherwise [`isqrt_u64`]. The ramp
+/// planner's braking root moves almost linearly from tick to tick, so a guess extrapolated
+/// from the last two roots is nearly always within 1.
+#[inline]
+pub fn isqrt_u64_near(n: u64, guess: u32) -> u32 {
+    // g ≤ 2^32 − 3, so (g + 2)² < 2^64: every product below is exact.
+    let g = u64::from(guess.min(u32::MAX - 2));
+    let sq = g * g;
+    if sq <= n {
+        let next = sq + 2 * g + 1; // (g + 1)²
+        if n < next {
+            return g as u32;
+        }
+        if n < next + 2 * g + 3 {
+            // (g + 1)² ≤ n < (g + 2)²
+            return (g + 1) as u32;
+        }
+    } else if g > 0 && sq + 1 - 2 * g <= n {
+        // (g − 1)² ≤ n < g²
+        return (g - 1) as u32;
+    }
+    isqrt_u64(n)
+}
+
 /// Coefficients of asin(u) = u·P(u²) on 0 ≤ u ≤ sin 45°, P of degree 5 with non-negative
 /// coefficients (least squares reweighted toward minimax under that constraint, offline: max
 /// error 7.7·10⁻⁷ rad; the fit sets c₄ = 0), rescaled for the evaluation below:
@@ -455,6 +480,45 @@ mod tests {
             "worst relative error: sqrt {:e}, rsqrt {:e}",
             worst.0, worst.1
         );
+    }
+
+    #[test]
+    fn isqrt_u64_near_is_exact_for_any_guess() {
+        let check =
+            |n: u64, g: u32| assert_eq!(u64::from(isqrt_u64_near(n, g)), n.isqrt(), "{n} {g}");
+        let mut x: u64 = 0xD1B5_4A32_D192_ED03;
+        for _ in 0..100_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let n = x >> (x % 64);
+            let r = n.isqrt() as u32;
+            // Guesses at and around the root (every branch), and far off (the fallback).
+            for g in [
+                r.wrapping_sub(2),
+                r.wrapping_sub(1),
+                r,
+                r.wrapping_add(1),
+                r.wrapping_add(2),
+            ] {
+                check(n, g);
+            }
+            check(n, (x >> 32) as u32);
+        }
+        for n in [
+            0,
+            1,
+            2,
+            3,
+            4,
+            u64::MAX,
+            u64::MAX - 1,
+            (u64::from(u32::MAX) - 1).pow(2),
+        ] {
+            for g in [0, 1, 2, u32::MAX - 3, u32::MAX - 2, u32::MAX - 1, u32::MAX] {
+                check(n, g);
+            }
+        }
     }
 
     #[test]

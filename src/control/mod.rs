@@ -402,8 +402,9 @@ pub struct Controller {
     /// The motion was started by a hold-to-run button that is still held.
     held_button: u8,
     prev_buttons: u8,
-    /// The profile's speed of the last tick, Q32 counts/tick.
-    last_ref_speed: i64,
+    /// The profile's speed of the last tick in screw rad/s (`reference_speed`), converted
+    /// once when the profile steps: the tick reads it up to four times.
+    last_ref_rad: RadiansPerSecond,
     /// The profile's position of the last tick, counts.
     last_ref_counts: i32,
     /// 1/(k_e·n), screw rad/s per volt.
@@ -534,7 +535,7 @@ impl Controller {
             rest_ticks: u32::MAX,
             held_button: 0,
             prev_buttons: 0,
-            last_ref_speed: 0,
+            last_ref_rad: RadiansPerSecond::ZERO,
             last_ref_counts: position,
             gains,
             inv_ke_n,
@@ -1165,9 +1166,10 @@ impl Controller {
             return releasing;
         }
         let r = self.profile.step();
-        self.last_ref_speed = r.speed;
+        self.last_ref_rad =
+            RadiansPerSecond::from_raw(self.speed_scale.apply32(sat32(r.speed >> 16)));
         self.last_ref_counts = r.counts();
-        let reference = self.reference_speed();
+        let reference = self.last_ref_rad;
         let error_counts = r.counts().saturating_sub(self.screw_position());
         if r.done {
             self.settle_ticks = self.settle_ticks.saturating_add(1);
@@ -1214,7 +1216,9 @@ impl Controller {
         }
     }
 
+    /// The profile's speed of the last tick in screw rad/s.
+    #[inline]
     fn reference_speed(&self) -> RadiansPerSecond {
-        RadiansPerSecond::from_raw(self.speed_scale.apply32(sat32(self.last_ref_speed >> 16)))
+        self.last_ref_rad
     }
 }

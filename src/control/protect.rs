@@ -206,13 +206,15 @@ impl Monitors {
         if !s.moving && s.travel_while_stopped.unsigned_abs() > l.runaway_counts.unsigned_abs() {
             return Some(FaultKind::Runaway);
         }
-        let too_fast = {
+        // The limit is worked out only while lowering (short-circuit: ~15 instructions off
+        // every other tick).
+        let too_fast = s.moving && s.lowering && {
             let limit = s
                 .reference
                 .sat_abs()
                 .sat_add(s.reference.sat_abs().scale(const { Ratio::lit("0.5") }))
                 .sat_add(s.cruise.scale(const { Ratio::lit("0.25") }));
-            s.moving && s.lowering && s.speed.sat_neg() > limit
+            s.speed.sat_neg() > limit
         };
         if count(&mut self.fast_lowering, too_fast) >= l.runaway_ticks {
             return Some(FaultKind::Runaway);

@@ -38,7 +38,7 @@
 
 use crate::check_range as range;
 use crate::model::friction::CompiledLaw;
-use crate::units::{NewtonMetres, RadiansPerSecond, Q};
+use crate::units::{NewtonMetres, RadiansPerSecond, Ratio, Q};
 use crate::ConfigError;
 
 /// What the controller does when an episode starts.
@@ -194,6 +194,10 @@ pub struct StickSlipDetector {
     interval: u32,
     chain: u32,
     falling: bool,
+    /// μ at the speed the branch test is expected to see on the next tick, worked out on the
+    /// tick before it (one of the test's two law evaluations moved off its tick); used only if
+    /// the speed is exactly that one.
+    branch_ahead: Option<(RadiansPerSecond, Ratio)>,
     /// Ticks since the flag last fell in this motion (`u32::MAX`: not yet).
     since_fall: u32,
     /// Fast-periodic test and its run of periodic ticks.
@@ -309,9 +313,30 @@ impl Periodicity {
         }
     }
 
-    /// Forget everything.
+    /// Forget everything. The history ring (and where its head is) stays as it is: after a
+    /// reset the ring is read only once LAG_MAX + 1 new values have been written (`filled`),
+    /// so no old value is ever seen, and clearing its 64 words (a `memclr`) was ≈ 380
+    /// instructions on the control tick that reset (issue 8). The EWMAs are zeroed when they
+    /// start (`step`), not here: the tick that resets is often a busy one (a stop).
     pub fn reset(&mut self) {
-        *self = Periodicity::new();
+        let Periodicity {
+            x,
+            hist: _,
+            head: _,
+            filled,
+            seen,
+            odd,
+            periodic,
+            best_even,
+            c0: _,
+            c: _,
+        } = self;
+        *x = [0; 3];
+        *filled = 0;
+        *seen = 0;
+        *odd = false;
+        *periodic = false;
+        *best_even = i32::MIN;
     }
 
     /// One torque sample, Q16 N·m. Returns whether the torque is periodic now (the EWMAs start
@@ -332,6 +357,11 @@ impl Periodicity {
         self.hist[self.head] = h;
         self.hist[self.head + HIST_LEN] = h;
         if self.filled <= LAG_MAX + 3 {
+            if self.filled == LAG_MAX + 3 {
+                // The EWMAs start on the next tick: from zero (`reset` leaves them).
+                self.c0 = 0;
+                self.c = [0; LAGS];
+            }
             self.filled += 1;
             return false;
         }
@@ -419,6 +449,7 @@ impl StickSlipDetector {
             interval: 0,
             chain: 0,
             falling: false,
+            branch_ahead: None,
             since_fall: u32::MAX,
             periodicity: Periodicity::new(),
             periodic_run: 0,
@@ -455,8 +486,9 @@ impl StickSlipDetector {
         self.out.active = false;
     }
 
-    /// One tick. `law` is the configured friction law (for the branch of μ(θ̇)). Total: no
-    /// panic, no wrap, whatever the inputs.
+    /// One tick. `law` is the configured friction law (for the branch of μ(θ̇)), the same on
+    /// every call of a detector (the branch test reuses μ worked out on the tick before). Total:
+    /// no panic, no wrap, whatever the inputs.
     pub fn step(&mut self, x: &DetectorInputs, law: &CompiledLaw) -> StickSlipOutput {
         self.out.onset = false;
         self.out.slip = false;
@@ -504,6 +536,12 @@ impl StickSlipDetector {
         }
         self.prev_reference = reference;
         self.prev_accel = accel;
+        if self.steady.saturating_add(1) == self.settle_ticks {
+            // The branch test may run on the next tick: μ at the speed it will see if the
+            // reference keeps this tick's step (this tick does not run the armed path below).
+            let v = RadiansPerSecond::from_raw(reference.saturating_add(accel)).sat_abs();
+            self.branch_ahead = Some((v, law.mu(v)));
+        }
         if self.steady < self.settle_ticks || self.filled < MEAN_LEN {
             self.peak = mean;
             self.in_event = 0;
@@ -524,7 +562,7 @@ impl StickSlipDetector {
                 self.raise();
             }
             if self.steady == self.settle_ticks {
-                self.falling = falling_branch(law, x.reference);
+                self.falling = falling_branch_from(law, x.reference, self.branch_ahead.take());
                 self.out.falling_branch = self.falling;
             }
             // The peak holds during a slip (no leak) and the slip lasts until the torque has not
@@ -600,11 +638,26 @@ impl StickSlipDetector {
 /// Whether μ falls with speed at the reference speed: μ(v + Δ) < μ(v), Δ = max(v/4, 0.05 rad/s).
 /// Two evaluations of the law, once per steady motion.
 pub fn falling_branch(law: &CompiledLaw, reference: RadiansPerSecond) -> bool {
+    falling_branch_from(law, reference, None)
+}
+
+/// [`falling_branch`] with `ahead`, a speed and μ there worked out earlier with the same law:
+/// used for μ(v) when the speed is exactly v (one law evaluation, ≈ 85 instructions, instead
+/// of two on the tick that tests); anything else evaluates it. Same result either way.
+fn falling_branch_from(
+    law: &CompiledLaw,
+    reference: RadiansPerSecond,
+    ahead: Option<(RadiansPerSecond, Ratio)>,
+) -> bool {
     let v = reference.sat_abs();
     let dv = RadiansPerSecond::from_raw(
         (v.to_bits() / 4).max(const { RadiansPerSecond::lit("0.05") }.bits()),
     );
-    law.mu(v.sat_add(dv)) < law.mu(v)
+    let mu_v = match ahead {
+        Some((at, mu)) if at == v => mu,
+        _ => law.mu(v),
+    };
+    law.mu(v.sat_add(dv)) < mu_v
 }
 
 #[cfg(test)]
@@ -1177,6 +1230,59 @@ mod tests {
                 }
                 if !near {
                     prop_assert_eq!(a, b, "tick {}", n);
+                }
+            }
+        }
+    }
+
+    proptest! {
+        /// The branch test gives the same answer with μ(v) worked out ahead (the speed it
+        /// expected) as without, and ignores μ worked out for another speed.
+        #[test]
+        fn falling_branch_ahead_is_the_same_test(
+            reference in -2_000_000i32..2_000_000,
+            other in -2_000_000i32..2_000_000,
+            junk in -(1i32 << 29)..(1i32 << 29),
+        ) {
+            for l in [FrictionLaw::DRY, FrictionLaw::PTFE, FrictionLaw::LITHIUM] {
+                let law = law(l);
+                let r = RadiansPerSecond::from_raw(reference);
+                let v = r.sat_abs();
+                let plain = falling_branch(&law, r);
+                prop_assert_eq!(falling_branch_from(&law, r, Some((v, law.mu(v)))), plain);
+                let o = RadiansPerSecond::from_raw(other).sat_abs();
+                if o != v {
+                    let ahead = Some((o, Ratio::from_raw(junk)));
+                    prop_assert_eq!(falling_branch_from(&law, r, ahead), plain);
+                }
+            }
+        }
+    }
+
+    proptest! {
+        /// `reset` keeps the history ring and the EWMAs (they are rewritten before they are
+        /// read): a reset periodicity decides exactly like a new one on any torques after any
+        /// history.
+        #[test]
+        fn periodicity_reset_is_a_new_one(
+            before in proptest::collection::vec(-3_000_000i32..3_000_000, 0..80),
+            after in proptest::collection::vec(-3_000_000i32..3_000_000, 0..400),
+            period in 3usize..17,
+        ) {
+            let mut p = Periodicity::new();
+            for &x in &before {
+                p.step(x, 1);
+            }
+            p.reset();
+            let mut q = Periodicity::new();
+            for (n, &x) in after.iter().enumerate() {
+                // Noise on a sawtooth of the drawn period, so that some decisions are `true`.
+                let x = x / 8 + (n % period) as i32 * 40_000;
+                prop_assert_eq!(p.step(x, 1), q.step(x, 1), "tick {}", n);
+                prop_assert_eq!(p.x, q.x);
+                if q.filled > LAG_MAX + 3 {
+                    // The EWMAs run (before that they are not read).
+                    prop_assert_eq!((p.c0, p.c), (q.c0, q.c), "tick {}", n);
                 }
             }
         }

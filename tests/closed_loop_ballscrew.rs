@@ -659,3 +659,30 @@ fn a_brake_that_does_not_hold_is_caught_as_back_driving_and_held() {
     assert!(sink.abs() < 0.5, "sank {sink:.3} mm after the trip");
     assert!(lost < 1.5, "{lost:.3} mm under the target");
 }
+
+#[test]
+fn with_a_brake_a_stop_during_the_take_up_never_releases_it() {
+    // STOP 30 ms after the command, while the motor is still taking the load with the brake
+    // engaged (the release comes ≈ 0.17 s after the command): the motion ends there and then,
+    // and the brake is not released only to be engaged again.
+    let s = with_brake(Scenario::ball_screw(RATED, 20.0, 1.0));
+    let h0 = height_at(20.0);
+    let mut go = command_at(0.05, Command::GoTo(Metres::from_f64(h0 + 0.005)));
+    let mut stop = command_at(0.08, Command::Stop);
+    let r = run(
+        &s,
+        Box::new(move |k: &mut Tick<'_>| {
+            go(k);
+            stop(k);
+        }),
+    );
+    assert!(r.first_fault().is_none(), "{:?}", r.events);
+    assert!(
+        r.ticks.iter().all(|k| !k.brake_release),
+        "released at {:?} s",
+        r.ticks.iter().find(|k| k.brake_release).map(|k| k.t)
+    );
+    assert!(matches!(r.controller.state(), State::Holding | State::Idle));
+    let moved = (r.final_height() - h0).abs() * 1e3;
+    assert!(moved < 0.05, "the head moved {moved:.4} mm");
+}

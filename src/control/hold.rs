@@ -26,7 +26,8 @@
 //!   the current the unwinding coupling drives through the shorted windings dies away. The
 //!   runaway reference follows the encoder over that expected travel (to where the measured
 //!   torque's twist says the coupling is relaxed); travel beyond it (a slipping brake) trips.
-//!   A STOP during the take-up still releases and then re-engages the brake.
+//!   A STOP before the release is complete ends the motion there (the brake is not released
+//!   only to be engaged again).
 
 use super::config::{BrakeConfig, ScrewKind};
 use super::{Bridge, Controller, FaultKind, State, ARRIVED_COUNTS};
@@ -145,6 +146,14 @@ impl Controller {
             return None;
         }
         Some(self.take_up())
+    }
+
+    /// Whether this motion is still waiting for the brake (taking the load up or releasing):
+    /// the profile has not started, so a STOP ends the motion at once instead of letting the
+    /// brake release first.
+    pub(super) fn awaiting_brake(&self) -> bool {
+        let b = &self.brake;
+        b.present && !(b.release && b.ticks >= b.delay)
     }
 
     /// The bridge while the brake is still engaged or releasing at the start of a motion.

@@ -755,7 +755,12 @@ impl Controller {
             Command::Stop => {
                 self.held_button = 0;
                 if matches!(self.state, State::Lifting | State::Lowering) {
-                    self.profile.stop();
+                    if self.awaiting_brake() {
+                        // Nothing moved yet: the motor holds where it took the load up.
+                        self.enter_rest(State::Holding);
+                    } else {
+                        self.profile.stop();
+                    }
                 }
                 Ok(())
             }

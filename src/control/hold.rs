@@ -137,15 +137,13 @@ impl Controller {
     /// check's hold-off. `None` once the brake is released (or without one).
     #[inline]
     pub(super) fn releasing_brake(&mut self) -> Option<Bridge> {
-        let b = &self.brake;
-        if !b.present {
-            return None;
+        if self.awaiting_brake() {
+            return Some(self.take_up());
         }
-        if b.release && b.ticks >= b.delay {
+        if self.brake.present {
             self.brake.wound = true;
-            return None;
         }
-        Some(self.take_up())
+        None
     }
 
     /// Whether this motion is still waiting for the brake (taking the load up or releasing):

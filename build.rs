@@ -12,9 +12,17 @@ use std::path::PathBuf;
 fn main() -> Result<(), Box<dyn Error>> {
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed=memory.x");
+    // `liftfw_speed_attr`: the bare-metal build may use `#[optimize(speed)]` on the control
+    // tick (an unstable attribute: only where the compiler allows unstable features, i.e. the
+    // Debian route's RUSTC_BOOTSTRAP=1; docs/qemu.md "Optimisation level").
+    println!("cargo:rustc-check-cfg=cfg(liftfw_speed_attr)");
+    println!("cargo:rerun-if-env-changed=RUSTC_BOOTSTRAP");
 
     if env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("none") {
         return Ok(());
+    }
+    if env::var_os("RUSTC_BOOTSTRAP").is_some() {
+        println!("cargo:rustc-cfg=liftfw_speed_attr");
     }
 
     // cortex-m-rt's `link.x` INCLUDEs `memory.x`: put ours where the linker searches,

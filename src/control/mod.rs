@@ -840,6 +840,7 @@ impl Controller {
     /// Screw position estimate: the encoder less the coupling twist while driving. The twist
     /// comes from the *measured* torque (low-passed), not the model's: the model assumes the
     /// rated load, and with an empty lift it would over-correct by the whole rated twist.
+    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     fn screw_position(&self) -> i32 {
         if matches!(self.state, State::Lifting | State::Lowering) {
             let twist = self.twist_scale.apply32(self.torque_lp.bits());
@@ -901,6 +902,8 @@ impl Controller {
     }
 
     /// One control tick. Never panics, whatever the inputs.
+    #[inline(never)]
+    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn step(&mut self, now: Instant, inputs: &Inputs) -> Outputs {
         // 1. Sense.
         let delta = self.enc.update(inputs.encoder_count);
@@ -1191,6 +1194,7 @@ impl Controller {
 
     /// One step of the speed loop toward `reference` with `error_counts` of position error:
     /// the duty for moving and, for a ball screw, for holding at rest (`hold.rs`).
+    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     fn speed_duty(&mut self, reference: RadiansPerSecond, error_counts: i32) -> i16 {
         self.speed.step(
             &self.gains,

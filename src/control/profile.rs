@@ -203,6 +203,7 @@ impl Profile {
     }
 
     /// Advance one tick.
+    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn step(&mut self) -> Reference {
         if !self.done {
             self.step_trapezoid();

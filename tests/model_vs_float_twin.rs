@@ -4,7 +4,9 @@
 //! height within 0.05 mm. Extreme and nonsensical inputs must not panic or wrap.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use host_sim::physics::{self, friction::FrictionLaw as FLaw, geometry::structure_damping};
+use host_sim::physics::{
+    self, friction::FrictionLaw as FLaw, geometry::structure_damping_cos,
+};
 use liftfw::estimator::{EstimateFlags, Estimator, EstimatorConfig, Measurements};
 use liftfw::model::friction::FrictionLaw;
 use liftfw::units::{Amperes, Instant, Kilograms, RadiansPerSecond, RadiansPerSecond2, Ratio};
@@ -57,7 +59,7 @@ fn twin_point(
     let alpha = t.geo.alpha(x);
     let r = t.geo.axial_load(mass, alpha);
     let f0 = t.geo.pin_friction(mass, alpha);
-    let cx = structure_damping(alpha);
+    let cx = structure_damping_cos(alpha.cos());
     let mu = law.mu_at_rate(speed, t.screw.r_m, t.screw.lambda);
     let w = t.screw.axial_demand(speed, accel, dir, r, f0, cx);
     let c = t.screw.contact(mu, dir, w);

@@ -267,11 +267,11 @@ fn count_instructions() {
             }),
             overhead,
         );
-        p_cx.push(ticks(pose.alpha, |al| geo.structure_damping(al)), overhead);
+        p_cx.push(ticks(pose.cos_alpha, |c| geo.structure_damping(c)), overhead);
         p_mu.push(ticks(w, |w| law.mu(w)), overhead);
         let mu = law.mu(w);
         let (r, f0) = geo.axial_and_pin(&pose, weight);
-        let cx = geo.structure_damping(pose.alpha);
+        let cx = geo.structure_damping(pose.cos_alpha);
         p_w.push(
             ticks((w, a, r, f0, cx), |(w, a, r, f0, cx)| {
                 screw.axial_demand(w, a, 1, r, f0, cx)

@@ -13,7 +13,7 @@
 //! lag. docs/model.md gives the design and the measured step response.
 
 use crate::math::{div128, exp_neg_q16};
-use crate::model::friction::{CompiledLaw, FrictionLaw};
+use crate::model::friction::{CompiledLaw, FrictionLaw, MuTable};
 use crate::model::geometry::{
     damping_table_cos, DriveConfig, Geometry, GeometryConfig, Pose, DAMPING_TABLE,
 };
@@ -188,6 +188,9 @@ pub struct Estimator {
     geometry: Geometry,
     screw: ScrewModel,
     law: CompiledLaw,
+    /// The law tabulated over |θ̇| where that is exact enough ([`MuTable::build`]); `None`:
+    /// the exact law, out of line.
+    mu_table: Option<MuTable>,
     kt: Ratio,
     /// n·η, n/η as factors; η/n, 1/(n·η) as ratios.
     n_eta: Factor,
@@ -327,10 +330,12 @@ impl Estimator {
         let speed_scale = rpc.times(i128::from(tick_hz), 1 << 16);
         // Screw rad/s² (Q8) from counts/tick² (Q16): × rad/count × ticks²/s² / 2^8.
         let accel_scale = rpc.times(i128::from(tick_hz) * i128::from(tick_hz), 1 << 24);
+        let mu_table = MuTable::build(&law);
         Ok(Estimator {
             geometry,
             screw,
             law,
+            mu_table,
             kt: m.torque_constant,
             n_eta,
             n_over_eta,
@@ -372,6 +377,11 @@ impl Estimator {
     /// The compiled friction law.
     pub fn law(&self) -> &CompiledLaw {
         &self.law
+    }
+
+    /// Whether the model reads μ from the law's table ([`MuTable`]) rather than the exact law.
+    pub fn mu_tabulated(&self) -> bool {
+        self.mu_table.is_some()
     }
 
     /// Restart the speed filter at a position, at rest (after a fault or a re-home).
@@ -557,8 +567,13 @@ impl Estimator {
         let w = Newtons::from_raw(narrow(
             i64::from(inertial) + i64::from(r_f0) + i64::from(damping),
         ));
-        // `mu_raw` is inlined here (the detector's calls of `mu` stay calls: flash).
-        let mu_law = self.law.mu_raw(speed.bits().unsigned_abs());
+        // μ from the law's table (one product); a law the table cannot follow closely enough
+        // is evaluated exactly, out of line.
+        let x = speed.bits().unsigned_abs();
+        let mu_law = match &self.mu_table {
+            Some(t) => Ratio::from_raw(t.lookup(x)),
+            None => mu_exact(&self.law, x),
+        };
         let mu = mu_law.min(self.screw.mu_max());
         clamped |= mu != mu_law;
         // |μ| ≤ 4: dir·μ cannot overflow.
@@ -641,6 +656,13 @@ impl Estimator {
         // Within a segment: |Δcos·slope| ≤ |Δc|·2^24, so the sum stays between two entries.
         narrow(i64::from(t[i].1) + ((i64::from(t[i].0 - c) * i64::from(t[i].2)) >> 24))
     }
+}
+
+/// μ from the exact law, out of line (the estimator's fallback where the law is not
+/// tabulated: one copy of the law's code instead of one per inlined model).
+#[inline(never)]
+fn mu_exact(law: &CompiledLaw, input: u32) -> Ratio {
+    law.mu_raw(input)
 }
 
 /// The envelope of the estimator's inputs (docs/model.md "Numeric envelope"): outside it an

@@ -9,7 +9,7 @@ use host_sim::physics::{
 };
 use liftfw::estimator::{EstimateFlags, Estimator, EstimatorConfig, Measurements};
 use liftfw::model::friction::FrictionLaw;
-use liftfw::units::{Amperes, Instant, Kilograms, RadiansPerSecond, RadiansPerSecond2, Ratio};
+use liftfw::units::{Amperes, Instant, Kilograms, RadiansPerSecond, RadiansPerSecond2, Ratio, Q};
 use proptest::prelude::*;
 
 const RATED_KG: f64 = 1000.0;
@@ -121,6 +121,79 @@ proptest! {
             "screw torque {} vs {}", e.model_screw_torque.to_f64(), tw.screw_torque);
         prop_assert!((e.contact.normal.to_f64() - tw.normal).abs() <= (2e-3 * tw.normal.abs()).max(0.1),
             "N {} vs {}", e.contact.normal.to_f64(), tw.normal);
+    }
+
+    /// μ as the model evaluates it (the law's table where it has one, `MuTable`) against the
+    /// float64 twin's law, at log-spaced speeds over the whole envelope (10⁻⁵…2000 rad/s):
+    /// within 0.1 % (half the T_r budget) or 10⁻⁶.
+    #[test]
+    fn model_mu_tracks_float_twin_law_over_the_envelope(
+        law_idx in 0usize..3,
+        log_speed in -5.0f64..3.3,
+        negative in any::<bool>(),
+    ) {
+        let (fixed_law, float_law) = laws()[law_idx];
+        let est = estimator(fixed_law);
+        let t = twin();
+        let speed = 10f64.powf(log_speed).min(2000.0) * if negative { -1.0 } else { 1.0 };
+        let w = RadiansPerSecond::from_f64(speed);
+        let m = Measurements { position_counts: 100_000, motor_current: Amperes::ZERO,
+            load: Kilograms::lit("500"), commanded_dir: 0 };
+        let got = est.estimate(&m, w, RadiansPerSecond2::ZERO, 0).mu.to_f64();
+        let want = float_law.mu_at_rate(w.to_f64(), t.screw.r_m, t.screw.lambda);
+        prop_assert!((got - want).abs() <= (1e-3 * want).max(1e-6),
+            "law {law_idx} at {speed} rad/s: {got} vs {want} (tabulated: {})", est.mu_tabulated());
+    }
+
+    /// Any law the table accepts stays within 0.1 % (or 4 LSB) of the exact fixed-point law at
+    /// any input, not only at the midpoints `MuTable::build` checks; the others keep the exact
+    /// law (bit for bit).
+    #[test]
+    fn tabulated_mu_follows_the_exact_law_for_any_law(
+        base in 0.0f64..1.0,
+        amp in -1.0f64..1.0,
+        log_rate in -3.0f64..6.0,
+        log_slope in -6.0f64..0.0,
+        slope_negative in any::<bool>(),
+        log_s_max in -4.0f64..6.0,
+        kink in any::<bool>(),
+        sliding in any::<bool>(),
+        inputs in proptest::collection::vec(0u32..131_072_000, 64),
+    ) {
+        let law = FrictionLaw {
+            base: Ratio::from_f64(base),
+            amp: Ratio::from_f64(amp),
+            rate: fixed::types::I32F32::from_num(10f64.powf(log_rate)),
+            slope: fixed::types::I32F32::from_num(
+                10f64.powf(log_slope) * if slope_negative { -1.0 } else { 1.0 },
+            ),
+            s_max: if kink {
+                fixed::types::I32F32::from_num(10f64.powf(log_s_max))
+            } else {
+                fixed::types::I32F32::MAX
+            },
+            variable: if sliding {
+                liftfw::model::friction::LawVariable::SlidingSpeed
+            } else {
+                liftfw::model::friction::LawVariable::ScrewRate
+            },
+        };
+        let est = estimator(law);
+        let m = Measurements { position_counts: 100_000, motor_current: Amperes::ZERO,
+            load: Kilograms::lit("500"), commanded_dir: 0 };
+        for x in inputs {
+            // Spread over every octave: x >> (x % 20).
+            let x = x >> (x % 20);
+            let w = RadiansPerSecond::from_raw(x as i32);
+            let got = est.estimate(&m, w, RadiansPerSecond2::ZERO, 0).mu.bits();
+            let exact = est.law().mu_raw(x).min(est.screw().mu_max()).bits();
+            if est.mu_tabulated() {
+                prop_assert!((got - exact).abs() <= (exact / 1000).max(4),
+                    "{law:?} at {x}: {got} vs {exact}");
+            } else {
+                prop_assert_eq!(got, exact);
+            }
+        }
     }
 
     #[test]

@@ -185,6 +185,13 @@ impl CompiledLaw {
     /// μ from the magnitude of the input in the law's input format (|θ̇| Q16, τ Q28).
     #[inline(always)]
     pub fn mu_raw(&self, input: u32) -> Ratio {
+        Ratio::from_raw(self.mu_unfloored(input).max(0))
+    }
+
+    /// The law's value before its floor at 0 (Q28 bits, saturated to `i32`): [`Self::mu_raw`]
+    /// is this floored at 0. [`MuTable`] interpolates it, so that the floor stays exact.
+    #[inline(always)]
+    pub fn mu_unfloored(&self, input: u32) -> i32 {
         let input = input.min(i32::MAX as u32) as i32;
         // input ≥ 0 and rate ≥ 0: y ≥ 0, saturated to u32 (e^(−y) is 0 long before).
         let y = self.exp_scale.apply_u32(input);
@@ -196,7 +203,7 @@ impl CompiledLaw {
         // clamped below anyway.
         let lin = self.lin_scale.apply32(lin_in);
         let mu = i64::from(self.base.bits()) + exp_term + i64::from(lin);
-        Ratio::from_raw(mu.clamp(0, i64::from(i32::MAX)) as i32)
+        crate::units::sat32(mu)
     }
 
     /// μ at screw rate θ̇ (its magnitude), for the lead-screw laws.
@@ -209,5 +216,88 @@ impl CompiledLaw {
     #[inline]
     pub fn mu_at_tau(&self, tau: Ratio) -> Ratio {
         self.mu_raw(tau.bits().unsigned_abs())
+    }
+}
+
+/// First octave of [`MuTable`]: inputs below 2^8 (|θ̇| < 3.9 mrad/s in Q16) share one segment.
+const MU_OCT0: u32 = 8;
+/// Inputs the table covers: below 2^27 (|θ̇| < 2048 rad/s, beyond the estimator's 2000 rad/s
+/// clamp).
+const MU_TOP: u32 = 27;
+/// Nodes: 0, then 8 per octave from 2^8 to 2^27 (log-spaced, found by a leading-zero count).
+pub const MU_TABLE_LEN: usize = 2 + (((MU_TOP - MU_OCT0) << 3) as usize);
+
+/// A friction law tabulated once over its input (|θ̇| in Q16 for the lead-screw laws) from the
+/// exact fixed-point law ([`CompiledLaw::mu_raw`]) and interpolated linearly in the input between
+/// log-spaced nodes (8 per octave): one leading-zero count, two loads and one product per tick
+/// instead of e^(−y), two scales and a clamp.
+///
+/// A table is only built where it is exact enough ([`MuTable::build`]): the interpolation
+/// is checked against the exact law at every segment's midpoint and at the viscous term's kink,
+/// within μ/8192 (0.012 %, the T_r budget is 0.2 %). The exponential term is smooth
+/// and the viscous term linear between nodes, so the midpoint is where a segment's error peaks
+/// (up to e^(rate·h) times more elsewhere in a segment of width h, where e^(−rate·s) is
+/// already below 10⁻³). The table holds the law before its floor at 0 (clamped to −2…4.25,
+/// beyond μ_max ≤ 4) and the lookup floors the interpolated value, so that the floor is exact.
+/// A law that fails (a kink inside a segment such as lithium grease's s_max, μ beyond the node
+/// clamp) keeps the exact law.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MuTable {
+    nodes: [i32; MU_TABLE_LEN],
+}
+
+impl MuTable {
+    /// The input (law bits) of node `i`.
+    fn node_input(i: usize) -> u32 {
+        if i == 0 {
+            return 0;
+        }
+        let k = (i - 1) as u32;
+        let o = MU_OCT0 + (k >> 3);
+        (1 << o) + ((k & 7) << (o - 3))
+    }
+
+    /// The table of `law` if linear interpolation reproduces it within μ/8192 (module docs).
+    pub fn build(law: &CompiledLaw) -> Option<MuTable> {
+        let mut t = MuTable {
+            nodes: [0; MU_TABLE_LEN],
+        };
+        for (i, n) in t.nodes.iter_mut().enumerate() {
+            // −2…4.25 in Q28: any two nodes differ by less than 2^31.
+            *n = law
+                .mu_unfloored(Self::node_input(i))
+                .clamp(-(1 << 29), (1 << 30) + (1 << 28));
+        }
+        let ok = |x: u32| {
+            let exact = law.mu_raw(x).bits();
+            (t.lookup(x) - exact).abs() <= (exact >> 13).max(2)
+        };
+        let kink = law.in_max;
+        let nodes_ok = (0..MU_TABLE_LEN).all(|i| ok(Self::node_input(i)));
+        let mids_ok = (0..MU_TABLE_LEN - 1)
+            .all(|i| ok(Self::node_input(i) / 2 + Self::node_input(i + 1) / 2));
+        (nodes_ok && mids_ok && (kink >= 1 << MU_TOP || ok(kink))).then_some(t)
+    }
+
+    /// μ (Q28 bits, floored at 0, before the contact's clamp) for a law input: the segment
+    /// from the leading zeros and the next three bits, the position in it as a Q32 fraction,
+    /// one product. Inputs from 2^27 on read the last node's value.
+    #[inline(always)]
+    pub fn lookup(&self, input: u32) -> i32 {
+        let x = input.min((1 << MU_TOP) - 1);
+        let (i, f) = if x < 1 << MU_OCT0 {
+            (0, x << (32 - MU_OCT0))
+        } else {
+            // The leading one at bit o = 31 − lz ≥ 8: segment 1 + 8·(o − 8) + the next three
+            // bits; the bits below them are the fraction (x << (lz + 4): lz ≤ 23).
+            let lz = x.leading_zeros();
+            let seg = (((31 - MU_OCT0 - lz) << 3) | ((x >> (28 - lz)) & 7)) + 1;
+            (seg as usize, x << (lz + 4))
+        };
+        match self.nodes.get(i..i + 2) {
+            // Between two nodes (each in −2…4.25): |b − a| < 2^31, the sum stays between.
+            Some(&[a, b]) => (a + ((i64::from(b - a) * i64::from(f >> 1)) >> 31) as i32).max(0),
+            _ => self.nodes[MU_TABLE_LEN - 1].max(0),
+        }
     }
 }

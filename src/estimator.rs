@@ -572,7 +572,7 @@ impl Estimator {
         let x = speed.bits().unsigned_abs();
         let mu_law = match &self.mu_table {
             Some(t) => Ratio::from_raw(t.lookup(x)),
-            None => mu_exact(&self.law, x),
+            None => Ratio::from_raw(self.law.mu_unfloored_call(x).max(0)),
         };
         let mu = mu_law.min(self.screw.mu_max());
         clamped |= mu != mu_law;
@@ -656,13 +656,6 @@ impl Estimator {
         // Within a segment: |Δcos·slope| ≤ |Δc|·2^24, so the sum stays between two entries.
         narrow(i64::from(t[i].1) + ((i64::from(t[i].0 - c) * i64::from(t[i].2)) >> 24))
     }
-}
-
-/// μ from the exact law, out of line (the estimator's fallback where the law is not
-/// tabulated: one copy of the law's code instead of one per inlined model).
-#[inline(never)]
-fn mu_exact(law: &CompiledLaw, input: u32) -> Ratio {
-    law.mu_raw(input)
 }
 
 /// The envelope of the estimator's inputs (docs/model.md "Numeric envelope"): outside it an

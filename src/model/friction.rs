@@ -188,6 +188,13 @@ impl CompiledLaw {
         Ratio::from_raw(self.mu_unfloored(input).max(0))
     }
 
+    /// [`Self::mu_unfloored`] out of line: one copy of the law's code for the callers that
+    /// run it at configuration time or as a fallback.
+    #[inline(never)]
+    pub fn mu_unfloored_call(&self, input: u32) -> i32 {
+        self.mu_unfloored(input)
+    }
+
     /// The law's value before its floor at 0 (Q28 bits, saturated to `i32`): [`Self::mu_raw`]
     /// is this floored at 0. [`MuTable`] interpolates it, so that the floor stays exact.
     #[inline(always)]
@@ -206,16 +213,17 @@ impl CompiledLaw {
         crate::units::sat32(mu)
     }
 
-    /// μ at screw rate θ̇ (its magnitude), for the lead-screw laws.
+    /// μ at screw rate θ̇ (its magnitude), for the lead-screw laws: [`Self::mu_raw`] through
+    /// the law's one out-of-line copy ([`Self::mu_unfloored_call`]).
     #[inline]
     pub fn mu(&self, theta_dot: RadiansPerSecond) -> Ratio {
-        self.mu_raw(theta_dot.bits().unsigned_abs())
+        Ratio::from_raw(self.mu_unfloored_call(theta_dot.bits().unsigned_abs()).max(0))
     }
 
-    /// μ at lubrication parameter τ (Q28 ratio), for the ball-screw law.
+    /// μ at lubrication parameter τ (Q28 ratio), for the ball-screw law (as [`Self::mu`]).
     #[inline]
     pub fn mu_at_tau(&self, tau: Ratio) -> Ratio {
-        self.mu_raw(tau.bits().unsigned_abs())
+        Ratio::from_raw(self.mu_unfloored_call(tau.bits().unsigned_abs()).max(0))
     }
 }
 
@@ -257,26 +265,38 @@ impl MuTable {
         (1 << o) + ((k & 7) << (o - 3))
     }
 
-    /// The table of `law` if linear interpolation reproduces it within μ/8192 (module docs).
+    /// The table of `law` if linear interpolation reproduces it within μ/8192 (struct docs).
+    /// Configuration time: ≈ 460 evaluations of the law. Out of line, with the law behind one
+    /// call ([`CompiledLaw::mu_unfloored_call`]): flash.
+    #[inline(never)]
     pub fn build(law: &CompiledLaw) -> Option<MuTable> {
         let mut t = MuTable {
             nodes: [0; MU_TABLE_LEN],
         };
         for (i, n) in t.nodes.iter_mut().enumerate() {
-            // −2…4.25 in Q28: any two nodes differ by less than 2^31.
-            *n = law
-                .mu_unfloored(Self::node_input(i))
-                .clamp(-(1 << 29), (1 << 30) + (1 << 28));
+            *n = law.mu_unfloored_call(Self::node_input(i));
+            // Nodes within −2…4.25 (Q28; μ_max ≤ 4): any two differ by less than 2^31. A law
+            // beyond that keeps the exact law.
+            if !(-(1 << 29)..=(1 << 30) + (1 << 28)).contains(n) {
+                return None;
+            }
         }
-        let ok = |x: u32| {
-            let exact = law.mu_raw(x).bits();
-            (t.lookup(x) - exact).abs() <= (exact >> 13).max(2)
-        };
-        let kink = law.in_max;
-        let nodes_ok = (0..MU_TABLE_LEN).all(|i| ok(Self::node_input(i)));
-        let mids_ok = (0..MU_TABLE_LEN - 1)
-            .all(|i| ok(Self::node_input(i) / 2 + Self::node_input(i + 1) / 2));
-        (nodes_ok && mids_ok && (kink >= 1 << MU_TOP || ok(kink))).then_some(t)
+        // The nodes are the law (floored at 0 by the lookup as the law floors itself); checked:
+        // the midpoint after each node and, in the slot after the last node, the viscous term's
+        // kink (0, a node, when it has none in range).
+        let kink = if law.in_max < 1 << MU_TOP { law.in_max } else { 0 };
+        for i in 0..MU_TABLE_LEN {
+            let x = if i + 1 < MU_TABLE_LEN {
+                Self::node_input(i) / 2 + Self::node_input(i + 1) / 2
+            } else {
+                kink
+            };
+            let exact = law.mu_unfloored_call(x).max(0);
+            if (t.lookup(x) - exact).abs() > (exact >> 13).max(2) {
+                return None;
+            }
+        }
+        Some(t)
     }
 
     /// μ (Q28 bits, floored at 0, before the contact's clamp) for a law input: the segment

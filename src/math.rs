@@ -233,12 +233,13 @@ pub fn sqrt_rsqrt_q30(v: u32) -> (u32, u32) {
     // √v = √u·2^−h: m(Q30)·y(Q31) = √u in Q61 → Q30 (< 2^31) → >> h.
     let root = (((u64::from(m) * u64::from(y)) >> 31) as u32) >> h;
     // 1/√v = (1/√u)·2^h in Q28 = y·2^h/2^3: beyond 8 (h ≥ 4, as y ≥ ½ in Q31) it saturates.
+    // y < 2^31 (it ends below 1/√u ≤ 1), so y >> (3 − h) is below i32::MAX as well.
     let inv = if h <= 3 {
         y >> (3 - h)
     } else {
         i32::MAX as u32
     };
-    (root, inv.min(i32::MAX as u32))
+    (root, inv)
 }
 
 /// One Newton step of 1/√u for u = m/2^30 ∈ [1, 4): y ← y·(3 − m·y²)/2 = y + y·d/2 with

@@ -4,9 +4,7 @@
 //! height within 0.05 mm. Extreme and nonsensical inputs must not panic or wrap.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use host_sim::physics::{
-    self, friction::FrictionLaw as FLaw, geometry::structure_damping_cos,
-};
+use host_sim::physics::{self, friction::FrictionLaw as FLaw, geometry::structure_damping_cos};
 use liftfw::estimator::{EstimateFlags, Estimator, EstimatorConfig, Measurements};
 use liftfw::model::friction::FrictionLaw;
 use liftfw::units::{Amperes, Instant, Kilograms, RadiansPerSecond, RadiansPerSecond2, Ratio, Q};

@@ -218,7 +218,10 @@ impl CompiledLaw {
     /// the law's one out-of-line copy ([`Self::mu_unfloored_call`]).
     #[inline]
     pub fn mu(&self, theta_dot: RadiansPerSecond) -> Ratio {
-        Ratio::from_raw(self.mu_unfloored_call(theta_dot.bits().unsigned_abs()).max(0))
+        Ratio::from_raw(
+            self.mu_unfloored_call(theta_dot.bits().unsigned_abs())
+                .max(0),
+        )
     }
 
     /// μ at lubrication parameter τ (Q28 ratio), for the ball-screw law (as [`Self::mu`]).
@@ -285,7 +288,11 @@ impl MuTable {
         // The nodes are the law (floored at 0 by the lookup as the law floors itself); checked:
         // the midpoint after each node and, in the slot after the last node, the viscous term's
         // kink (0, a node, when it has none in range).
-        let kink = if law.in_max < 1 << MU_TOP { law.in_max } else { 0 };
+        let kink = if law.in_max < 1 << MU_TOP {
+            law.in_max
+        } else {
+            0
+        };
         for i in 0..MU_TABLE_LEN {
             let x = if i + 1 < MU_TABLE_LEN {
                 Self::node_input(i) / 2 + Self::node_input(i + 1) / 2

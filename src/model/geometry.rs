@@ -213,11 +213,7 @@ impl Geometry {
 
         let mut damping = [(Ratio::ZERO, KilogramsPerSecond::ZERO, 0i64); 3];
         for (i, &(deg, cx)) in DAMPING_TABLE.iter().enumerate() {
-            damping[i] = (
-                damping_table_cos(deg),
-                KilogramsPerSecond::from_int(cx),
-                0,
-            );
+            damping[i] = (damping_table_cos(deg), KilogramsPerSecond::from_int(cx), 0);
         }
         for i in 0..2 {
             // cos α falls as α rises: the slope is per unit of cos α below the row's.

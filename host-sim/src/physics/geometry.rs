@@ -138,7 +138,8 @@ mod tests {
         }
         for deg in (15..=65).map(f64::from) {
             let (a, c) = (deg.to_radians(), deg.to_radians().cos());
-            let rel = (structure_damping_cos(c) - structure_damping(a)).abs() / structure_damping(a);
+            let rel =
+                (structure_damping_cos(c) - structure_damping(a)).abs() / structure_damping(a);
             assert!(rel < 0.08, "{deg}: {rel}");
         }
     }

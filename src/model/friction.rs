@@ -246,7 +246,8 @@ pub const MU_TABLE_LEN: usize = 2 + (((MU_TOP - MU_OCT0) << 3) as usize);
 ///
 /// A table is only built where it is exact enough ([`MuTable::build`]): the interpolation
 /// is checked against the exact law at every segment's midpoint and at the viscous term's kink,
-/// within μ/8192 (0.012 %, the T_r budget is 0.2 %). The exponential term is smooth
+/// within μ/8192 (0.012 %, the T_r budget is 0.2 %) or, where μ is near 0, the exact
+/// law's own step (|amp|·2^-16: it quantises e^(−y)'s argument to 2^-16). The exponential term is smooth
 /// and the viscous term linear between nodes, so the midpoint is where a segment's error peaks
 /// (up to e^(rate·h) times more elsewhere in a segment of width h, where e^(−rate·s) is
 /// already below 10⁻³). The table holds the law before its floor at 0 (clamped to −2…4.25,
@@ -299,19 +300,31 @@ impl MuTable {
             } else {
                 kink
             };
-            let exact = law.mu_unfloored_call(x).max(0);
-            if (t.lookup(x) - exact).abs() > (exact >> 13).max(2) {
+            // Before the floor (the floor takes nothing from the bound: it is 1-Lipschitz, and a
+            // floored comparison would hide a segment that crosses 0): within |μ|/8192, or the
+            // exact law's own step where μ is near 0: it quantises e^(−y)'s argument to 2^-16,
+            // i.e. steps of |amp|·2^-16 in μ (and 2 LSB).
+            let exact = law.mu_unfloored_call(x);
+            let step = (law.amp.bits().unsigned_abs() >> 16) as i32 + 2;
+            let err = i64::from(t.lookup_unfloored(x)) - i64::from(exact);
+            if err.abs() > i64::from((exact.unsigned_abs() >> 13) as i32).max(i64::from(step)) {
                 return None;
             }
         }
         Some(t)
     }
 
-    /// μ (Q28 bits, floored at 0, before the contact's clamp) for a law input: the segment
-    /// from the leading zeros and the next three bits, the position in it as a Q32 fraction,
-    /// one product. Inputs from 2^27 on read the last node's value.
+    /// μ (Q28 bits, floored at 0, before the contact's clamp) for a law input.
     #[inline(always)]
     pub fn lookup(&self, input: u32) -> i32 {
+        self.lookup_unfloored(input).max(0)
+    }
+
+    /// The interpolated law before its floor: the segment from the leading zeros and the next
+    /// three bits, the position in it as a Q32 fraction, one product. Inputs from 2^27 on read
+    /// the last node's value.
+    #[inline(always)]
+    fn lookup_unfloored(&self, input: u32) -> i32 {
         let x = input.min((1 << MU_TOP) - 1);
         let (i, f) = if x < 1 << MU_OCT0 {
             (0, x << (32 - MU_OCT0))
@@ -324,8 +337,8 @@ impl MuTable {
         };
         match self.nodes.get(i..i + 2) {
             // Between two nodes (each in −2…4.25): |b − a| < 2^31, the sum stays between.
-            Some(&[a, b]) => (a + ((i64::from(b - a) * i64::from(f >> 1)) >> 31) as i32).max(0),
-            _ => self.nodes[MU_TABLE_LEN - 1].max(0),
+            Some(&[a, b]) => a + ((i64::from(b - a) * i64::from(f >> 1)) >> 31) as i32,
+            _ => self.nodes[MU_TABLE_LEN - 1],
         }
     }
 }

@@ -218,6 +218,21 @@ fn count_instructions() {
     let f32_median = s_f32.report();
     s_f64.report();
 
+    // The same motion with the lithium-grease law, whose μ the estimator cannot tabulate
+    // (docs/model.md "Friction laws"): the exact law on every tick.
+    let lith_cfg = EstimatorConfig {
+        law: liftfw::model::friction::FrictionLaw::LITHIUM,
+        ..EstimatorConfig::DEFAULT
+    };
+    if let Ok(mut lith) = Estimator::new(&lith_cfg) {
+        let mut s_lith = Stats::new("estimator.step fixed, lithium law (exact mu)");
+        for k in 0..N {
+            let (now, m) = motion(k);
+            s_lith.push(ticks(&m, |m| lith.step(now, m)), overhead);
+        }
+        s_lith.report();
+    }
+
     // The model alone (no filter), over the envelope.
     let mut e_fixed = Stats::new("estimator.estimate fixed");
     let mut e_f32 = Stats::new("estimator.estimate f32-micromath");

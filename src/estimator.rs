@@ -13,11 +13,12 @@
 //! lag. docs/model.md gives the design and the measured step response.
 
 use crate::math::{div128, exp_neg_q16};
-use crate::model::friction::{CompiledLaw, FrictionLaw};
-use crate::model::geometry::{DriveConfig, Geometry, GeometryConfig, Pose, DAMPING_TABLE};
+use crate::model::friction::{CompiledLaw, FrictionLaw, MuTable};
+use crate::model::geometry::{
+    damping_table_cos, DriveConfig, Geometry, GeometryConfig, Pose, DAMPING_TABLE,
+};
 use crate::model::screw::{Contact, ContactCore, MechanicsConfig, ScrewModel};
 use crate::model::Scale;
-use crate::units::Angle;
 use crate::units::{
     narrow, qmul, sat32, Amperes, Factor, Instant, Kilograms, KilogramsPerSecond, Metres,
     NewtonMetres, Newtons, RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
@@ -187,6 +188,9 @@ pub struct Estimator {
     geometry: Geometry,
     screw: ScrewModel,
     law: CompiledLaw,
+    /// The law tabulated over |θ̇| where that is exact enough ([`MuTable::build`]); `None`:
+    /// the exact law, out of line.
+    mu_table: Option<MuTable>,
     kt: Ratio,
     /// n·η, n/η as factors; η/n, 1/(n·η) as ratios.
     n_eta: Factor,
@@ -202,8 +206,9 @@ pub struct Estimator {
     mass_lead_q32: i32,
     inertia_q32: i32,
     damping_q30: i32,
-    /// Table 1 times the lead r_m·tan λ: (α, c_x·r_m·tan λ in Q20 N per rad/s, slope per
-    /// Angle LSB in Q20·2^-28), so that the damping force c_x·ẋ is one product with θ̇.
+    /// Table 1 times the lead r_m·tan λ: (cos α in Q28, c_x·r_m·tan λ in Q20 N per rad/s,
+    /// slope per Q28 LSB of cos α in Q20·2^-24), so that the damping force c_x·ẋ is one
+    /// product with θ̇. Interpolated in cos α as [`Geometry::structure_damping`]: no α per tick.
     damping_lead: [(i32, i32, i32); 3],
     /// Support friction torque T₀, raw N·m bits.
     screw_support: i32,
@@ -278,15 +283,16 @@ impl Estimator {
         let tan_bits = i128::from(screw.tan_lambda().bits());
         let mut damping_lead = [(0i32, 0i32, 0i32); 3];
         for (i, &(deg, cx)) in DAMPING_TABLE.iter().enumerate() {
-            damping_lead[i].0 = Angle::from_degrees(fixed::types::I16F16::from_num(deg)).0;
+            damping_lead[i].0 = damping_table_cos(deg).bits();
             damping_lead[i].1 = (i128::from(cx) * r_bits * tan_bits >> 32) as i32;
         }
         for i in 0..2 {
-            // Q28 per Angle LSB: |Δc/Δα| ≤ 2^30/2^27.8 (≥ 20° between entries) < 4.6, so
-            // < 2^31; the smallest lead keeps 18 significant bits.
-            let da = i64::from(damping_lead[i + 1].0 - damping_lead[i].0);
+            // 2^-24 per Q28 LSB of cos α: |Δc| < 2^30 (≤ 29 666 kg/s · 0.0182 m · 2^20) over
+            // Δcos ≥ cos 45° − cos 65° > 2^26, so |slope| < 2^28; the smallest lead (r_m tan λ
+            // ≥ 8.7 µm) keeps 13 significant bits.
+            let dcos = i64::from(damping_lead[i].0 - damping_lead[i + 1].0);
             let dc = i64::from(damping_lead[i + 1].1 - damping_lead[i].1);
-            damping_lead[i].2 = ((dc << 28) / da) as i32;
+            damping_lead[i].2 = ((dc << 24) / dcos) as i32;
         }
         let n = i128::from(cfg.drive.gear_ratio.to_bits()); // Q16
         let eta = i128::from(m.gear_efficiency.bits()); // Q28
@@ -324,10 +330,12 @@ impl Estimator {
         let speed_scale = rpc.times(i128::from(tick_hz), 1 << 16);
         // Screw rad/s² (Q8) from counts/tick² (Q16): × rad/count × ticks²/s² / 2^8.
         let accel_scale = rpc.times(i128::from(tick_hz) * i128::from(tick_hz), 1 << 24);
+        let mu_table = MuTable::build(&law);
         Ok(Estimator {
             geometry,
             screw,
             law,
+            mu_table,
             kt: m.torque_constant,
             n_eta,
             n_over_eta,
@@ -369,6 +377,11 @@ impl Estimator {
     /// The compiled friction law.
     pub fn law(&self) -> &CompiledLaw {
         &self.law
+    }
+
+    /// Whether the model reads μ from the law's table ([`MuTable`]) rather than the exact law.
+    pub fn mu_tabulated(&self) -> bool {
+        self.mu_table.is_some()
     }
 
     /// Restart the speed filter at a position, at rest (after a fault or a re-home).
@@ -492,7 +505,7 @@ impl Estimator {
             screw_accel: x.accel,
             axial_load,
             pin_friction,
-            structure_damping: self.geometry.structure_damping(x.pose.alpha),
+            structure_damping: self.geometry.structure_damping(x.pose.cos_alpha),
             mu: x.mu,
             contact: self.screw.contact_from(x.mu_s, x.w, &x.core),
             model_screw_torque: x.model_screw_torque,
@@ -546,7 +559,7 @@ impl Estimator {
         let pins = dir32 * self.two_mu_pin.bits();
         let r_f0 = narrow((i64::from(ws) * i64::from(pose.cos_alpha.bits() + pins)) >> 28);
         // c_x·ẋ = (c_x·r_m·tan λ)·θ̇: ≤ 1066 N·s/rad · 2000 rad/s < 2.2 MN (Q20·Q16 → Q8).
-        let cxl = self.damping_lead(pose.alpha);
+        let cxl = self.damping_lead(pose.cos_alpha);
         let damping = narrow((i64::from(cxl) * i64::from(speed.bits())) >> 28);
         // m·r_m·tan λ·θ̈ < 0.091·65 536 < 6 kN: the high word of Q8·Q32.
         let inertial = narrow((i64::from(accel.bits()) * i64::from(self.mass_lead_q32)) >> 32);
@@ -554,8 +567,13 @@ impl Estimator {
         let w = Newtons::from_raw(narrow(
             i64::from(inertial) + i64::from(r_f0) + i64::from(damping),
         ));
-        // `mu_raw` is inlined here (the detector's calls of `mu` stay calls: flash).
-        let mu_law = self.law.mu_raw(speed.bits().unsigned_abs());
+        // μ from the law's table (one product); a law the table cannot follow closely enough
+        // is evaluated exactly, out of line.
+        let x = speed.bits().unsigned_abs();
+        let mu_law = match &self.mu_table {
+            Some(t) => Ratio::from_raw(t.lookup(x)),
+            None => Ratio::from_raw(self.law.mu_unfloored_call(x).max(0)),
+        };
         let mu = mu_law.min(self.screw.mu_max());
         clamped |= mu != mu_law;
         // |μ| ≤ 4: dir·μ cannot overflow.
@@ -618,24 +636,25 @@ impl Estimator {
 }
 
 impl Estimator {
-    /// c_x(α)·r_m·tan λ (Q20, N per rad/s): Table 1 as [`Geometry::structure_damping`]
-    /// interpolates it (linear in α between its angles, flat outside), times the lead.
+    /// c_x(α)·r_m·tan λ (Q20, N per rad/s) at the pose with cosine `cos_alpha`: Table 1 as
+    /// [`Geometry::structure_damping`] interpolates it (linear in cos α between its angles,
+    /// flat outside), times the lead.
     #[inline(always)]
-    fn damping_lead(&self, alpha: Angle) -> i32 {
+    fn damping_lead(&self, cos_alpha: Ratio) -> i32 {
         let t = &self.damping_lead;
-        let a = alpha.0;
-        if a <= t[0].0 {
+        let c = cos_alpha.bits();
+        if c >= t[0].0 {
             return t[0].1;
         }
-        let i = if a <= t[1].0 {
+        let i = if c >= t[1].0 {
             0
-        } else if a <= t[2].0 {
+        } else if c >= t[2].0 {
             1
         } else {
             return t[2].1;
         };
-        // Within a segment: |Δα·slope| ≤ |Δc| < 2^31, so the sum stays between two entries.
-        narrow(i64::from(t[i].1) + ((i64::from(a - t[i].0) * i64::from(t[i].2)) >> 28))
+        // Within a segment: |Δcos·slope| ≤ |Δc|·2^24, so the sum stays between two entries.
+        narrow(i64::from(t[i].1) + ((i64::from(t[i].0 - c) * i64::from(t[i].2)) >> 24))
     }
 }
 

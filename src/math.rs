@@ -227,24 +227,30 @@ pub fn sqrt_rsqrt_q30(v: u32) -> (u32, u32) {
     let m = v << k; // [2^30, 2^32): u = m/2^30 ∈ [1, 4)
     let idx = ((m >> 24) - 64) as usize;
     // y ≈ 1/√u in Q31, ≤ 1 (the seed is at most 0.39 % high, the Newton steps end below).
-    let mut y = u32::from(RSQRT_SEED.get(idx).copied().unwrap_or(1 << 15)) << 15;
-    for _ in 0..2 {
-        // y ← y·(3 − m·y²)/2 = y + y·d/2 with d = 1 − m·y² (|d| < 1 %), d in Q31.
-        let y2 = ((u64::from(y) * u64::from(y)) >> 31) as u32; // y² in Q31, < 2^31
-        let my2 = (u64::from(m) * u64::from(y2)) >> 30; // m·y² in Q31, ≈ 2^31
-        let d = ((1u64 << 31) as i64 - my2 as i64) as i32;
-        // y·d/2 in Q31 = (y·d)>>32: one SMMUL (y < 2^31 is a valid i32).
-        y = (y as i32 + ((i64::from(y as i32) * i64::from(d)) >> 32) as i32) as u32;
-    }
+    let y = u32::from(RSQRT_SEED.get(idx).copied().unwrap_or(1 << 15)) << 15;
+    // Two steps written out (the loop's counter and branch cost ≈ 4 instructions a step).
+    let y = rsqrt_newton(m, rsqrt_newton(m, y));
     // √v = √u·2^−h: m(Q30)·y(Q31) = √u in Q61 → Q30 (< 2^31) → >> h.
     let root = (((u64::from(m) * u64::from(y)) >> 31) as u32) >> h;
     // 1/√v = (1/√u)·2^h in Q28 = y·2^h/2^3: beyond 8 (h ≥ 4, as y ≥ ½ in Q31) it saturates.
+    // y < 2^31 (it ends below 1/√u ≤ 1), so y >> (3 − h) is below i32::MAX as well.
     let inv = if h <= 3 {
         y >> (3 - h)
     } else {
         i32::MAX as u32
     };
-    (root, inv.min(i32::MAX as u32))
+    (root, inv)
+}
+
+/// One Newton step of 1/√u for u = m/2^30 ∈ [1, 4): y ← y·(3 − m·y²)/2 = y + y·d/2 with
+/// d = 1 − m·y² (|d| < 1 %), y and d in Q31.
+#[inline(always)]
+fn rsqrt_newton(m: u32, y: u32) -> u32 {
+    let y2 = ((u64::from(y) * u64::from(y)) >> 31) as u32; // y² in Q31, < 2^31
+    let my2 = (u64::from(m) * u64::from(y2)) >> 30; // m·y² in Q31, ≈ 2^31
+    let d = ((1u64 << 31) as i64 - my2 as i64) as i32;
+    // y·d/2 in Q31 = (y·d)>>32: one SMMUL (y < 2^31 is a valid i32).
+    (y as i32 + ((i64::from(y as i32) * i64::from(d)) >> 32) as i32) as u32
 }
 
 /// ⌊√n⌋ for any `u64`, exact. The [`sqrt_rsqrt_q30`] kernel on the top 32 bits of n

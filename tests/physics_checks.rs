@@ -44,16 +44,16 @@ fn alpha_of_counts(counts: i32) -> f64 {
     (alpha0().cos() - f64::from(counts) * metres_per_count() / L).acos()
 }
 
-/// Table 1 of seed 000, linear in α between its angles, flat outside.
+/// Table 1 of seed 000 as the model reads it: linear in cos α between its angles, flat outside.
 fn c_x(alpha: f64) -> f64 {
-    let deg = alpha.to_degrees();
-    let t = DAMPING_TABLE.map(|(a, c)| (f64::from(a), f64::from(c)));
-    if deg <= t[0].0 {
+    let c = alpha.cos();
+    let t = DAMPING_TABLE.map(|(a, cx)| (f64::from(a).to_radians().cos(), f64::from(cx)));
+    if c >= t[0].0 {
         t[0].1
-    } else if deg <= t[1].0 {
-        t[0].1 + (t[1].1 - t[0].1) * (deg - t[0].0) / (t[1].0 - t[0].0)
-    } else if deg <= t[2].0 {
-        t[1].1 + (t[2].1 - t[1].1) * (deg - t[1].0) / (t[2].0 - t[1].0)
+    } else if c >= t[1].0 {
+        t[0].1 + (t[1].1 - t[0].1) * (t[0].0 - c) / (t[0].0 - t[1].0)
+    } else if c >= t[2].0 {
+        t[1].1 + (t[2].1 - t[1].1) * (t[1].0 - c) / (t[1].0 - t[2].0)
     } else {
         t[2].1
     }

@@ -218,6 +218,21 @@ fn count_instructions() {
     let f32_median = s_f32.report();
     s_f64.report();
 
+    // The same motion with the lithium-grease law, whose μ the estimator cannot tabulate
+    // (docs/model.md "Friction laws"): the exact law on every tick.
+    let lith_cfg = EstimatorConfig {
+        law: liftfw::model::friction::FrictionLaw::LITHIUM,
+        ..EstimatorConfig::DEFAULT
+    };
+    if let Ok(mut lith) = Estimator::new(&lith_cfg) {
+        let mut s_lith = Stats::new("estimator.step fixed, lithium law (exact mu)");
+        for k in 0..N {
+            let (now, m) = motion(k);
+            s_lith.push(ticks(&m, |m| lith.step(now, m)), overhead);
+        }
+        s_lith.report();
+    }
+
     // The model alone (no filter), over the envelope.
     let mut e_fixed = Stats::new("estimator.estimate fixed");
     let mut e_f32 = Stats::new("estimator.estimate f32-micromath");
@@ -267,11 +282,11 @@ fn count_instructions() {
             }),
             overhead,
         );
-        p_cx.push(ticks(pose.alpha, |al| geo.structure_damping(al)), overhead);
+        p_cx.push(ticks(pose.cos_alpha, |c| geo.structure_damping(c)), overhead);
         p_mu.push(ticks(w, |w| law.mu(w)), overhead);
         let mu = law.mu(w);
         let (r, f0) = geo.axial_and_pin(&pose, weight);
-        let cx = geo.structure_damping(pose.alpha);
+        let cx = geo.structure_damping(pose.cos_alpha);
         p_w.push(
             ticks((w, a, r, f0, cx), |(w, a, r, f0, cx)| {
                 screw.axial_demand(w, a, 1, r, f0, cx)

@@ -10,7 +10,7 @@
 //!   call into `compiler_builtins`).
 //!
 //! Same equations as the fixed-point step, in the same order: α-β-γ filter on the encoder count,
-//! pose from the count (x → cos α → α = acos, sin α), R, F₀, c_x(α), the friction law with its
+//! pose from the count (x → cos α → α = acos, sin α), R, F₀, c_x(cos α), the friction law with its
 //! exponential, the contact on either flank, the screw and motor torques, the residual and the
 //! self-locking margin. Configuration is taken from the core's own [`EstimatorConfig`] (and
 //! validated by it), converted once in `f64`.
@@ -245,7 +245,8 @@ pub struct FloatEstimator<T> {
     cos_lo: T,
     cos_hi: T,
     two_mu_pin: T,
-    /// (α rad, c_x, slope per rad).
+    /// (cos α, c_x, slope per unit of cos α below the row's): Table 1 linear in cos α, as
+    /// the fixed-point model reads it.
     damping: [(T, T, T); 3],
     // Friction law: μ = base + amp·e^(−rate·k·|θ̇|) + slope·k·min(|θ̇|, s_max/k).
     law_base: T,
@@ -307,19 +308,16 @@ impl<T: Real> FloatEstimator<T> {
         let alpha0 = g.alpha0_deg.to_num::<f64>() * deg;
 
         let mut damping = [(T::ZERO, T::ZERO, T::ZERO); 3];
+        let cos_deg = |a: i32| libm::cos(f64::from(a) * deg);
         for i in 0..3 {
             let (a0, c0) = DAMPING_TABLE[i];
             let slope = if i < 2 {
                 let (a1, c1) = DAMPING_TABLE[i + 1];
-                f64::from(c1 - c0) / (f64::from(a1 - a0) * deg)
+                f64::from(c1 - c0) / (cos_deg(a0) - cos_deg(a1))
             } else {
                 0.0
             };
-            damping[i] = (
-                T::of(f64::from(a0) * deg),
-                T::of(f64::from(c0)),
-                T::of(slope),
-            );
+            damping[i] = (T::of(cos_deg(a0)), T::of(f64::from(c0)), T::of(slope));
         }
 
         let law = &cfg.law;
@@ -474,17 +472,17 @@ impl<T: Real> FloatEstimator<T> {
         };
         let dir_t = T::of_i32(i32::from(dir));
 
-        // R (Eq 1), F₀ (Eq 6), c_x (Eq 4, Table 1).
+        // R (Eq 1), F₀ (Eq 6), c_x (Eq 4, Table 1 linear in cos α).
         let ws = m.load * T::of(G) * inv_s;
         let axial_load = ws * c;
         let pin_friction = ws * self.two_mu_pin;
         let t = &self.damping;
-        let c_x = if alpha <= t[0].0 {
+        let c_x = if c >= t[0].0 {
             t[0].1
-        } else if alpha <= t[1].0 {
-            t[0].1 + (alpha - t[0].0) * t[0].2
-        } else if alpha <= t[2].0 {
-            t[1].1 + (alpha - t[1].0) * t[1].2
+        } else if c >= t[1].0 {
+            t[0].1 + (t[0].0 - c) * t[0].2
+        } else if c >= t[2].0 {
+            t[1].1 + (t[1].0 - c) * t[1].2
         } else {
             t[2].1
         };

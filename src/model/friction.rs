@@ -185,6 +185,21 @@ impl CompiledLaw {
     /// μ from the magnitude of the input in the law's input format (|θ̇| Q16, τ Q28).
     #[inline(always)]
     pub fn mu_raw(&self, input: u32) -> Ratio {
+        Ratio::from_raw(self.mu_unfloored(input).max(0))
+    }
+
+    /// [`Self::mu_unfloored`] out of line: one copy of the law's code for the callers that
+    /// run it at configuration time or as a fallback.
+    #[inline(never)]
+    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
+    pub fn mu_unfloored_call(&self, input: u32) -> i32 {
+        self.mu_unfloored(input)
+    }
+
+    /// The law's value before its floor at 0 (Q28 bits, saturated to `i32`): [`Self::mu_raw`]
+    /// is this floored at 0. [`MuTable`] interpolates it, so that the floor stays exact.
+    #[inline(always)]
+    pub fn mu_unfloored(&self, input: u32) -> i32 {
         let input = input.min(i32::MAX as u32) as i32;
         // input ≥ 0 and rate ≥ 0: y ≥ 0, saturated to u32 (e^(−y) is 0 long before).
         let y = self.exp_scale.apply_u32(input);
@@ -196,18 +211,134 @@ impl CompiledLaw {
         // clamped below anyway.
         let lin = self.lin_scale.apply32(lin_in);
         let mu = i64::from(self.base.bits()) + exp_term + i64::from(lin);
-        Ratio::from_raw(mu.clamp(0, i64::from(i32::MAX)) as i32)
+        crate::units::sat32(mu)
     }
 
-    /// μ at screw rate θ̇ (its magnitude), for the lead-screw laws.
+    /// μ at screw rate θ̇ (its magnitude), for the lead-screw laws: [`Self::mu_raw`] through
+    /// the law's one out-of-line copy ([`Self::mu_unfloored_call`]).
     #[inline]
     pub fn mu(&self, theta_dot: RadiansPerSecond) -> Ratio {
-        self.mu_raw(theta_dot.bits().unsigned_abs())
+        Ratio::from_raw(
+            self.mu_unfloored_call(theta_dot.bits().unsigned_abs())
+                .max(0),
+        )
     }
 
-    /// μ at lubrication parameter τ (Q28 ratio), for the ball-screw law.
+    /// μ at lubrication parameter τ (Q28 ratio), for the ball-screw law (as [`Self::mu`]).
     #[inline]
     pub fn mu_at_tau(&self, tau: Ratio) -> Ratio {
-        self.mu_raw(tau.bits().unsigned_abs())
+        Ratio::from_raw(self.mu_unfloored_call(tau.bits().unsigned_abs()).max(0))
+    }
+}
+
+/// First octave of [`MuTable`]: inputs below 2^8 (|θ̇| < 3.9 mrad/s in Q16) share one segment.
+const MU_OCT0: u32 = 8;
+/// Inputs the table covers: below 2^27 (|θ̇| < 2048 rad/s, beyond the estimator's 2000 rad/s
+/// clamp).
+const MU_TOP: u32 = 27;
+/// Nodes: 0, then 8 per octave from 2^8 to 2^27 (log-spaced, found by a leading-zero count).
+pub const MU_TABLE_LEN: usize = 2 + (((MU_TOP - MU_OCT0) << 3) as usize);
+
+/// A friction law tabulated once over its input (|θ̇| in Q16 for the lead-screw laws) from the
+/// exact fixed-point law ([`CompiledLaw::mu_raw`]) and interpolated linearly in the input between
+/// log-spaced nodes (8 per octave): one leading-zero count, two loads and one product per tick
+/// instead of e^(−y), two scales and a clamp.
+///
+/// A table is only built where it is exact enough ([`MuTable::build`]): the interpolation
+/// is checked against the exact law at every segment's midpoint and at the viscous term's kink,
+/// within μ/8192 (0.012 %, the T_r budget is 0.2 %) or, where μ is near 0, the exact
+/// law's own step (|amp|·2^-16: it quantises e^(−y)'s argument to 2^-16). The exponential term is smooth
+/// and the viscous term linear between nodes, so the midpoint is where a segment's error peaks
+/// (up to e^(rate·h) times more elsewhere in a segment of width h, where e^(−rate·s) is
+/// already below 10⁻³). The table holds the law before its floor at 0 (clamped to −2…4.25,
+/// beyond μ_max ≤ 4) and the lookup floors the interpolated value, so that the floor is exact.
+/// A law that fails (a kink inside a segment such as lithium grease's s_max, μ beyond the node
+/// clamp) keeps the exact law.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MuTable {
+    nodes: [i32; MU_TABLE_LEN],
+}
+
+impl MuTable {
+    /// The input (law bits) of node `i`.
+    fn node_input(i: usize) -> u32 {
+        if i == 0 {
+            return 0;
+        }
+        let k = (i - 1) as u32;
+        let o = MU_OCT0 + (k >> 3);
+        (1 << o) + ((k & 7) << (o - 3))
+    }
+
+    /// The table of `law` if linear interpolation reproduces it within μ/8192 (struct docs).
+    /// Configuration time: ≈ 460 evaluations of the law. Out of line, with the law behind one
+    /// call ([`CompiledLaw::mu_unfloored_call`]): flash.
+    #[inline(never)]
+    pub fn build(law: &CompiledLaw) -> Option<MuTable> {
+        let mut t = MuTable {
+            nodes: [0; MU_TABLE_LEN],
+        };
+        for (i, n) in t.nodes.iter_mut().enumerate() {
+            *n = law.mu_unfloored_call(Self::node_input(i));
+            // Nodes within −2…4.25 (Q28; μ_max ≤ 4): any two differ by less than 2^31. A law
+            // beyond that keeps the exact law.
+            if !(-(1 << 29)..=(1 << 30) + (1 << 28)).contains(n) {
+                return None;
+            }
+        }
+        // The nodes are the law (floored at 0 by the lookup as the law floors itself); checked:
+        // the midpoint after each node and, in the slot after the last node, the viscous term's
+        // kink (0, a node, when it has none in range).
+        let kink = if law.in_max < 1 << MU_TOP {
+            law.in_max
+        } else {
+            0
+        };
+        for i in 0..MU_TABLE_LEN {
+            let x = if i + 1 < MU_TABLE_LEN {
+                Self::node_input(i) / 2 + Self::node_input(i + 1) / 2
+            } else {
+                kink
+            };
+            // Before the floor (the floor takes nothing from the bound: it is 1-Lipschitz, and a
+            // floored comparison would hide a segment that crosses 0): within |μ|/8192, or the
+            // exact law's own step where μ is near 0: it quantises e^(−y)'s argument to 2^-16,
+            // i.e. steps of |amp|·2^-16 in μ (and 2 LSB).
+            let exact = law.mu_unfloored_call(x);
+            let step = (law.amp.bits().unsigned_abs() >> 16) as i32 + 2;
+            let err = i64::from(t.lookup_unfloored(x)) - i64::from(exact);
+            if err.abs() > i64::from((exact.unsigned_abs() >> 13) as i32).max(i64::from(step)) {
+                return None;
+            }
+        }
+        Some(t)
+    }
+
+    /// μ (Q28 bits, floored at 0, before the contact's clamp) for a law input.
+    #[inline(always)]
+    pub fn lookup(&self, input: u32) -> i32 {
+        self.lookup_unfloored(input).max(0)
+    }
+
+    /// The interpolated law before its floor: the segment from the leading zeros and the next
+    /// three bits, the position in it as a Q32 fraction, one product. Inputs from 2^27 on read
+    /// the last node's value.
+    #[inline(always)]
+    fn lookup_unfloored(&self, input: u32) -> i32 {
+        let x = input.min((1 << MU_TOP) - 1);
+        let (i, f) = if x < 1 << MU_OCT0 {
+            (0, x << (32 - MU_OCT0))
+        } else {
+            // The leading one at bit o = 31 − lz ≥ 8: segment 1 + 8·(o − 8) + the next three
+            // bits; the bits below them are the fraction (x << (lz + 4): lz ≤ 23).
+            let lz = x.leading_zeros();
+            let seg = (((31 - MU_OCT0 - lz) << 3) | ((x >> (28 - lz)) & 7)) + 1;
+            (seg as usize, x << (lz + 4))
+        };
+        match self.nodes.get(i..i + 2) {
+            // Between two nodes (each in −2…4.25): |b − a| < 2^31, the sum stays between.
+            Some(&[a, b]) => a + ((i64::from(b - a) * i64::from(f >> 1)) >> 31) as i32,
+            _ => self.nodes[MU_TABLE_LEN - 1],
+        }
     }
 }

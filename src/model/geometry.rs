@@ -19,6 +19,11 @@ const G_Q16: i64 = 642_689; // 9.80665·2^16
 /// Table 1 of seed 000: (α in degrees, c_x in kg/s), Eq 4 with ζ = 0.3, m_eq = 1000 kg.
 pub const DAMPING_TABLE: [(i32, i32); 3] = [(15, 58_544), (45, 28_878), (65, 23_175)];
 
+/// cos α of a Table 1 angle (degrees), as the model interpolates the table in cos α.
+pub fn damping_table_cos(deg: i32) -> Ratio {
+    Angle::from_degrees(I16F16::from_num(deg)).cos_sin().0
+}
+
 /// Lift geometry as the user configures it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct GeometryConfig {
@@ -87,8 +92,9 @@ pub struct Geometry {
     counts_per_metre: Scale,
     /// Screw radians per motor count, as a scale from counts to Q16 radians.
     screw_rad_per_count: Scale,
-    /// Damping table as (α, c_x, slope per Angle LSB in Q8·2^-24 kg/s).
-    damping: [(Angle, KilogramsPerSecond, i64); 3],
+    /// Damping table as (cos α, c_x, slope per Q28 LSB of cos α in Q8·2^-24 kg/s): Table 1
+    /// interpolated linearly in cos α (docs/model.md), so that the per-tick model needs no α.
+    damping: [(Ratio, KilogramsPerSecond, i64); 3],
     alpha_max: Angle,
     alpha0: Angle,
 }
@@ -205,18 +211,15 @@ impl Geometry {
         // Screw radians per count in Q16: 2π·2^16/(counts·ratio) → num 2π(Q28)·2^16·2^16 / (den·2^28).
         let screw_rad_per_count = Scale::from_ratio(TWO_PI_Q28 << 32, den << 28);
 
-        let mut damping = [(Angle(0), KilogramsPerSecond::ZERO, 0i64); 3];
+        let mut damping = [(Ratio::ZERO, KilogramsPerSecond::ZERO, 0i64); 3];
         for (i, &(deg, cx)) in DAMPING_TABLE.iter().enumerate() {
-            damping[i] = (
-                Angle::from_degrees(I16F16::from_num(deg)),
-                KilogramsPerSecond::from_int(cx),
-                0,
-            );
+            damping[i] = (damping_table_cos(deg), KilogramsPerSecond::from_int(cx), 0);
         }
         for i in 0..2 {
-            let da = i64::from(damping[i + 1].0 .0 - damping[i].0 .0);
+            // cos α falls as α rises: the slope is per unit of cos α below the row's.
+            let dcos = i64::from(damping[i].0.bits() - damping[i + 1].0.bits());
             let dc = i64::from(damping[i + 1].1.bits() - damping[i].1.bits());
-            damping[i].2 = (dc << 24) / da;
+            damping[i].2 = (dc << 24) / dcos;
         }
         Ok(Geometry {
             cfg,
@@ -370,23 +373,25 @@ impl Geometry {
         (w_inv_s.scale(pose.cos_alpha), f.sat_add(f))
     }
 
-    /// Structure damping c_x(α) (Eq 4, Table 1): linear in α between the table's angles, held
-    /// constant outside them.
+    /// Structure damping c_x(α) (Eq 4, Table 1) at the pose with cosine `cos_alpha`: linear in
+    /// cos α between the table's angles (docs/model.md "Structure damping"), held constant
+    /// outside them.
     #[inline(always)]
-    pub fn structure_damping(&self, alpha: Angle) -> KilogramsPerSecond {
+    pub fn structure_damping(&self, cos_alpha: Ratio) -> KilogramsPerSecond {
         let t = &self.damping;
-        if alpha <= t[0].0 {
+        let c = cos_alpha.bits();
+        if c >= t[0].0.bits() {
             return t[0].1;
         }
-        let i = if alpha <= t[1].0 {
+        let i = if c >= t[1].0.bits() {
             0
-        } else if alpha <= t[2].0 {
+        } else if c >= t[2].0.bits() {
             1
         } else {
             return t[2].1;
         };
-        let da = i64::from(alpha.0 - t[i].0 .0);
-        KilogramsPerSecond::from_raw(t[i].1.bits().saturating_add(((da * t[i].2) >> 24) as i32))
+        let dcos = i64::from(t[i].0.bits() - c);
+        KilogramsPerSecond::from_raw(t[i].1.bits().saturating_add(((dcos * t[i].2) >> 24) as i32))
     }
 }
 
@@ -443,8 +448,8 @@ mod tests {
     fn damping_follows_table_one() {
         let g = geo();
         for (deg, cx) in DAMPING_TABLE {
-            let a = Angle::from_degrees(I16F16::from_num(deg));
-            assert!((g.structure_damping(a).to_f64() - f64::from(cx)).abs() < 1.0);
+            let c = damping_table_cos(deg);
+            assert!((g.structure_damping(c).to_f64() - f64::from(cx)).abs() < 1.0);
         }
     }
 }

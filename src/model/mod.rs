@@ -68,11 +68,23 @@ impl Scale {
     #[inline]
     pub fn apply32(self, v: i32) -> i32 {
         let p = i64::from(v) * i64::from(self.mant);
+        let hi = (p >> 32) as i32;
         if self.shift >= 32 {
             // from_ratio keeps shift ≤ 62, so the mask never changes it.
-            ((p >> 32) as i32) >> ((self.shift - 32) & 31)
+            hi >> ((self.shift - 32) & 31)
         } else {
-            crate::units::sat32(p >> self.shift)
+            // p >> s for s < 32 by its two words (the compiler's 64-bit shift by a variable
+            // amount also handles s ≥ 32: ≈ 6 instructions more): the low word takes s bits
+            // of the high one ((hi << 1) << (31 − s): nothing for s = 0), and the result fits
+            // in i32 iff the shifted high word is the low word's sign.
+            let s = self.shift & 31;
+            let lo = (((p as u32) >> s) | (((hi as u32) << 1) << (31 - s))) as i32;
+            let top = hi >> s;
+            if top == lo >> 31 {
+                lo
+            } else {
+                (top >> 31) ^ i32::MAX
+            }
         }
     }
 
@@ -81,10 +93,18 @@ impl Scale {
     #[inline]
     pub fn apply_u32(self, v: i32) -> u32 {
         let p = i64::from(v) * i64::from(self.mant);
+        let hi = (p >> 32) as i32;
         if self.shift >= 32 {
-            (((p >> 32) as i32) >> ((self.shift - 32) & 31)).max(0) as u32
+            (hi >> ((self.shift - 32) & 31)).max(0) as u32
         } else {
-            (p >> self.shift).clamp(0, i64::from(u32::MAX)) as u32
+            // By words, as in `apply32`: the result is the low word iff the high word is 0.
+            let s = self.shift & 31;
+            let lo = ((p as u32) >> s) | (((hi as u32) << 1) << (31 - s));
+            match hi >> s {
+                0 => lo,
+                t if t < 0 => 0,
+                _ => u32::MAX,
+            }
         }
     }
 
@@ -104,5 +124,28 @@ impl Scale {
     /// The constant as `f64` (tests, display).
     pub fn to_f64(self) -> f64 {
         f64::from(self.mant) / (1u64 << self.shift) as f64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Scale;
+
+    proptest::proptest! {
+        /// The word-wise slow paths of `apply32`/`apply_u32` are the clamped `apply` for every
+        /// shift.
+        #[test]
+        fn apply32_is_the_saturated_product(
+            v in proptest::prelude::any::<i32>(),
+            mant in proptest::prelude::any::<i32>(),
+            shift in 0u32..=62,
+        ) {
+            let k = Scale { mant, shift };
+            proptest::prop_assert_eq!(k.apply32(v), crate::units::sat32(k.apply(v)));
+            proptest::prop_assert_eq!(
+                k.apply_u32(v),
+                k.apply(v).clamp(0, i64::from(u32::MAX)) as u32
+            );
+        }
     }
 }

@@ -61,10 +61,7 @@ fn a_position_counted_with_another_geometry_is_not_used() {
     // Settings that do not change what a count means keep it.
     let mut faster = ControlConfig::DEFAULT;
     faster.motion.ramp_ms = 120;
-    assert_eq!(
-        s.load_position(geometry_stamp(&faster)),
-        Some(5_000)
-    );
+    assert_eq!(s.load_position(geometry_stamp(&faster)), Some(5_000));
 }
 
 #[test]

@@ -120,16 +120,31 @@ struct Buf([u8; BUF_LEN]);
 type Map<'f, F> = MapStorage<u8, Blocking<'f, F>, Cache<Uncached, Uncached, Uncached, u8>>;
 
 /// The store's blocking flash as the async `NorFlash` that `sequential-storage` works over:
-/// each operation runs when `sequential-storage` asks for it, and its future is complete from
-/// the start, so a whole map operation finishes in its first poll ([`run`]). (The board's
-/// flash is blocking anyway: programming stalls the CPU.)
+/// each operation runs when `sequential-storage` asks for it, and its future ([`Done`]) is
+/// complete from the start, so a whole map operation finishes in its first poll ([`run`]).
+/// (The board's flash is blocking anyway: programming stalls the CPU.)
 struct Blocking<'f, F>(&'f mut F);
+
+/// A flash operation that has already run, as a future: ready with its result at every poll
+/// (no state, no "polled after completion" path).
+struct Done<E>(Result<(), E>);
+
+impl<E: Copy> Future for Done<E> {
+    type Output = Result<(), E>;
+
+    fn poll(self: core::pin::Pin<&mut Self>, _: &mut Context<'_>) -> Poll<Self::Output> {
+        Poll::Ready(self.0)
+    }
+}
 
 impl<F: ErrorType> ErrorType for Blocking<'_, F> {
     type Error = F::Error;
 }
 
-impl<F: ReadNorFlash> asynch::ReadNorFlash for Blocking<'_, F> {
+impl<F: ReadNorFlash> asynch::ReadNorFlash for Blocking<'_, F>
+where
+    F::Error: Copy,
+{
     const READ_SIZE: usize = F::READ_SIZE;
 
     fn read(
@@ -137,7 +152,7 @@ impl<F: ReadNorFlash> asynch::ReadNorFlash for Blocking<'_, F> {
         offset: u32,
         bytes: &mut [u8],
     ) -> impl Future<Output = Result<(), F::Error>> {
-        core::future::ready(self.0.read(offset, bytes))
+        Done(self.0.read(offset, bytes))
     }
 
     fn capacity(&self) -> usize {
@@ -145,16 +160,19 @@ impl<F: ReadNorFlash> asynch::ReadNorFlash for Blocking<'_, F> {
     }
 }
 
-impl<F: NorFlash> asynch::NorFlash for Blocking<'_, F> {
+impl<F: NorFlash> asynch::NorFlash for Blocking<'_, F>
+where
+    F::Error: Copy,
+{
     const WRITE_SIZE: usize = F::WRITE_SIZE;
     const ERASE_SIZE: usize = F::ERASE_SIZE;
 
     fn erase(&mut self, from: u32, to: u32) -> impl Future<Output = Result<(), F::Error>> {
-        core::future::ready(self.0.erase(from, to))
+        Done(self.0.erase(from, to))
     }
 
     fn write(&mut self, offset: u32, bytes: &[u8]) -> impl Future<Output = Result<(), F::Error>> {
-        core::future::ready(self.0.write(offset, bytes))
+        Done(self.0.write(offset, bytes))
     }
 }
 
@@ -423,12 +441,22 @@ pub struct ConfigStore<F: NorFlash> {
 }
 
 /// An uncached map over one copy's range: rebuilt per operation at no cost.
-fn map<'f, F: NorFlash>(flash: &'f mut F, range: &Range<u32>) -> Result<Map<'f, F>, StoreError> {
+fn map<'f, F: NorFlash>(flash: &'f mut F, range: &Range<u32>) -> Result<Map<'f, F>, StoreError>
+where
+    F::Error: Copy,
+{
     let config = MapConfig::try_new(range.clone()).map_err(|_| StoreError::BadRange)?;
-    Ok(MapStorage::new(Blocking(flash), config, Cache::new_uncached()))
+    Ok(MapStorage::new(
+        Blocking(flash),
+        config,
+        Cache::new_uncached(),
+    ))
 }
 
-impl<F: NorFlash> ConfigStore<F> {
+impl<F: NorFlash> ConfigStore<F>
+where
+    F::Error: Copy,
+{
     /// A store over `range` of `flash` (an even number of whole erase pages, at least four).
     pub fn new(flash: F, range: Range<u32>) -> Result<ConfigStore<F>, StoreError> {
         let page = F::ERASE_SIZE as u32;
@@ -542,7 +570,12 @@ impl<F: NorFlash> ConfigStore<F> {
         Ok(seq)
     }
 
-    fn save_copy(&mut self, copy: usize, cfg: &ValidatedConfig, seq: u32) -> Result<(), StoreError> {
+    fn save_copy(
+        &mut self,
+        copy: usize,
+        cfg: &ValidatedConfig,
+        seq: u32,
+    ) -> Result<(), StoreError> {
         let record = Outgoing(cfg.get(), seq);
         let mut result = self.put(copy, CONFIG_KEY, &record);
         if result == Err(StoreError::Corrupted) {

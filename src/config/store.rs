@@ -152,12 +152,19 @@ where
         offset: u32,
         bytes: &mut [u8],
     ) -> impl Future<Output = Result<(), F::Error>> {
-        Done(self.0.read(offset, bytes))
+        Done(read(self.0, offset, bytes))
     }
 
     fn capacity(&self) -> usize {
         self.0.capacity()
     }
+}
+
+/// One out-of-line read for every read `sequential-storage` makes (inlined, each call site
+/// carried the driver's bounds check and copy).
+#[inline(never)]
+fn read<F: ReadNorFlash>(flash: &mut F, offset: u32, bytes: &mut [u8]) -> Result<(), F::Error> {
+    flash.read(offset, bytes)
 }
 
 impl<F: NorFlash> asynch::NorFlash for Blocking<'_, F>

@@ -17,7 +17,7 @@
 //! this registry's, and the schema word catches changes to it), and decoding is 60 lines with
 //! no error path that is not tested byte by byte.
 
-use crate::config::settings::SETTINGS;
+use crate::config::settings::{Setting, SETTINGS};
 use crate::control::config::ControlConfig;
 
 /// Record magic, "LFCF".
@@ -76,22 +76,34 @@ fn in_version(key: &str, version: u16) -> bool {
     added_in(key) <= version
 }
 
-/// The schema fingerprint of `version`'s key list.
-fn schema_of(version: u16) -> u32 {
-    let mut crc = 0xFFFF_FFFF;
-    for s in SETTINGS
+/// The settings records of `version` hold, in their order.
+fn stored_in(version: u16) -> impl Iterator<Item = &'static Setting> {
+    SETTINGS
         .iter()
-        .filter(|s| s.stored && in_version(s.key, version))
-    {
+        .filter(move |s| s.stored && in_version(s.key, version))
+}
+
+/// `version`'s key list: how many settings, and its schema fingerprint (one pass for both).
+fn layout(version: u16) -> (usize, u32) {
+    let mut n = 0;
+    let mut crc = 0xFFFF_FFFF;
+    for s in stored_in(version) {
         crc = crc32_update(crc, s.key.as_bytes());
         crc = crc32_update(crc, b"\n");
+        n += 1;
     }
-    crc ^ 0xFFFF_FFFF
+    (n, crc ^ 0xFFFF_FFFF)
+}
+
+/// The schema fingerprint of `version`'s key list.
+#[cfg(test)]
+fn schema_of(version: u16) -> u32 {
+    layout(version).1
 }
 
 /// The schema fingerprint: CRC-32 of the stored keys in order, each followed by `\n`.
 pub fn schema() -> u32 {
-    schema_of(VERSION)
+    layout(VERSION).1
 }
 
 /// Why a stored record was not used.
@@ -154,15 +166,15 @@ impl core::fmt::Display for DecodeError {
 /// Encode `cfg` as a record with sequence number `seq` into `out`; returns the length, or
 /// `None` if `out` is too short.
 pub fn encode(cfg: &ControlConfig, seq: u32, out: &mut [u8]) -> Option<usize> {
-    let n = stored_count();
+    let (n, schema) = layout(VERSION);
     let len = HEADER_LEN + 8 * n + 4;
     let out = out.get_mut(..len)?;
     out[0..4].copy_from_slice(&MAGIC);
     out[4..6].copy_from_slice(&VERSION.to_le_bytes());
     out[6..8].copy_from_slice(&(n as u16).to_le_bytes());
-    out[8..12].copy_from_slice(&schema().to_le_bytes());
+    out[8..12].copy_from_slice(&schema.to_le_bytes());
     out[12..16].copy_from_slice(&seq.to_le_bytes());
-    for (i, s) in SETTINGS.iter().filter(|s| s.stored).enumerate() {
+    for (i, s) in stored_in(VERSION).enumerate() {
         let at = HEADER_LEN + 8 * i;
         out[at..at + 8].copy_from_slice(&s.get(cfg).to_le_bytes());
     }
@@ -203,12 +215,9 @@ pub fn decode(bytes: &[u8]) -> Result<(ControlConfig, u32), DecodeError> {
     }
     // An older format is this one without the settings added since: decoded with its own key
     // list, the missing settings keep their factory value.
-    let count = SETTINGS
-        .iter()
-        .filter(|s| s.stored && in_version(s.key, version))
-        .count();
+    let (count, schema) = layout(version);
     let n = usize::from(le_u16(bytes, 6));
-    if n != count || le_u32(bytes, 8) != schema_of(version) {
+    if n != count || le_u32(bytes, 8) != schema {
         return Err(DecodeError::Schema);
     }
     if bytes.len() != HEADER_LEN + 8 * n + 4 {
@@ -216,11 +225,7 @@ pub fn decode(bytes: &[u8]) -> Result<(ControlConfig, u32), DecodeError> {
     }
     let seq = le_u32(bytes, 12);
     let mut cfg = ControlConfig::DEFAULT;
-    for (i, s) in SETTINGS
-        .iter()
-        .filter(|s| s.stored && in_version(s.key, version))
-        .enumerate()
-    {
+    for (i, s) in stored_in(version).enumerate() {
         let at = HEADER_LEN + 8 * i;
         let mut w = [0; 8];
         w.copy_from_slice(&bytes[at..at + 8]);

@@ -48,7 +48,8 @@ pub fn crc32(data: &[u8]) -> u32 {
     crc32_update(0xFFFF_FFFF, data) ^ 0xFFFF_FFFF
 }
 
-fn crc32_update(mut crc: u32, data: &[u8]) -> u32 {
+/// [`crc32`] over data fed in pieces: start with `0xFFFF_FFFF`, end with `^ 0xFFFF_FFFF`.
+pub(crate) fn crc32_update(mut crc: u32, data: &[u8]) -> u32 {
     for &b in data {
         crc ^= u32::from(b);
         for _ in 0..8 {

@@ -96,19 +96,15 @@ impl PositionRecord {
 
 /// The stamp of everything that gives encoder counts their meaning (geometry and drive
 /// settings): a stored position counted under another stamp is not used.
+/// (CRC-32 of those settings' raw bits, each as 8 little-endian bytes, in registry order.)
 pub fn geometry_stamp(cfg: &ControlConfig) -> u32 {
-    let mut bytes = [0u8; 8 * 12];
-    let mut n = 0;
-    for id in crate::config::settings::all() {
-        let key = id.key();
-        if key.starts_with("geometry.") || key.starts_with("drive.") {
-            if let Some(dst) = bytes.get_mut(n..n + 8) {
-                dst.copy_from_slice(&id.setting().get(cfg).to_le_bytes());
-                n += 8;
-            }
+    let mut crc = 0xFFFF_FFFF;
+    for s in crate::config::settings::SETTINGS.iter() {
+        if s.key.starts_with("geometry.") || s.key.starts_with("drive.") {
+            crc = record::crc32_update(crc, &s.get(cfg).to_le_bytes());
         }
     }
-    record::crc32(bytes.get(..n).unwrap_or(&[]))
+    crc ^ 0xFFFF_FFFF
 }
 
 /// Work buffer: key + record, rounded up to the 8-byte program unit of the G4.
@@ -675,6 +671,24 @@ mod tests {
     extern crate std;
     use std::format;
     use std::string::ToString;
+
+    /// The stamp is the CRC-32 of the geometry and drive settings' bits laid end to end, as
+    /// it was computed (through a buffer) when the parked positions in the field were stored.
+    #[test]
+    fn geometry_stamp_is_the_crc_of_the_concatenated_settings() {
+        let mut cfg = ControlConfig::DEFAULT;
+        cfg.estimator.drive.counts_per_rev += 4;
+        for cfg in [ControlConfig::DEFAULT, cfg] {
+            let mut bytes = std::vec::Vec::new();
+            for s in crate::config::settings::SETTINGS.iter() {
+                if s.key.starts_with("geometry.") || s.key.starts_with("drive.") {
+                    bytes.extend_from_slice(&s.get(&cfg).to_le_bytes());
+                }
+            }
+            assert!(bytes.len() >= 8 * 8, "{} bytes", bytes.len());
+            assert_eq!(geometry_stamp(&cfg), record::crc32(&bytes));
+        }
+    }
 
     /// Every message as the `write!` form before `write_to` spelled it.
     #[test]

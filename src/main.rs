@@ -158,15 +158,13 @@ fn load_store(flash: Peri<'static, FLASH>) -> Boot {
                 parked,
             }
         }
-        Err(e) => {
-            error!("configuration store unusable: {}", e);
-            Boot {
-                store: None,
-                config: ValidatedConfig::factory(),
-                source: Source::Unreadable(e),
-                parked: None,
-            }
-        }
+        // Logged below as the configuration's source (`Unreadable`).
+        Err(e) => Boot {
+            store: None,
+            config: ValidatedConfig::factory(),
+            source: Source::Unreadable(e),
+            parked: None,
+        },
     };
     let ecc = board::STORE_ECC_ERRORS.load(core::sync::atomic::Ordering::Relaxed);
     if ecc > 0 {

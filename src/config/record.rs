@@ -49,23 +49,44 @@ pub fn crc32(data: &[u8]) -> u32 {
 }
 
 /// [`crc32`] over data fed in pieces: start with `0xFFFF_FFFF`, end with `^ 0xFFFF_FFFF`.
-pub(crate) fn crc32_update(mut crc: u32, data: &[u8]) -> u32 {
-    for &b in data {
-        crc ^= u32::from(b);
-        for _ in 0..8 {
+/// (`const`: the schema words are computed at compile time.)
+pub(crate) const fn crc32_update(mut crc: u32, data: &[u8]) -> u32 {
+    let mut i = 0;
+    while i < data.len() {
+        crc ^= data[i] as u32;
+        let mut bit = 0;
+        while bit < 8 {
             crc = (crc >> 1) ^ (0xEDB8_8320 & (crc & 1).wrapping_neg());
+            bit += 1;
         }
+        i += 1;
     }
     crc
 }
 
+/// `key` starts with `prefix` (`str::starts_with` is not `const`).
+const fn starts_with(key: &str, prefix: &str) -> bool {
+    let (key, prefix) = (key.as_bytes(), prefix.as_bytes());
+    if key.len() < prefix.len() {
+        return false;
+    }
+    let mut i = 0;
+    while i < prefix.len() {
+        if key[i] != prefix[i] {
+            return false;
+        }
+        i += 1;
+    }
+    true
+}
+
 /// The format version that added a stored setting (1: there from the start).
-fn added_in(key: &str) -> u16 {
-    if key == "drive.screw" {
+const fn added_in(key: &str) -> u16 {
+    if starts_with(key, "drive.screw") && key.len() == "drive.screw".len() {
         2
-    } else if key.starts_with("ballscrew.") {
+    } else if starts_with(key, "ballscrew.") {
         3
-    } else if key.starts_with("drive.brake") {
+    } else if starts_with(key, "drive.brake") {
         4
     } else {
         1
@@ -73,38 +94,71 @@ fn added_in(key: &str) -> u16 {
 }
 
 /// Whether a stored setting is in records of `version`.
+#[cfg(test)]
 fn in_version(key: &str, version: u16) -> bool {
     added_in(key) <= version
 }
+
+/// Per setting of [`SETTINGS`]: the format version whose records first hold it (`u8::MAX`:
+/// not stored). Computed at compile time, so the firmware compares no key strings.
+const ADDED_IN: [u8; SETTINGS.len()] = {
+    let mut t = [u8::MAX; SETTINGS.len()];
+    let mut i = 0;
+    while i < SETTINGS.len() {
+        if SETTINGS[i].stored {
+            t[i] = added_in(SETTINGS[i].key) as u8;
+        }
+        i += 1;
+    }
+    t
+};
+
+/// Per format version (index `version - 1`): how many settings its records hold, and its
+/// schema word (CRC-32 of their keys in order, each followed by `\n`). Compile time.
+const LAYOUTS: [(usize, u32); VERSION as usize] = {
+    let mut t = [(0, 0); VERSION as usize];
+    let mut v = 1;
+    while v <= VERSION {
+        let (mut n, mut crc) = (0, 0xFFFF_FFFF);
+        let mut i = 0;
+        while i < SETTINGS.len() {
+            if ADDED_IN[i] as u16 <= v {
+                crc = crc32_update(crc, SETTINGS[i].key.as_bytes());
+                crc = crc32_update(crc, b"\n");
+                n += 1;
+            }
+            i += 1;
+        }
+        t[(v - 1) as usize] = (n, crc ^ 0xFFFF_FFFF);
+        v += 1;
+    }
+    t
+};
 
 /// The settings records of `version` hold, in their order.
 fn stored_in(version: u16) -> impl Iterator<Item = &'static Setting> {
     SETTINGS
         .iter()
-        .filter(move |s| s.stored && in_version(s.key, version))
+        .zip(ADDED_IN.iter())
+        .filter(move |(_, &added)| u16::from(added) <= version)
+        .map(|(s, _)| s)
 }
 
-/// `version`'s key list: how many settings, and its schema fingerprint (one pass for both).
-fn layout(version: u16) -> (usize, u32) {
-    let mut n = 0;
-    let mut crc = 0xFFFF_FFFF;
-    for s in stored_in(version) {
-        crc = crc32_update(crc, s.key.as_bytes());
-        crc = crc32_update(crc, b"\n");
-        n += 1;
-    }
-    (n, crc ^ 0xFFFF_FFFF)
+/// `version`'s key list: how many settings, and its schema fingerprint; `None` for a version
+/// this firmware does not know.
+fn layout(version: u16) -> Option<(usize, u32)> {
+    LAYOUTS.get(usize::from(version).wrapping_sub(1)).copied()
 }
 
 /// The schema fingerprint of `version`'s key list.
 #[cfg(test)]
 fn schema_of(version: u16) -> u32 {
-    layout(version).1
+    layout(version).map_or(0, |l| l.1)
 }
 
 /// The schema fingerprint: CRC-32 of the stored keys in order, each followed by `\n`.
 pub fn schema() -> u32 {
-    layout(VERSION).1
+    LAYOUTS[VERSION as usize - 1].1
 }
 
 /// Why a stored record was not used.
@@ -167,7 +221,7 @@ impl core::fmt::Display for DecodeError {
 /// Encode `cfg` as a record with sequence number `seq` into `out`; returns the length, or
 /// `None` if `out` is too short.
 pub fn encode(cfg: &ControlConfig, seq: u32, out: &mut [u8]) -> Option<usize> {
-    let (n, schema) = layout(VERSION);
+    let (n, schema) = LAYOUTS[VERSION as usize - 1];
     let len = HEADER_LEN + 8 * n + 4;
     let out = out.get_mut(..len)?;
     out[0..4].copy_from_slice(&MAGIC);
@@ -211,12 +265,11 @@ pub fn decode(bytes: &[u8]) -> Result<(ControlConfig, u32), DecodeError> {
         return Err(DecodeError::BadCrc);
     }
     let version = le_u16(bytes, 4);
-    if version == 0 || version > VERSION {
-        return Err(DecodeError::Version { found: version });
-    }
     // An older format is this one without the settings added since: decoded with its own key
     // list, the missing settings keep their factory value.
-    let (count, schema) = layout(version);
+    let Some((count, schema)) = layout(version) else {
+        return Err(DecodeError::Version { found: version });
+    };
     let n = usize::from(le_u16(bytes, 6));
     if n != count || le_u32(bytes, 8) != schema {
         return Err(DecodeError::Schema);
@@ -240,10 +293,46 @@ pub fn decode(bytes: &[u8]) -> Result<(ControlConfig, u32), DecodeError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    extern crate std;
 
     #[test]
     fn crc32_matches_the_standard_check_value() {
         assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+    }
+
+    /// The compile-time tables are what walking the registry's keys gives (the form the
+    /// records in the field were written with), for every version; unknown versions have none.
+    #[test]
+    fn compile_time_layouts_match_the_registry() {
+        for version in 1..=VERSION {
+            let keys: std::vec::Vec<&str> = SETTINGS
+                .iter()
+                .filter(|s| s.stored && in_version(s.key, version))
+                .map(|s| s.key)
+                .collect();
+            let mut text = std::string::String::new();
+            for k in &keys {
+                text.push_str(k);
+                text.push('\n');
+            }
+            assert_eq!(
+                layout(version),
+                Some((keys.len(), crc32(text.as_bytes()))),
+                "version {version}"
+            );
+            let listed: std::vec::Vec<&str> = stored_in(version).map(|s| s.key).collect();
+            assert_eq!(listed, keys, "version {version}");
+        }
+        assert_eq!(layout(0), None);
+        assert_eq!(layout(VERSION + 1), None);
+        assert_eq!(schema(), schema_of(VERSION));
+        assert_eq!(layout(VERSION).map(|l| l.0), Some(stored_count()));
+        // The keys each version added.
+        assert_eq!(added_in("drive.screw"), 2);
+        assert_eq!(added_in("drive.screwdriver"), 1);
+        assert_eq!(added_in("ballscrew.lead"), 3);
+        assert_eq!(added_in("drive.brake_ms"), 4);
+        assert_eq!(added_in("limits.upper"), 1);
     }
 
     #[test]

@@ -180,8 +180,9 @@ where
 }
 
 /// Runs a `sequential-storage` operation over [`Blocking`] to its end. Its flash futures are
-/// complete when created and it awaits nothing else, so the first poll returns `Ready`; the
-/// loop only makes that an assumption that cannot go wrong rather than an `unwrap`.
+/// complete when created and `sequential-storage` (8.0) awaits nothing but the flash, so the
+/// first poll returns `Ready`. Were a later version to await something else, the loop would
+/// poll again (a busy wait, as `block_on` does) rather than fail an `unwrap`.
 fn run<T>(op: impl Future<Output = T>) -> T {
     let mut op = core::pin::pin!(op);
     let mut cx = Context::from_waker(Waker::noop());

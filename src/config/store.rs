@@ -416,17 +416,15 @@ fn newer(a: u32, b: u32) -> bool {
 
 /// Whether every byte of `range` reads erased.
 fn is_erased<F: NorFlash>(flash: &mut F, range: &Range<u32>) -> Result<bool, StoreError> {
-    let mut chunk = [0u8; 64];
+    // Word by word (the range is whole pages), through the read `sequential-storage` uses.
+    let mut word = [0u8; 8];
     let mut at = range.start;
     while at < range.end {
-        let n = ((range.end - at) as usize).min(chunk.len());
-        flash
-            .read(at, &mut chunk[..n])
-            .map_err(|e| flash_error(&e))?;
-        if chunk[..n].iter().any(|&b| b != 0xFF) {
+        read(flash, at, &mut word).map_err(|e| flash_error(&e))?;
+        if word != [0xFF; 8] {
             return Ok(false);
         }
-        at += n as u32;
+        at += 8;
     }
     Ok(true)
 }

@@ -21,12 +21,8 @@ mod board;
 
 use board::{Board, ConsolePins, CONSOLE_BAUD, STORE_RANGE};
 use core::cell::RefCell;
-use core::future::{poll_fn, Future};
 use core::mem::MaybeUninit;
-use core::pin::{pin, Pin};
-use core::task::{Context, Poll};
 use defmt::{error, info, warn};
-use embassy_embedded_hal::adapter::BlockingAsync;
 use embassy_executor::Spawner;
 use embassy_futures::select::{select, Either};
 use embassy_stm32::flash::{Blocking, Flash};
@@ -64,7 +60,7 @@ bind_interrupts!(struct Irqs {
     USART2 => usart::BufferedInterruptHandler<peripherals::USART2>;
 });
 
-type StoreFlash = BlockingAsync<Flash<'static, Blocking>>;
+type StoreFlash = Flash<'static, Blocking>;
 
 /// The controller's storage: zero-initialised RAM (a `static` holding the controller itself
 /// would carry a 2 KiB initial image in flash). It holds the constructor's `Result`, written
@@ -99,7 +95,7 @@ static NOTICES: Channel<CriticalSectionRawMutex, Event, 4> = Channel::new();
 static SAVED: Signal<CriticalSectionRawMutex, Result<u32, StoreError>> = Signal::new();
 
 /// Boot, in steps that each keep their temporaries in their own frame: the boot task's poll
-/// holds only what crosses the one `await` (the store load). Inlined into one poll, the HAL
+/// holds only what the steps hand on (the store load is blocking, like the flash). Inlined into one poll, the HAL
 /// bring-up, the store, the controller and the spawned tasks' futures all had slots in one
 /// 9.5 KiB frame (scripts/fw-build prints the bound; BENCHMARKS.md "Stack").
 #[embassy_executor::main]
@@ -107,8 +103,7 @@ async fn main(spawner: Spawner) {
     let (board, console, flash, watchdog_reset) = bring_up();
     // Configuration and parked position, before the watchdog runs (a store repair may erase a
     // page: tens of ms). Any failure leaves the factory configuration and an unhomed lift.
-    let mut load = pin!(load_store(flash));
-    let boot = poll_fn(|cx| poll_outlined(load.as_mut(), cx)).await;
+    let boot = load_store(flash);
     let parked = trusted_position(&boot);
     let controller = install_controller(boot.config.get(), parked);
     if watchdog_reset {
@@ -146,15 +141,16 @@ struct Boot {
     parked: Option<i32>,
 }
 
-/// Opens the store and reads the configuration and the parked position.
-async fn load_store(flash: Peri<'static, FLASH>) -> Boot {
-    let flash = BlockingAsync::new(Flash::new_blocking(flash));
-    let boot = match ConfigStore::new(flash, STORE_RANGE) {
+/// Opens the store and reads the configuration and the parked position (in a frame of its
+/// own: the boot task's holds only the result).
+#[inline(never)]
+fn load_store(flash: Peri<'static, FLASH>) -> Boot {
+    let boot = match ConfigStore::new(Flash::new_blocking(flash), STORE_RANGE) {
         Ok(store) => {
             let store = STORE.init(store);
-            let loaded = store.load().await;
+            let loaded = store.load();
             let stamp = geometry_stamp(loaded.config.get());
-            let parked = store.load_position(stamp).await;
+            let parked = store.load_position(stamp);
             Boot {
                 store: Some(store),
                 config: loaded.config,
@@ -162,15 +158,13 @@ async fn load_store(flash: Peri<'static, FLASH>) -> Boot {
                 parked,
             }
         }
-        Err(e) => {
-            error!("configuration store unusable: {}", e);
-            Boot {
-                store: None,
-                config: ValidatedConfig::factory(),
-                source: Source::Unreadable(e),
-                parked: None,
-            }
-        }
+        // Logged below as the configuration's source (`Unreadable`).
+        Err(e) => Boot {
+            store: None,
+            config: ValidatedConfig::factory(),
+            source: Source::Unreadable(e),
+            parked: None,
+        },
     };
     let ecc = board::STORE_ECC_ERRORS.load(core::sync::atomic::Ordering::Relaxed);
     if ecc > 0 {
@@ -185,12 +179,6 @@ async fn load_store(flash: Peri<'static, FLASH>) -> Boot {
         info!("configuration: {}", boot.source);
     }
     boot
-}
-
-/// Polls `future` in a frame of its own (not inlined into the caller's poll).
-#[inline(never)]
-fn poll_outlined<F: Future>(future: Pin<&mut F>, cx: &mut Context<'_>) -> Poll<F::Output> {
-    future.poll(cx)
 }
 
 /// The parked position, if it can be trusted. A ball screw is not self-locking: with the
@@ -388,7 +376,7 @@ async fn storage(store: &'static mut ConfigStore<StoreFlash>) {
     loop {
         match STORE_REQUESTS.receive().await {
             StoreRequest::Config(cfg) => {
-                let r = store.save(&cfg).await;
+                let r = store.save(&cfg);
                 match r {
                     Ok(seq) => info!("configuration #{} saved", seq),
                     Err(e) => error!("configuration save failed: {}", e),
@@ -396,7 +384,7 @@ async fn storage(store: &'static mut ConfigStore<StoreFlash>) {
                 SAVED.signal(r);
             }
             StoreRequest::Position(p, stamp) => {
-                if let Err(e) = store.save_position(p, stamp).await {
+                if let Err(e) = store.save_position(p, stamp) {
                     // The previous record stays; the next one retries.
                     error!("position record {} failed: {}", p, e);
                 }

@@ -25,7 +25,7 @@ fn store(flash: Flash) -> ConfigStore<Flash> {
 
 fn load(flash: Flash) -> (liftfw::config::store::Loaded, Flash) {
     let mut s = store(flash);
-    let loaded = block_on(s.load());
+    let loaded = s.load();
     (loaded, s.into_flash())
 }
 
@@ -39,9 +39,9 @@ fn variant(i: u32) -> ValidatedConfig {
 /// Flash after `n` saves of `variant(1..=n)`.
 fn after_saves(n: u32) -> Flash {
     let mut s = store(Flash::new());
-    block_on(s.load());
+    s.load();
     for i in 1..=n {
-        assert_eq!(block_on(s.save(&variant(i))), Ok(i));
+        assert_eq!(s.save(&variant(i)), Ok(i));
     }
     s.into_flash()
 }
@@ -112,8 +112,8 @@ fn every_setting_round_trips_through_flash() {
         assert_ne!(s.get(changed.get()), s.get(&factory), "{}", s.key);
     }
     let mut st = store(Flash::new());
-    block_on(st.load());
-    assert_eq!(block_on(st.save(&changed)), Ok(1));
+    st.load();
+    assert_eq!(st.save(&changed), Ok(1));
     let (loaded, _) = load(st.into_flash());
     assert_eq!(
         loaded.source,
@@ -146,19 +146,19 @@ fn power_loss_at_every_step(prior: u32, mode_for_step: impl Fn(u32) -> CutMode) 
     // Steps the uninterrupted save takes.
     let steps = {
         let mut s = store(before.clone());
-        block_on(s.load());
+        s.load();
         let start = s.flash().steps();
-        assert_eq!(block_on(s.save(&new)), Ok(prior + 1));
+        assert_eq!(s.save(&new), Ok(prior + 1));
         s.flash().steps() - start
     };
     assert!(steps > 0);
     let mut outcomes = [0u32; 2];
     for step in 0..steps {
         let mut s = store(before.clone());
-        block_on(s.load());
+        s.load();
         s.flash().cut_after(step, mode_for_step(step));
         assert!(
-            block_on(s.save(&new)).is_err(),
+            s.save(&new).is_err(),
             "save {} survived a cut at step {step}",
             prior + 1
         );
@@ -167,7 +167,7 @@ fn power_loss_at_every_step(prior: u32, mode_for_step: impl Fn(u32) -> CutMode) 
         flash.reboot();
 
         let mut s = store(flash);
-        let loaded = block_on(s.load());
+        let loaded = s.load();
         if loaded.config == new {
             assert!(matches!(loaded.source, Source::Stored { seq, .. } if seq == prior + 1));
             outcomes[1] += 1;
@@ -189,7 +189,7 @@ fn power_loss_at_every_step(prior: u32, mode_for_step: impl Fn(u32) -> CutMode) 
         }
         // The store recovers: the next save and load work.
         let again = variant(prior + 7);
-        let r = block_on(s.save(&again));
+        let r = s.save(&again);
         assert!(
             r.is_ok(),
             "save {} cut at step {step}: recovery save {r:?}",
@@ -377,7 +377,7 @@ fn garbage_in_the_store_reads_as_corrupt() {
         *b = (i * 7 + 3) as u8;
     }
     let mut s = store(flash);
-    let loaded = block_on(s.load());
+    let loaded = s.load();
     assert!(
         matches!(
             loaded.source,
@@ -388,7 +388,7 @@ fn garbage_in_the_store_reads_as_corrupt() {
     );
     assert_eq!(loaded.config, ValidatedConfig::factory());
     // Saving recovers the store.
-    assert!(block_on(s.save(&variant(4))).is_ok());
+    assert!(s.save(&variant(4)).is_ok());
     let (loaded, _) = load(s.into_flash());
     assert_eq!(loaded.config, variant(4));
 }
@@ -405,8 +405,8 @@ fn store_range_must_be_two_copies_of_two_pages() {
 #[test]
 fn erase_returns_the_store_to_factory() {
     let mut s = store(after_saves(2));
-    block_on(s.erase()).unwrap();
-    assert_eq!(block_on(s.load()).source, Source::Missing);
+    s.erase().unwrap();
+    assert_eq!(s.load().source, Source::Missing);
 }
 
 #[test]

@@ -4,7 +4,6 @@
 //! changes the configuration unless it is a valid `set`.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
-use embassy_futures::block_on;
 use liftfw::config::settings;
 use liftfw::config::sim_flash::{SimFlash, ERASE_SIZE};
 use liftfw::config::store::{ConfigStore, Source, StoreError};
@@ -278,19 +277,19 @@ type Flash = SimFlash<{ 4 * ERASE_SIZE }>;
 #[test]
 fn save_is_handed_to_the_caller_and_reported() {
     let mut store = ConfigStore::new(Flash::new(), 0..(4 * ERASE_SIZE) as u32).unwrap();
-    assert_eq!(block_on(store.load()).source, Source::Missing);
+    assert_eq!(store.load().source, Source::Missing);
     let mut b = Bench::new();
     b.reply("set limits.upper 395mm");
     let (r, o) = b.line("save");
     assert_eq!((r.as_str(), o.action), ("", Action::Save));
-    let res = block_on(store.save(&b.cfg));
+    let res = store.save(&b.cfg);
     let mut out = String::new();
     service::write_saved(&mut out, res).unwrap();
     assert_eq!(out, "ok: saved as configuration #1");
     // A power cycle: the flash holds what was saved.
     let flash = store.into_flash();
     let mut store = ConfigStore::new(flash, 0..(4 * ERASE_SIZE) as u32).unwrap();
-    let loaded = block_on(store.load());
+    let loaded = store.load();
     assert_eq!(loaded.config, b.cfg);
     assert_eq!(loaded.config.get().limits.upper, Metres::lit("0.395"));
     let mut out = String::new();

@@ -4,7 +4,6 @@
 //! position, and never costs the stored configuration.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
-use embassy_futures::block_on;
 use liftfw::config::sim_flash::{CutMode, SimFlash, ERASE_SIZE};
 use liftfw::config::store::{geometry_stamp, ConfigStore, Parked};
 use liftfw::config::ValidatedConfig;
@@ -31,57 +30,54 @@ fn custom() -> ValidatedConfig {
 #[test]
 fn nothing_stored_means_unknown() {
     let mut s = store(Flash::new());
-    block_on(s.load());
-    assert_eq!(block_on(s.load_position(stamp())), None);
+    s.load();
+    assert_eq!(s.load_position(stamp()), None);
 }
 
 #[test]
 fn a_parked_position_survives_a_reboot_and_moving_means_unknown() {
     let mut s = store(Flash::new());
-    block_on(s.load());
-    block_on(s.save_position(Parked::At(12_345), stamp())).unwrap();
+    s.load();
+    s.save_position(Parked::At(12_345), stamp()).unwrap();
     let mut s = store(s.into_flash());
-    block_on(s.load());
-    assert_eq!(block_on(s.load_position(stamp())), Some(12_345));
-    block_on(s.save_position(Parked::Moving, stamp())).unwrap();
+    s.load();
+    assert_eq!(s.load_position(stamp()), Some(12_345));
+    s.save_position(Parked::Moving, stamp()).unwrap();
     let mut s = store(s.into_flash());
-    assert_eq!(block_on(s.load_position(stamp())), None);
-    block_on(s.save_position(Parked::At(-7), stamp())).unwrap();
+    assert_eq!(s.load_position(stamp()), None);
+    s.save_position(Parked::At(-7), stamp()).unwrap();
     let mut s = store(s.into_flash());
-    assert_eq!(block_on(s.load_position(stamp())), Some(-7));
+    assert_eq!(s.load_position(stamp()), Some(-7));
 }
 
 #[test]
 fn a_position_counted_with_another_geometry_is_not_used() {
     let mut s = store(Flash::new());
-    block_on(s.save_position(Parked::At(5_000), stamp())).unwrap();
+    s.save_position(Parked::At(5_000), stamp()).unwrap();
     let mut other = ControlConfig::DEFAULT;
     other.estimator.drive.counts_per_rev = 64;
     assert_ne!(geometry_stamp(&other), stamp());
-    assert_eq!(block_on(s.load_position(geometry_stamp(&other))), None);
+    assert_eq!(s.load_position(geometry_stamp(&other)), None);
     // Settings that do not change what a count means keep it.
     let mut faster = ControlConfig::DEFAULT;
     faster.motion.ramp_ms = 120;
-    assert_eq!(
-        block_on(s.load_position(geometry_stamp(&faster))),
-        Some(5_000)
-    );
+    assert_eq!(s.load_position(geometry_stamp(&faster)), Some(5_000));
 }
 
 #[test]
 fn many_position_writes_keep_the_configuration_and_the_newest_position() {
     // Enough writes to fill and recycle every page several times.
     let mut s = store(Flash::new());
-    block_on(s.load());
-    block_on(s.save(&custom())).unwrap();
+    s.load();
+    s.save(&custom()).unwrap();
     for i in 0..400 {
-        block_on(s.save_position(Parked::Moving, stamp())).unwrap();
-        block_on(s.save_position(Parked::At(i * 10), stamp())).unwrap();
+        s.save_position(Parked::Moving, stamp()).unwrap();
+        s.save_position(Parked::At(i * 10), stamp()).unwrap();
     }
     let mut s = store(s.into_flash());
-    let loaded = block_on(s.load());
+    let loaded = s.load();
     assert_eq!(loaded.config, custom(), "{}", loaded.source);
-    assert_eq!(block_on(s.load_position(stamp())), Some(3_990));
+    assert_eq!(s.load_position(stamp()), Some(3_990));
 }
 
 /// Cut the power at every step of one position write (from `from` to `to`, after `history`
@@ -93,35 +89,35 @@ fn cut_every_step(history: i32, from: Parked, to: Parked, mode: CutMode) -> (u32
     };
     let before = {
         let mut s = store(Flash::new());
-        block_on(s.load());
-        block_on(s.save(&custom())).unwrap();
+        s.load();
+        s.save(&custom()).unwrap();
         for i in 0..history {
-            block_on(s.save_position(Parked::At(1_000 + i), stamp())).unwrap();
+            s.save_position(Parked::At(1_000 + i), stamp()).unwrap();
         }
-        block_on(s.save_position(from, stamp())).unwrap();
+        s.save_position(from, stamp()).unwrap();
         s.into_flash()
     };
     let steps = {
         let mut s = store(before.clone());
-        block_on(s.load());
-        block_on(s.load_position(stamp()));
+        s.load();
+        s.load_position(stamp());
         let start = s.flash().steps();
-        block_on(s.save_position(to, stamp())).unwrap();
+        s.save_position(to, stamp()).unwrap();
         s.flash().steps() - start
     };
     let (mut old, mut new) = (0, 0);
     for step in 0..steps {
         let mut s = store(before.clone());
-        block_on(s.load());
-        block_on(s.load_position(stamp()));
+        s.load();
+        s.load_position(stamp());
         s.flash().cut_after(step, mode);
-        assert!(block_on(s.save_position(to, stamp())).is_err());
+        assert!(s.save_position(to, stamp()).is_err());
         let mut flash = s.into_flash();
         flash.reboot();
         let mut s = store(flash);
-        let loaded = block_on(s.load());
+        let loaded = s.load();
         assert_eq!(loaded.config, custom(), "step {step}: {}", loaded.source);
-        let got = block_on(s.load_position(stamp()));
+        let got = s.load_position(stamp());
         if got == known(to) && known(to) != known(from) {
             new += 1;
         } else {

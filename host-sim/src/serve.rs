@@ -15,7 +15,6 @@
 use crate::physics::Lubricant;
 use crate::sim::{Driver, Sim, SimConfig};
 use clap::Args;
-use embassy_futures::block_on;
 use liftfw::config::sim_flash::{SimFlash, ERASE_SIZE};
 use liftfw::config::store::{ConfigStore, Loaded};
 use liftfw::config::ValidatedConfig;
@@ -167,7 +166,7 @@ impl Board {
         flash_file: Option<PathBuf>,
     ) -> io::Result<(Board, String)> {
         let mut store = new_store(flash)?;
-        let Loaded { config, source } = block_on(store.load());
+        let Loaded { config, source } = store.load();
         let controller = Controller::new(config.get(), position)
             .map_err(|e| io::Error::other(format!("controller refused the configuration: {e}")))?;
         let board = Board {
@@ -201,7 +200,7 @@ impl Board {
                  first",
             );
         } else if o.action == Action::Save {
-            let mut r = block_on(self.store.save(&self.running));
+            let mut r = self.store.save(&self.running);
             if let (Ok(_), Some(path)) = (r, &self.flash_file) {
                 if let Err(e) = write_flash(path, self.store.flash().bytes()) {
                     eprintln!("host-sim serve: cannot write {}: {e}", path.display());

@@ -6,7 +6,7 @@
 //! - [`record`]: the record's fixed little-endian layout (magic, version, schema fingerprint,
 //!   sequence number, one `i64` per stored setting, CRC-32).
 //! - [`store`]: [`store::ConfigStore`], load (never fails: falls back to factory defaults and
-//!   says why) and save over any `embedded-storage-async` `NorFlash`.
+//!   says why) and save over any blocking `embedded-storage` `NorFlash`.
 //! - [`sim_flash`]: a simulated STM32G4-like flash with power-cut injection, for host tests.
 //!
 //! A configuration reaches the controller only as a [`ValidatedConfig`], which can only be

@@ -17,7 +17,7 @@
 //! this registry's, and the schema word catches changes to it), and decoding is 60 lines with
 //! no error path that is not tested byte by byte.
 
-use crate::config::settings::SETTINGS;
+use crate::config::settings::{Setting, SETTINGS};
 use crate::control::config::ControlConfig;
 
 /// Record magic, "LFCF".
@@ -48,23 +48,45 @@ pub fn crc32(data: &[u8]) -> u32 {
     crc32_update(0xFFFF_FFFF, data) ^ 0xFFFF_FFFF
 }
 
-fn crc32_update(mut crc: u32, data: &[u8]) -> u32 {
-    for &b in data {
-        crc ^= u32::from(b);
-        for _ in 0..8 {
+/// [`crc32`] over data fed in pieces: start with `0xFFFF_FFFF`, end with `^ 0xFFFF_FFFF`.
+/// (`const`: the schema words are computed at compile time.)
+pub(crate) const fn crc32_update(mut crc: u32, data: &[u8]) -> u32 {
+    let mut i = 0;
+    while i < data.len() {
+        crc ^= data[i] as u32;
+        let mut bit = 0;
+        while bit < 8 {
             crc = (crc >> 1) ^ (0xEDB8_8320 & (crc & 1).wrapping_neg());
+            bit += 1;
         }
+        i += 1;
     }
     crc
 }
 
+/// `key` starts with `prefix` (`str::starts_with` is not `const`).
+const fn starts_with(key: &str, prefix: &str) -> bool {
+    let (key, prefix) = (key.as_bytes(), prefix.as_bytes());
+    if key.len() < prefix.len() {
+        return false;
+    }
+    let mut i = 0;
+    while i < prefix.len() {
+        if key[i] != prefix[i] {
+            return false;
+        }
+        i += 1;
+    }
+    true
+}
+
 /// The format version that added a stored setting (1: there from the start).
-fn added_in(key: &str) -> u16 {
-    if key == "drive.screw" {
+const fn added_in(key: &str) -> u16 {
+    if starts_with(key, "drive.screw") && key.len() == "drive.screw".len() {
         2
-    } else if key.starts_with("ballscrew.") {
+    } else if starts_with(key, "ballscrew.") {
         3
-    } else if key.starts_with("drive.brake") {
+    } else if starts_with(key, "drive.brake") {
         4
     } else {
         1
@@ -72,26 +94,71 @@ fn added_in(key: &str) -> u16 {
 }
 
 /// Whether a stored setting is in records of `version`.
+#[cfg(test)]
 fn in_version(key: &str, version: u16) -> bool {
     added_in(key) <= version
 }
 
-/// The schema fingerprint of `version`'s key list.
-fn schema_of(version: u16) -> u32 {
-    let mut crc = 0xFFFF_FFFF;
-    for s in SETTINGS
-        .iter()
-        .filter(|s| s.stored && in_version(s.key, version))
-    {
-        crc = crc32_update(crc, s.key.as_bytes());
-        crc = crc32_update(crc, b"\n");
+/// Per setting of [`SETTINGS`]: the format version whose records first hold it (`u8::MAX`:
+/// not stored). Computed at compile time, so the firmware compares no key strings.
+const ADDED_IN: [u8; SETTINGS.len()] = {
+    let mut t = [u8::MAX; SETTINGS.len()];
+    let mut i = 0;
+    while i < SETTINGS.len() {
+        if SETTINGS[i].stored {
+            t[i] = added_in(SETTINGS[i].key) as u8;
+        }
+        i += 1;
     }
-    crc ^ 0xFFFF_FFFF
+    t
+};
+
+/// Per format version (index `version - 1`): how many settings its records hold, and its
+/// schema word (CRC-32 of their keys in order, each followed by `\n`). Compile time.
+const LAYOUTS: [(usize, u32); VERSION as usize] = {
+    let mut t = [(0, 0); VERSION as usize];
+    let mut v = 1;
+    while v <= VERSION {
+        let (mut n, mut crc) = (0, 0xFFFF_FFFF);
+        let mut i = 0;
+        while i < SETTINGS.len() {
+            if ADDED_IN[i] as u16 <= v {
+                crc = crc32_update(crc, SETTINGS[i].key.as_bytes());
+                crc = crc32_update(crc, b"\n");
+                n += 1;
+            }
+            i += 1;
+        }
+        t[(v - 1) as usize] = (n, crc ^ 0xFFFF_FFFF);
+        v += 1;
+    }
+    t
+};
+
+/// The settings records of `version` hold, in their order.
+fn stored_in(version: u16) -> impl Iterator<Item = &'static Setting> {
+    SETTINGS
+        .iter()
+        .zip(ADDED_IN.iter())
+        .filter(move |(_, &added)| u16::from(added) <= version)
+        .map(|(s, _)| s)
+}
+
+/// `version`'s key list: how many settings, and its schema fingerprint; `None` for a version
+/// this firmware does not know.
+fn layout(version: u16) -> Option<(usize, u32)> {
+    LAYOUTS.get(usize::from(version).wrapping_sub(1)).copied()
+}
+
+/// The schema fingerprint of `version`'s key list.
+#[cfg(test)]
+fn schema_of(version: u16) -> u32 {
+    layout(version).map_or(0, |l| l.1)
 }
 
 /// The schema fingerprint: CRC-32 of the stored keys in order, each followed by `\n`.
 pub fn schema() -> u32 {
-    schema_of(VERSION)
+    LAYOUTS[VERSION as usize - 1].1
 }
 
 /// Why a stored record was not used.
@@ -154,15 +221,15 @@ impl core::fmt::Display for DecodeError {
 /// Encode `cfg` as a record with sequence number `seq` into `out`; returns the length, or
 /// `None` if `out` is too short.
 pub fn encode(cfg: &ControlConfig, seq: u32, out: &mut [u8]) -> Option<usize> {
-    let n = stored_count();
+    let (n, schema) = LAYOUTS[VERSION as usize - 1];
     let len = HEADER_LEN + 8 * n + 4;
     let out = out.get_mut(..len)?;
     out[0..4].copy_from_slice(&MAGIC);
     out[4..6].copy_from_slice(&VERSION.to_le_bytes());
     out[6..8].copy_from_slice(&(n as u16).to_le_bytes());
-    out[8..12].copy_from_slice(&schema().to_le_bytes());
+    out[8..12].copy_from_slice(&schema.to_le_bytes());
     out[12..16].copy_from_slice(&seq.to_le_bytes());
-    for (i, s) in SETTINGS.iter().filter(|s| s.stored).enumerate() {
+    for (i, s) in stored_in(VERSION).enumerate() {
         let at = HEADER_LEN + 8 * i;
         out[at..at + 8].copy_from_slice(&s.get(cfg).to_le_bytes());
     }
@@ -198,17 +265,13 @@ pub fn decode(bytes: &[u8]) -> Result<(ControlConfig, u32), DecodeError> {
         return Err(DecodeError::BadCrc);
     }
     let version = le_u16(bytes, 4);
-    if version == 0 || version > VERSION {
-        return Err(DecodeError::Version { found: version });
-    }
     // An older format is this one without the settings added since: decoded with its own key
     // list, the missing settings keep their factory value.
-    let count = SETTINGS
-        .iter()
-        .filter(|s| s.stored && in_version(s.key, version))
-        .count();
+    let Some((count, schema)) = layout(version) else {
+        return Err(DecodeError::Version { found: version });
+    };
     let n = usize::from(le_u16(bytes, 6));
-    if n != count || le_u32(bytes, 8) != schema_of(version) {
+    if n != count || le_u32(bytes, 8) != schema {
         return Err(DecodeError::Schema);
     }
     if bytes.len() != HEADER_LEN + 8 * n + 4 {
@@ -216,11 +279,7 @@ pub fn decode(bytes: &[u8]) -> Result<(ControlConfig, u32), DecodeError> {
     }
     let seq = le_u32(bytes, 12);
     let mut cfg = ControlConfig::DEFAULT;
-    for (i, s) in SETTINGS
-        .iter()
-        .filter(|s| s.stored && in_version(s.key, version))
-        .enumerate()
-    {
+    for (i, s) in stored_in(version).enumerate() {
         let at = HEADER_LEN + 8 * i;
         let mut w = [0; 8];
         w.copy_from_slice(&bytes[at..at + 8]);
@@ -234,10 +293,46 @@ pub fn decode(bytes: &[u8]) -> Result<(ControlConfig, u32), DecodeError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    extern crate std;
 
     #[test]
     fn crc32_matches_the_standard_check_value() {
         assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+    }
+
+    /// The compile-time tables are what walking the registry's keys gives (the form the
+    /// records in the field were written with), for every version; unknown versions have none.
+    #[test]
+    fn compile_time_layouts_match_the_registry() {
+        for version in 1..=VERSION {
+            let keys: std::vec::Vec<&str> = SETTINGS
+                .iter()
+                .filter(|s| s.stored && in_version(s.key, version))
+                .map(|s| s.key)
+                .collect();
+            let mut text = std::string::String::new();
+            for k in &keys {
+                text.push_str(k);
+                text.push('\n');
+            }
+            assert_eq!(
+                layout(version),
+                Some((keys.len(), crc32(text.as_bytes()))),
+                "version {version}"
+            );
+            let listed: std::vec::Vec<&str> = stored_in(version).map(|s| s.key).collect();
+            assert_eq!(listed, keys, "version {version}");
+        }
+        assert_eq!(layout(0), None);
+        assert_eq!(layout(VERSION + 1), None);
+        assert_eq!(schema(), schema_of(VERSION));
+        assert_eq!(layout(VERSION).map(|l| l.0), Some(stored_count()));
+        // The keys each version added.
+        assert_eq!(added_in("drive.screw"), 2);
+        assert_eq!(added_in("drive.screwdriver"), 1);
+        assert_eq!(added_in("ballscrew.lead"), 3);
+        assert_eq!(added_in("drive.brake_ms"), 4);
+        assert_eq!(added_in("limits.upper"), 1);
     }
 
     #[test]

@@ -13,9 +13,10 @@
 //! Not modelled: the G4 raises an ECC fault (NMI) when firmware reads a torn double word; the
 //! simulation returns the torn bits instead. docs/config-store.md discusses it.
 
-use embedded_storage_async::nor_flash::{
+use embedded_storage::nor_flash::{
     ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
+use embedded_storage_async::nor_flash as asynch;
 
 /// Program unit, bytes.
 pub const WRITE_SIZE: usize = 8;
@@ -160,7 +161,7 @@ impl<const SIZE: usize> ErrorType for SimFlash<SIZE> {
 impl<const SIZE: usize> ReadNorFlash for SimFlash<SIZE> {
     const READ_SIZE: usize = 1;
 
-    async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
         if self.dead {
             return Err(SimFlashError::PowerCut);
         }
@@ -178,7 +179,7 @@ impl<const SIZE: usize> NorFlash for SimFlash<SIZE> {
     const WRITE_SIZE: usize = WRITE_SIZE;
     const ERASE_SIZE: usize = ERASE_SIZE;
 
-    async fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
         if self.dead {
             return Err(SimFlashError::PowerCut);
         }
@@ -204,7 +205,7 @@ impl<const SIZE: usize> NorFlash for SimFlash<SIZE> {
         Ok(())
     }
 
-    async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
         if self.dead {
             return Err(SimFlashError::PowerCut);
         }
@@ -235,5 +236,32 @@ impl<const SIZE: usize> NorFlash for SimFlash<SIZE> {
             self.data[at..at + WRITE_SIZE].copy_from_slice(word);
         }
         Ok(())
+    }
+}
+
+/// The async traits too, for tests that drive a `sequential-storage` map over the simulation
+/// directly (the store itself takes the blocking traits, as the board's flash offers them).
+impl<const SIZE: usize> asynch::ReadNorFlash for SimFlash<SIZE> {
+    const READ_SIZE: usize = 1;
+
+    async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        ReadNorFlash::read(self, offset, bytes)
+    }
+
+    fn capacity(&self) -> usize {
+        SIZE
+    }
+}
+
+impl<const SIZE: usize> asynch::NorFlash for SimFlash<SIZE> {
+    const WRITE_SIZE: usize = WRITE_SIZE;
+    const ERASE_SIZE: usize = ERASE_SIZE;
+
+    async fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+        NorFlash::erase(self, from, to)
+    }
+
+    async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        NorFlash::write(self, offset, bytes)
     }
 }

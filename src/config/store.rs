@@ -17,8 +17,13 @@ use crate::config::record::{self, DecodeError, MAX_RECORD_LEN};
 use crate::config::ValidatedConfig;
 use crate::control::config::ControlConfig;
 use crate::ConfigError;
+use core::future::Future;
 use core::ops::Range;
-use embedded_storage_async::nor_flash::{NorFlash, NorFlashError, NorFlashErrorKind};
+use core::task::{Context, Poll, Waker};
+use embedded_storage::nor_flash::{
+    ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
+};
+use embedded_storage_async::nor_flash as asynch;
 use sequential_storage::cache::{Cache, Uncached};
 use sequential_storage::map::{MapConfig, MapStorage, SerializationError, Value};
 
@@ -91,19 +96,15 @@ impl PositionRecord {
 
 /// The stamp of everything that gives encoder counts their meaning (geometry and drive
 /// settings): a stored position counted under another stamp is not used.
+/// (CRC-32 of those settings' raw bits, each as 8 little-endian bytes, in registry order.)
 pub fn geometry_stamp(cfg: &ControlConfig) -> u32 {
-    let mut bytes = [0u8; 8 * 12];
-    let mut n = 0;
-    for id in crate::config::settings::all() {
-        let key = id.key();
-        if key.starts_with("geometry.") || key.starts_with("drive.") {
-            if let Some(dst) = bytes.get_mut(n..n + 8) {
-                dst.copy_from_slice(&id.setting().get(cfg).to_le_bytes());
-                n += 8;
-            }
+    let mut crc = 0xFFFF_FFFF;
+    for s in crate::config::settings::SETTINGS.iter() {
+        if s.key.starts_with("geometry.") || s.key.starts_with("drive.") {
+            crc = record::crc32_update(crc, &s.get(cfg).to_le_bytes());
         }
     }
-    record::crc32(bytes.get(..n).unwrap_or(&[]))
+    crc ^ 0xFFFF_FFFF
 }
 
 /// Work buffer: key + record, rounded up to the 8-byte program unit of the G4.
@@ -112,7 +113,85 @@ const BUF_LEN: usize = (1 + MAX_RECORD_LEN).div_ceil(8) * 8;
 #[repr(align(8))]
 struct Buf([u8; BUF_LEN]);
 
-type Map<'f, F> = MapStorage<u8, &'f mut F, Cache<Uncached, Uncached, Uncached, u8>>;
+type Map<'f, F> = MapStorage<u8, Blocking<'f, F>, Cache<Uncached, Uncached, Uncached, u8>>;
+
+/// The store's blocking flash as the async `NorFlash` that `sequential-storage` works over:
+/// each operation runs when `sequential-storage` asks for it, and its future ([`Done`]) is
+/// complete from the start, so a whole map operation finishes in its first poll ([`run`]).
+/// (The board's flash is blocking anyway: programming stalls the CPU.)
+struct Blocking<'f, F>(&'f mut F);
+
+/// A flash operation that has already run, as a future: ready with its result at every poll
+/// (no state, no "polled after completion" path).
+struct Done<E>(Result<(), E>);
+
+impl<E: Copy> Future for Done<E> {
+    type Output = Result<(), E>;
+
+    fn poll(self: core::pin::Pin<&mut Self>, _: &mut Context<'_>) -> Poll<Self::Output> {
+        Poll::Ready(self.0)
+    }
+}
+
+impl<F: ErrorType> ErrorType for Blocking<'_, F> {
+    type Error = F::Error;
+}
+
+impl<F: ReadNorFlash> asynch::ReadNorFlash for Blocking<'_, F>
+where
+    F::Error: Copy,
+{
+    const READ_SIZE: usize = F::READ_SIZE;
+
+    fn read(
+        &mut self,
+        offset: u32,
+        bytes: &mut [u8],
+    ) -> impl Future<Output = Result<(), F::Error>> {
+        Done(read(self.0, offset, bytes))
+    }
+
+    fn capacity(&self) -> usize {
+        self.0.capacity()
+    }
+}
+
+/// One out-of-line read for every read `sequential-storage` makes (inlined, each call site
+/// carried the driver's bounds check and copy).
+#[inline(never)]
+fn read<F: ReadNorFlash>(flash: &mut F, offset: u32, bytes: &mut [u8]) -> Result<(), F::Error> {
+    flash.read(offset, bytes)
+}
+
+impl<F: NorFlash> asynch::NorFlash for Blocking<'_, F>
+where
+    F::Error: Copy,
+{
+    const WRITE_SIZE: usize = F::WRITE_SIZE;
+    const ERASE_SIZE: usize = F::ERASE_SIZE;
+
+    fn erase(&mut self, from: u32, to: u32) -> impl Future<Output = Result<(), F::Error>> {
+        Done(self.0.erase(from, to))
+    }
+
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> impl Future<Output = Result<(), F::Error>> {
+        Done(self.0.write(offset, bytes))
+    }
+}
+
+/// Runs a `sequential-storage` operation over [`Blocking`] to its end. Its flash futures are
+/// complete when created and `sequential-storage` (8.0) awaits nothing but the flash, so the
+/// first poll returns `Ready`. Were a later version to await something else, the loop would
+/// poll again (a busy wait, as `block_on` does) rather than fail an `unwrap`.
+fn run<T>(op: impl Future<Output = T>) -> T {
+    let mut op = core::pin::pin!(op);
+    let mut cx = Context::from_waker(Waker::noop());
+    loop {
+        if let Poll::Ready(v) = op.as_mut().poll(&mut cx) {
+            return v;
+        }
+    }
+}
 
 /// Why the store could not be used.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -336,19 +415,16 @@ fn newer(a: u32, b: u32) -> bool {
 }
 
 /// Whether every byte of `range` reads erased.
-async fn is_erased<F: NorFlash>(flash: &mut F, range: &Range<u32>) -> Result<bool, StoreError> {
-    let mut chunk = [0u8; 64];
+fn is_erased<F: NorFlash>(flash: &mut F, range: &Range<u32>) -> Result<bool, StoreError> {
+    // Word by word (the range is whole pages), through the read `sequential-storage` uses.
+    let mut word = [0u8; 8];
     let mut at = range.start;
     while at < range.end {
-        let n = ((range.end - at) as usize).min(chunk.len());
-        flash
-            .read(at, &mut chunk[..n])
-            .await
-            .map_err(|e| flash_error(&e))?;
-        if chunk[..n].iter().any(|&b| b != 0xFF) {
+        read(flash, at, &mut word).map_err(|e| flash_error(&e))?;
+        if word != [0xFF; 8] {
             return Ok(false);
         }
-        at += n as u32;
+        at += 8;
     }
     Ok(true)
 }
@@ -367,12 +443,22 @@ pub struct ConfigStore<F: NorFlash> {
 }
 
 /// An uncached map over one copy's range: rebuilt per operation at no cost.
-fn map<'f, F: NorFlash>(flash: &'f mut F, range: &Range<u32>) -> Result<Map<'f, F>, StoreError> {
+fn map<'f, F: NorFlash>(flash: &'f mut F, range: &Range<u32>) -> Result<Map<'f, F>, StoreError>
+where
+    F::Error: Copy,
+{
     let config = MapConfig::try_new(range.clone()).map_err(|_| StoreError::BadRange)?;
-    Ok(MapStorage::new(flash, config, Cache::new_uncached()))
+    Ok(MapStorage::new(
+        Blocking(flash),
+        config,
+        Cache::new_uncached(),
+    ))
 }
 
-impl<F: NorFlash> ConfigStore<F> {
+impl<F: NorFlash> ConfigStore<F>
+where
+    F::Error: Copy,
+{
     /// A store over `range` of `flash` (an even number of whole erase pages, at least four).
     pub fn new(flash: F, range: Range<u32>) -> Result<ConfigStore<F>, StoreError> {
         let page = F::ERASE_SIZE as u32;
@@ -386,7 +472,7 @@ impl<F: NorFlash> ConfigStore<F> {
         let mid = range.start + len / 2;
         let copies = [range.start..mid, mid..range.end];
         for c in &copies {
-            MapConfig::<F>::try_new(c.clone()).map_err(|_| StoreError::BadRange)?;
+            MapConfig::<Blocking<'_, F>>::try_new(c.clone()).map_err(|_| StoreError::BadRange)?;
         }
         Ok(ConfigStore {
             flash,
@@ -402,9 +488,9 @@ impl<F: NorFlash> ConfigStore<F> {
     ///
     /// May write to flash: `sequential-storage` repairs the traces of an interrupted operation
     /// on its first access.
-    pub async fn load(&mut self) -> Loaded {
-        let a = self.load_copy(0).await;
-        let b = self.load_copy(1).await;
+    pub fn load(&mut self) -> Loaded {
+        let a = self.load_copy(0);
+        let b = self.load_copy(1);
         let a_ok = a.is_ok();
         let (config, source) = match (a, b) {
             (Ok((ca, sa)), Ok((cb, sb))) => {
@@ -435,25 +521,29 @@ impl<F: NorFlash> ConfigStore<F> {
         Loaded { config, source }
     }
 
-    async fn load_copy(&mut self, copy: usize) -> CopyState {
-        let range = self.copies[copy].clone();
-        let fetched = match map(&mut self.flash, &range) {
-            Ok(mut m) => m.fetch_item::<&[u8]>(&mut self.buf.0, &CONFIG_KEY).await,
-            Err(e) => return Err(Source::Unreadable(e)),
-        };
-        let bytes = match fetched {
-            Ok(Some(bytes)) => bytes,
-            Ok(None) => {
-                return Err(match is_erased(&mut self.flash, &range).await {
+    /// The newest item under `key` in `copy`, read into the work buffer (one routine for the
+    /// configuration and the position record, both copies).
+    fn fetch(&mut self, copy: usize, key: u8) -> Result<Option<&[u8]>, Source> {
+        let mut m = map(&mut self.flash, &self.copies[copy]).map_err(Source::Unreadable)?;
+        match run(m.fetch_item::<&[u8]>(&mut self.buf.0, &key)) {
+            Ok(item) => Ok(item),
+            Err(sequential_storage::Error::Corrupted { .. }) => {
+                Err(Source::Corrupt(Corruption::Structure))
+            }
+            Err(e) => Err(Source::Unreadable(store_error(e))),
+        }
+    }
+
+    fn load_copy(&mut self, copy: usize) -> CopyState {
+        let bytes = match self.fetch(copy, CONFIG_KEY)? {
+            Some(bytes) => bytes,
+            None => {
+                return Err(match is_erased(&mut self.flash, &self.copies[copy]) {
                     Ok(true) => Source::Missing,
                     Ok(false) => Source::Corrupt(Corruption::NoIntactRecord),
                     Err(e) => Source::Unreadable(e),
                 })
             }
-            Err(sequential_storage::Error::Corrupted { .. }) => {
-                return Err(Source::Corrupt(Corruption::Structure))
-            }
-            Err(e) => return Err(Source::Unreadable(store_error(e))),
         };
         let (cfg, seq) = record::decode(bytes).map_err(|e| match e {
             DecodeError::Version { .. } | DecodeError::Schema => Source::Incompatible(e),
@@ -463,58 +553,49 @@ impl<F: NorFlash> ConfigStore<F> {
         Ok((cfg, seq))
     }
 
+    /// Append `value` under `key` to `copy` (one routine for both records).
+    fn put(&mut self, copy: usize, key: u8, value: &dyn Value<'_>) -> Result<(), StoreError> {
+        let mut m = map(&mut self.flash, &self.copies[copy])?;
+        run(m.store_item_generic(&mut self.buf.0, &key, value)).map_err(store_error)
+    }
+
     /// Write `cfg` as the newest record to both copies, each read back and compared, the copy
     /// that does not hold the newest record first. Returns the save's sequence number. An
     /// interrupted save leaves the previous or the new record in force, never a mix.
-    pub async fn save(&mut self, cfg: &ValidatedConfig) -> Result<u32, StoreError> {
+    pub fn save(&mut self, cfg: &ValidatedConfig) -> Result<u32, StoreError> {
         let seq = self.seq.wrapping_add(1);
         let order = [self.first, 1 - self.first];
         for copy in order {
-            self.save_copy(copy, cfg, seq).await?;
+            self.save_copy(copy, cfg, seq)?;
         }
         self.seq = seq;
         Ok(seq)
     }
 
-    async fn save_copy(
+    fn save_copy(
         &mut self,
         copy: usize,
         cfg: &ValidatedConfig,
         seq: u32,
     ) -> Result<(), StoreError> {
-        let mut result = self.store(copy, cfg, seq).await;
+        let record = Outgoing(cfg.get(), seq);
+        let mut result = self.put(copy, CONFIG_KEY, &record);
         if result == Err(StoreError::Corrupted) {
             // Damage `sequential-storage` cannot repair: this copy holds nothing readable, the
             // other copy is untouched, so start this one afresh.
-            self.erase_copy(copy).await?;
-            result = self.store(copy, cfg, seq).await;
+            self.erase_copy(copy)?;
+            result = self.put(copy, CONFIG_KEY, &record);
         }
         result?;
-        match self.load_copy(copy).await {
+        match self.load_copy(copy) {
             Ok((c, s)) if c == *cfg && s == seq => Ok(()),
             _ => Err(StoreError::Verify),
         }
     }
 
-    async fn store(
-        &mut self,
-        copy: usize,
-        cfg: &ValidatedConfig,
-        seq: u32,
-    ) -> Result<(), StoreError> {
-        let range = self.copies[copy].clone();
-        map(&mut self.flash, &range)?
-            .store_item(&mut self.buf.0, &CONFIG_KEY, &Outgoing(cfg.get(), seq))
-            .await
-            .map_err(store_error)
-    }
-
-    async fn erase_copy(&mut self, copy: usize) -> Result<(), StoreError> {
-        let range = self.copies[copy].clone();
-        map(&mut self.flash, &range)?
-            .erase_all()
-            .await
-            .map_err(store_error)
+    fn erase_copy(&mut self, copy: usize) -> Result<(), StoreError> {
+        let mut m = map(&mut self.flash, &self.copies[copy])?;
+        run(m.erase_all()).map_err(store_error)
     }
 
     /// Where the lift was parked when the power went, if that is known: the newest intact
@@ -522,14 +603,10 @@ impl<F: NorFlash> ConfigStore<F> {
     /// ([`geometry_stamp`] of the configuration in force). `None` (homing needed) when no
     /// record exists, the newest says a motion was under way, the geometry changed since, or
     /// the flash cannot be read.
-    pub async fn load_position(&mut self, stamp: u32) -> Option<i32> {
+    pub fn load_position(&mut self, stamp: u32) -> Option<i32> {
         let mut best: Option<PositionRecord> = None;
         for copy in 0..2 {
-            let range = self.copies[copy].clone();
-            let Ok(mut m) = map(&mut self.flash, &range) else {
-                continue;
-            };
-            if let Ok(Some(bytes)) = m.fetch_item::<&[u8]>(&mut self.buf.0, &POSITION_KEY).await {
+            if let Ok(Some(bytes)) = self.fetch(copy, POSITION_KEY) {
                 if let Some(r) = PositionRecord::decode(bytes) {
                     if best.is_none_or(|b| newer(r.seq, b.seq)) {
                         best = Some(r);
@@ -548,27 +625,24 @@ impl<F: NorFlash> ConfigStore<F> {
     /// Record the lift's position state in both copies, one after the other (a cut leaves the
     /// previous or the new record). Write [`Parked::Moving`] as a motion starts and
     /// [`Parked::At`] once the lift has settled.
-    pub async fn save_position(&mut self, parked: Parked, stamp: u32) -> Result<(), StoreError> {
+    pub fn save_position(&mut self, parked: Parked, stamp: u32) -> Result<(), StoreError> {
         let rec = PositionRecord {
             parked,
             seq: self.pos_seq.wrapping_add(1),
             stamp,
         };
+        let bytes = rec.encode();
         for copy in 0..2 {
-            let range = self.copies[copy].clone();
-            map(&mut self.flash, &range)?
-                .store_item(&mut self.buf.0, &POSITION_KEY, &rec.encode().as_slice())
-                .await
-                .map_err(store_error)?;
+            self.put(copy, POSITION_KEY, &bytes.as_slice())?;
         }
         self.pos_seq = rec.seq;
         Ok(())
     }
 
     /// Erase both copies (factory reset: the next load reports [`Source::Missing`]).
-    pub async fn erase(&mut self) -> Result<(), StoreError> {
-        self.erase_copy(0).await?;
-        self.erase_copy(1).await?;
+    pub fn erase(&mut self) -> Result<(), StoreError> {
+        self.erase_copy(0)?;
+        self.erase_copy(1)?;
         self.seq = 0;
         self.first = 0;
         Ok(())
@@ -596,6 +670,24 @@ mod tests {
     extern crate std;
     use std::format;
     use std::string::ToString;
+
+    /// The stamp is the CRC-32 of the geometry and drive settings' bits laid end to end, as
+    /// it was computed (through a buffer) when the parked positions in the field were stored.
+    #[test]
+    fn geometry_stamp_is_the_crc_of_the_concatenated_settings() {
+        let mut cfg = ControlConfig::DEFAULT;
+        cfg.estimator.drive.counts_per_rev += 4;
+        for cfg in [ControlConfig::DEFAULT, cfg] {
+            let mut bytes = std::vec::Vec::new();
+            for s in crate::config::settings::SETTINGS.iter() {
+                if s.key.starts_with("geometry.") || s.key.starts_with("drive.") {
+                    bytes.extend_from_slice(&s.get(&cfg).to_le_bytes());
+                }
+            }
+            assert!(bytes.len() >= 8 * 8, "{} bytes", bytes.len());
+            assert_eq!(geometry_stamp(&cfg), record::crc32(&bytes));
+        }
+    }
 
     /// Every message as the `write!` form before `write_to` spelled it.
     #[test]

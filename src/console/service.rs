@@ -11,7 +11,8 @@
 //!   ([`settings::apply`]) *and* the lift accepted it ([`Lift::reconfigure`]: at rest only).
 //!   While the lift moves it is refused and nothing changes, so a motion never sees a
 //!   half-applied change.
-//! - `save` cannot finish here (the flash store is async): [`handle`] returns [`Action::Save`],
+//! - `save` cannot finish here (the flash belongs to its owner, on the board the storage task):
+//!   [`handle`] returns [`Action::Save`],
 //!   the caller runs [`crate::config::store::ConfigStore::save`] on the running configuration
 //!   and reports its result with [`write_saved`].
 //! - `version` names the protocol ([`PROTOCOL_VERSION`]) so a host tool can refuse a board that

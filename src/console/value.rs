@@ -148,7 +148,7 @@ fn parse_decimal(text: &str) -> Result<(Decimal, &str), ValueError> {
             i = j;
         }
     }
-    let unit = text.get(i..).ok_or(ValueError::NotANumber)?.trim();
+    let unit = text.get(i..).ok_or(ValueError::NotANumber)?.trim_ascii();
     Ok((Decimal { neg, mant, exp }, unit))
 }
 
@@ -210,7 +210,7 @@ fn is_none_word(text: &str) -> bool {
 /// Parse `text` as a value of `kind` into raw bits (no range check beyond the raw type's
 /// magnitude: [`crate::config::settings::apply`] checks the field's type and range).
 pub fn parse(kind: &Kind, text: &str) -> Result<i64, ValueError> {
-    let text = text.trim();
+    let text = text.trim_ascii();
     if text.is_empty() {
         return Err(ValueError::Missing);
     }

@@ -98,7 +98,7 @@ pub enum ParseError<'a> {
 const HEIGHT: Kind = Kind::Number {
     frac: 24,
     pow10: 3,
-    unit: &settings::MILLIMETRES,
+    unit: settings::MILLIMETRES,
     none_at_max: false,
 };
 
@@ -944,6 +944,23 @@ mod tests {
                 )
             );
         }
+    }
+
+    /// Each choice setting's names (by their id in the registry) are the ones its range
+    /// text lists.
+    #[test]
+    fn choice_names_are_those_of_the_range_text() {
+        let mut n = 0;
+        for id in settings::all() {
+            let s = id.setting();
+            if let Kind::Choice(_) = s.kind {
+                let mut names = String::new();
+                write_unit(&mut names, &s.kind).unwrap();
+                assert_eq!(names, s.range, "{}", s.key);
+                n += 1;
+            }
+        }
+        assert_eq!(n, 7);
     }
 
     /// Host builds have the help lines (`help-text`, turned on by host-sim and liftctl); the

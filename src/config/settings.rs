@@ -23,8 +23,9 @@ use fixed::types::{I16F16, I32F32};
 pub struct Unit {
     /// The unit values are shown in (empty: a plain number).
     pub display: &'static str,
-    /// Accepted suffixes (lower case) with their power of ten relative to `display`; a bare
-    /// number is always read in `display`.
+    /// Accepted suffixes other than `display` (lower case) with their power of ten relative
+    /// to `display`; `display` itself (any case) and a bare number are always read in
+    /// `display`.
     pub accepts: &'static [(&'static str, i32)],
     /// What the value is, for messages ("a length").
     pub what: &'static str,
@@ -67,19 +68,19 @@ impl core::ops::Deref for UnitId {
 
 units! {
     /// Lengths, shown in mm.
-    MILLIMETRES, "mm", "a length", [("mm", 0), ("m", 3), ("cm", 1), ("um", -3)];
+    MILLIMETRES, "mm", "a length", [("m", 3), ("cm", 1), ("um", -3)];
     /// Screw or motor speeds.
-    RAD_PER_S, "rad/s", "an angular speed", [("rad/s", 0)];
+    RAD_PER_S, "rad/s", "an angular speed", [];
     /// Durations in ms.
-    MILLIS, "ms", "a duration", [("ms", 0), ("s", 3)];
+    MILLIS, "ms", "a duration", [("s", 3)];
     /// Durations in µs.
-    MICROS, "us", "a duration", [("us", 0), ("ms", 3), ("s", 6)];
+    MICROS, "us", "a duration", [("ms", 3), ("s", 6)];
     /// Currents.
-    AMPS, "A", "a current", [("a", 0), ("ma", -3)];
+    AMPS, "A", "a current", [("ma", -3)];
     /// Voltages.
-    VOLTS, "V", "a voltage", [("v", 0), ("mv", -3)];
+    VOLTS, "V", "a voltage", [("mv", -3)];
     /// Masses.
-    KILOGRAMS, "kg", "a mass", [("kg", 0), ("t", 3), ("g", -3)];
+    KILOGRAMS, "kg", "a mass", [("t", 3), ("g", -3)];
     /// Dimensionless ratios (a percentage is accepted).
     RATIO, "", "a ratio", [("%", -2)];
     /// Plain numbers (gear ratio, law parameters).
@@ -87,29 +88,29 @@ units! {
     /// Counts and ADC codes.
     COUNTS, "", "a whole number", [("counts", 0), ("codes", 0)];
     /// Angles in degrees.
-    DEGREES, "deg", "an angle", [("deg", 0), ("°", 0)];
+    DEGREES, "deg", "an angle", [("°", 0)];
     /// Torques.
-    NEWTON_METRES, "Nm", "a torque", [("nm", 0), ("n*m", 0), ("n.m", 0), ("n·m", 0), ("mnm", -3)];
+    NEWTON_METRES, "Nm", "a torque", [("n*m", 0), ("n.m", 0), ("n·m", 0), ("mnm", -3)];
     /// Torque constants.
-    NM_PER_AMP, "Nm/A", "a torque constant", [("nm/a", 0), ("n*m/a", 0), ("n·m/a", 0)];
+    NM_PER_AMP, "Nm/A", "a torque constant", [("n*m/a", 0), ("n·m/a", 0)];
     /// Frequencies.
-    HERTZ, "Hz", "a frequency", [("hz", 0)];
+    HERTZ, "Hz", "a frequency", [];
     /// ADC scalings of current, per code.
-    MICROAMPS, "uA", "a current per ADC code", [("ua", 0), ("ma", 3)];
+    MICROAMPS, "uA", "a current per ADC code", [("ma", 3)];
     /// ADC scalings of voltage, per code.
-    MICROVOLTS, "uV", "a voltage per ADC code", [("uv", 0), ("mv", 3)];
+    MICROVOLTS, "uV", "a voltage per ADC code", [("mv", 3)];
     /// Torsional stiffness.
-    NM_PER_RAD, "Nm/rad", "a torsional stiffness", [("nm/rad", 0), ("n*m/rad", 0), ("n·m/rad", 0)];
+    NM_PER_RAD, "Nm/rad", "a torsional stiffness", [("n*m/rad", 0), ("n·m/rad", 0)];
     /// Resistances.
-    OHMS, "ohm", "a resistance", [("ohm", 0), ("mohm", -3), ("Ω", 0), ("mΩ", -3)];
+    OHMS, "ohm", "a resistance", [("mohm", -3), ("Ω", 0), ("mΩ", -3)];
     /// Screw inertia in µkg·m².
-    MICRO_KGM2, "ukgm2", "an inertia", [("ukgm2", 0), ("ukg*m2", 0)];
+    MICRO_KGM2, "ukgm2", "an inertia", [("ukg*m2", 0)];
     /// Forces.
-    NEWTONS, "N", "a force", [("n", 0), ("kn", 3)];
+    NEWTONS, "N", "a force", [("kn", 3)];
     /// Dynamic viscosity.
-    PASCAL_SECONDS, "Pa.s", "a viscosity", [("pa.s", 0), ("mpa.s", -3)];
+    PASCAL_SECONDS, "Pa.s", "a viscosity", [("mpa.s", -3)];
     /// Screw support damping in µN·m·s/rad.
-    MICRO_NMS, "uNms/rad", "a rotational damping", [("unms/rad", 0), ("unms", 0)];
+    MICRO_NMS, "uNms/rad", "a rotational damping", [("unms", 0)];
 }
 
 /// A choice setting's names, by position in [`CHOICES`]; reads as the names (`Deref`).
@@ -824,6 +825,18 @@ mod tests {
         // 71 fields above, one key each (the ball screw's law variable is fixed), plus the
         // `friction.law` preset selector.
         assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 71);
+    }
+
+    /// The display unit is accepted without an entry: `accepts` repeats none (the messages'
+    /// "(or …)" list relies on it).
+    #[test]
+    fn accepted_suffixes_do_not_repeat_the_display_unit() {
+        for u in UNITS.iter() {
+            for (s, _) in u.accepts {
+                assert!(!s.eq_ignore_ascii_case(u.display), "{}", u.display);
+                assert_eq!(*s, s.to_ascii_lowercase());
+            }
+        }
     }
 
     #[test]

@@ -222,13 +222,10 @@ fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {
                 out.write_str(" in ")?;
                 out.write_str(unit.display)?;
             }
-            // The ASCII spellings other than the display unit, once each.
+            // The other ASCII spellings, once each (`accepts` has no display unit).
             let mut n = 0;
             for (s, _) in unit.accepts {
-                if s.eq_ignore_ascii_case(unit.display)
-                    || !s.is_ascii()
-                    || s.bytes().any(|b| b == b'*')
-                {
+                if !s.is_ascii() || s.bytes().any(|b| b == b'*') {
                     continue;
                 }
                 out.write_str(if n == 0 { " (or " } else { ", " })?;

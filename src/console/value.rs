@@ -343,6 +343,7 @@ mod tests {
     use crate::control::config::ControlConfig;
     extern crate std;
     use std::string::String;
+    use std::vec::Vec;
 
     /// The i128 implementation this module had before it moved to 64-bit arithmetic (24
     /// significant digits), kept as the twin the 64-bit one is checked against.
@@ -671,9 +672,10 @@ mod tests {
             if let Some(e) = exp {
                 t.push_str(&format!("e{e}"));
             }
-            if !u.accepts.is_empty() {
-                t.push_str(u.accepts[unit.index(u.accepts.len())].0);
-            }
+            // The display unit (empty: none) or one of the other accepted suffixes.
+            let suffixes: Vec<&str> =
+                core::iter::once(u.display).chain(u.accepts.iter().map(|a| a.0)).collect();
+            t.push_str(suffixes[unit.index(suffixes.len())]);
             // Zero is zero at any exponent (the twin overflowed on 0e40).
             let want = if digits.bytes().all(|b| b == b'0') {
                 Ok(0)

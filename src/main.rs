@@ -523,43 +523,31 @@ async fn console_task(
     let _ = service::write_version(reply);
     let _ = reply.write_str("\r\n");
     let _ = source.write_to(reply);
-    let _ = reply.write_str("\r\n");
     if !lift.status().homed {
-        let _ = reply.write_str(Refusal::NotHomed.message());
         let _ = reply.write_str("\r\n");
-    }
-    if uart.write_all(reply.0.as_bytes()).await.is_err() {
-        warn!("console write failed");
+        let _ = reply.write_str(Refusal::NotHomed.message());
     }
 
     let mut lines = LineBuffer::new();
     let mut chunk = [0u8; 16];
+    // Bytes of `chunk` not fed yet: `next..read`.
+    let (mut next, mut read) = (0, 0);
     loop {
-        // A notice from the control task, or bytes from the host (BufferedUart's read is
-        // cancel-safe: unread bytes stay in its ring buffer).
-        let n = match select(uart.read(&mut chunk), NOTICES.receive()).await {
-            Either::First(Ok(n)) => n,
-            // Framing/noise/overrun: drop the bytes and keep listening.
-            Either::First(Err(e)) => {
-                warn!("console read error: {}", e);
-                continue;
+        // One place sends every reply, notice and the greeting, each ended with CRLF (one
+        // await point instead of one per kind: less state machine on the board).
+        if !reply.0.is_empty() {
+            let _ = reply.write_str("\r\n");
+            if uart.write_all(reply.0.as_bytes()).await.is_err() {
+                warn!("console write failed");
             }
-            Either::Second(event) => {
-                reply.0.clear();
-                let _ = write_notice(reply, &event);
-                let _ = reply.write_str("\r\n");
-                if uart.write_all(reply.0.as_bytes()).await.is_err() {
-                    warn!("console write failed");
-                }
-                continue;
-            }
-        };
-        for &b in chunk.get(..n).unwrap_or(&[]) {
+            reply.0.clear();
+        }
+        if let Some(&b) = chunk.get(next..read).and_then(|rest| rest.first()) {
+            next += 1;
             let feed = lines.feed(b);
             if matches!(feed, Feed::Pending) {
                 continue;
             }
-            reply.0.clear();
             let outcome = service::handle_feed(feed, &mut lift, &mut running, reply);
             match outcome.action {
                 Action::None => {}
@@ -587,11 +575,16 @@ async fn console_task(
                 }
                 let _ = reply.write_str(" ... (reply cut)");
             }
-            if !reply.0.is_empty() {
-                let _ = reply.write_str("\r\n");
-                if uart.write_all(reply.0.as_bytes()).await.is_err() {
-                    warn!("console write failed");
-                }
+            continue;
+        }
+        // A notice from the control task, or bytes from the host (BufferedUart's read is
+        // cancel-safe: unread bytes stay in its ring buffer).
+        match select(uart.read(&mut chunk), NOTICES.receive()).await {
+            Either::First(Ok(n)) => (next, read) = (0, n),
+            // Framing/noise/overrun: drop the bytes and keep listening.
+            Either::First(Err(e)) => warn!("console read error: {}", e),
+            Either::Second(event) => {
+                let _ = write_notice(reply, &event);
             }
         }
     }

@@ -367,15 +367,6 @@ fn height_at(cfg: &ValidatedConfig, deg: I16F16) -> Metres {
     g.h0.sat_add(crate::units::qmul::<Metres, Ratio, Metres>(g.length, sin))
 }
 
-fn write_mm(out: &mut dyn Write, m: Metres) -> fmt::Result {
-    // 0.1 mm is the resolution a person reads heights in.
-    let tenths = (i64::from(m.to_bits()) * 10_000 + (1 << 23)) >> 24;
-    // The whole millimetres (with their sign) and the tenth's digit.
-    text::int(out, tenths / 10)?;
-    out.write_char('.')?;
-    text::uint(out, (tenths % 10).unsigned_abs())
-}
-
 /// "mechanism 133.5..416.4 mm" (α₀ … α_max of the geometry).
 fn write_mechanism(out: &mut dyn Write, cfg: &ValidatedConfig) -> fmt::Result {
     let g = &cfg.get().estimator.geometry;
@@ -490,21 +481,29 @@ pub struct StatusView {
     pub ball_f: Option<(Ratio, Ratio)>,
 }
 
-/// Fixed-point value with `dec` decimals (rounded), for status lines.
-fn write_fixed(out: &mut dyn Write, bits: i32, frac: u32, dec: u32) -> fmt::Result {
-    let scale = 10i64.pow(dec);
+/// A fixed-point value `bits·2^−frac` rounded to `dec` decimals (ties away from zero), as a
+/// count of `10^−dec` ([`write_decimal`] prints it), for status lines.
+fn fixed_decimal(bits: i32, frac: u32, dec: u32) -> i64 {
+    // dec ≤ 5 in every reply: fits.
+    let scale = value::ten_to(dec).unwrap_or(1) as i64;
     let v = i64::from(bits) * scale;
     let half = 1i64 << (frac - 1);
-    let q = if v >= 0 {
+    if v >= 0 {
         (v + half) >> frac
     } else {
         -((-v + half) >> frac)
-    };
+    }
+}
+
+/// `q·10^−dec` in decimal: the sign, the whole part, and `dec` digits after the point (no
+/// point for 0). Every number of the replies goes through here.
+fn write_decimal(out: &mut dyn Write, q: i64, dec: u32) -> fmt::Result {
     if q < 0 {
         out.write_char('-')?;
     }
     let m = q.unsigned_abs();
-    let s = scale.unsigned_abs();
+    // dec ≤ 5 in every reply: fits.
+    let s = value::ten_to(dec).unwrap_or(1);
     text::uint(out, m / s)?;
     if dec != 0 {
         out.write_char('.')?;
@@ -572,9 +571,9 @@ pub(crate) enum Arg<'a> {
     /// An unsigned integer in decimal.
     Uint(u32),
     /// A fixed-point value: its bits, fractional bits and the decimals shown
-    /// ([`write_fixed`]).
+    /// ([`fixed_decimal`]).
     Fixed(i32, u8, u8),
-    /// A height in mm with one decimal ([`write_mm`]).
+    /// A height in mm with one decimal.
     Mm(Metres),
     /// An integer count of 10^−d units with `d` decimals (`Deci(-5, 1)`: `-0.5`).
     Deci(i32, u8),
@@ -599,25 +598,23 @@ pub(crate) fn fill(out: &mut dyn Write, template: &str, args: &[Arg<'_>]) -> fmt
             return out.write_str(rest);
         };
         out.write_str(piece)?;
-        match args.next() {
-            Some(Arg::Str(t)) => out.write_str(t)?,
-            Some(Arg::Word(t)) => write_word(out, t)?,
-            Some(Arg::Clip(t)) => clip(out, t)?,
-            Some(Arg::Uint(v)) => text::uint(out, u64::from(*v))?,
-            Some(&Arg::Fixed(bits, frac, dec)) => {
-                write_fixed(out, bits, u32::from(frac), u32::from(dec))?
-            }
-            Some(Arg::Mm(m)) => write_mm(out, *m)?,
-            Some(&Arg::Deci(v, d)) => {
-                if v < 0 {
-                    out.write_char('-')?;
-                }
-                let scale = 10u32.pow(u32::from(d));
-                text::uint(out, u64::from(v.unsigned_abs() / scale))?;
-                out.write_char('.')?;
-                text::uint_padded(out, u64::from(v.unsigned_abs() % scale), usize::from(d))?;
-            }
-            None => {}
+        // A number as its count of 10^−dec and dec.
+        let number = match args.next() {
+            Some(Arg::Str(t)) => out.write_str(t).map(|_| None)?,
+            Some(Arg::Word(t)) => write_word(out, t).map(|_| None)?,
+            Some(Arg::Clip(t)) => clip(out, t).map(|_| None)?,
+            Some(&Arg::Uint(v)) => Some((i64::from(v), 0)),
+            Some(&Arg::Fixed(bits, frac, dec)) => Some((
+                fixed_decimal(bits, u32::from(frac), u32::from(dec)),
+                u32::from(dec),
+            )),
+            // 0.1 mm is the resolution a person reads heights in (rounded half up).
+            Some(Arg::Mm(m)) => Some(((i64::from(m.to_bits()) * 10_000 + (1 << 23)) >> 24, 1)),
+            Some(&Arg::Deci(v, d)) => Some((i64::from(v), u32::from(d))),
+            None => None,
+        };
+        if let Some((q, dec)) = number {
+            write_decimal(out, q, dec)?;
         }
         rest = tail.get(1..).unwrap_or("");
     }
@@ -746,9 +743,13 @@ mod tests {
             }
         }
 
+        /// (Before [`write_decimal`], heights between −1 and 0 mm lost their sign: `-0.3`
+        /// was written `0.3`.)
         pub fn mm(m: Metres) -> String {
             let tenths = (i64::from(m.to_bits()) * 10_000 + (1 << 23)) >> 24;
-            format!("{}.{}", tenths / 10, (tenths % 10).abs())
+            let sign = if tenths < 0 { "-" } else { "" };
+            let t = tenths.unsigned_abs();
+            format!("{sign}{}.{}", t / 10, t % 10)
         }
 
         pub fn word(name: &str) -> String {
@@ -941,6 +942,20 @@ mod tests {
                 )
             );
         }
+    }
+
+    /// Heights keep their sign below one millimetre (they lost it before `write_decimal`).
+    #[test]
+    fn small_negative_heights_keep_their_sign() {
+        let text = |mm: f64| {
+            let mut s = String::new();
+            fill(&mut s, "\x01", &[Arg::Mm(Metres::from_f64(mm / 1000.0))]).unwrap();
+            s
+        };
+        assert_eq!(text(-0.3), "-0.3");
+        assert_eq!(text(-12.34), "-12.3");
+        assert_eq!(text(0.04), "0.0");
+        assert_eq!(text(416.44), "416.4");
     }
 
     /// Each choice setting's names (by their id in the registry) are the ones its range

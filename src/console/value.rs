@@ -64,7 +64,7 @@ pub const MAX_DIGITS: u32 = 18;
 
 /// `10^k`, `None` above `u64::MAX` (one small loop in place of `u64::pow` and
 /// `u64::checked_pow`: ≈ 0.2 KiB less on the board; at most 20 rounds).
-fn ten_to(k: u32) -> Option<u64> {
+pub(crate) fn ten_to(k: u32) -> Option<u64> {
     let mut p = 1u64;
     for _ in 0..k {
         p = p.checked_mul(10)?;

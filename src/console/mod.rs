@@ -245,49 +245,42 @@ fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {
 
 /// The reply to a line that was not understood.
 pub fn write_parse_error(out: &mut dyn Write, e: &ParseError<'_>) -> fmt::Result {
+    // Shared pieces: the prefix, and the two endings that point to `help`.
+    const COMMANDS: &str = "; type `help` for the commands";
+    const KEYS: &str = "; `help keys` lists them";
+    out.write_str("error: ")?;
     let (template, args): (&str, &[Arg<'_>]) = match e {
-        ParseError::NotText => ("error: line is not text (UTF-8); type `help`", &[]),
+        ParseError::NotText => ("line is not text (UTF-8); type `help`", &[]),
         ParseError::TooLong => (
-            "error: line longer than \x01 characters, ignored; type `help`",
+            "line longer than \x01 characters, ignored; type `help`",
             &[Arg::Uint(MAX_LINE as u32)],
         ),
         ParseError::UnknownCommand(c) => (
-            "error: unknown command '\x01'; type `help` for the commands",
-            &[Arg::Clip(c)],
+            "unknown command '\x01'\x01",
+            &[Arg::Clip(c), Arg::Str(COMMANDS)],
         ),
         ParseError::MissingKey(cmd) => (
-            "error: `\x01` needs a key, e.g. `\x01 limits.upper`; `help keys` lists them",
-            &[Arg::Str(cmd), Arg::Str(cmd)],
+            "`\x01` needs a key, e.g. `\x01 limits.upper`\x01",
+            &[Arg::Str(cmd), Arg::Str(cmd), Arg::Str(KEYS)],
         ),
-        ParseError::UnknownKey(k) => (
-            "error: unknown key '\x01'; `help keys` lists them",
-            &[Arg::Clip(k)],
-        ),
+        ParseError::UnknownKey(k) => ("unknown key '\x01'\x01", &[Arg::Clip(k), Arg::Str(KEYS)]),
         ParseError::MissingValue(id) => {
-            fill(
-                out,
-                "error: `set \x01` needs a value: ",
-                &[Arg::Str(id.key())],
-            )?;
+            fill(out, "`set \x01` needs a value: ", &[Arg::Str(id.key())])?;
             return write_expected(out, *id);
         }
         ParseError::BadValue(id, v) => {
             fill(
                 out,
-                "error: bad value for \x01: \x01; ",
+                "bad value for \x01: \x01; ",
                 &[Arg::Str(id.key()), Arg::Str(v.message())],
             )?;
             return write_expected(out, *id);
         }
         ParseError::BadHeight(v) => (
-            "error: bad height for goto: \x01; expected a length in mm (or m, cm), e.g. \
-             `goto 300mm`",
+            "bad height for goto: \x01; expected a length in mm (or m, cm), e.g. `goto 300mm`",
             &[Arg::Str(v.message())],
         ),
-        ParseError::Trailing(t) => (
-            "error: unexpected '\x01'; type `help` for the commands",
-            &[Arg::Clip(t)],
-        ),
+        ParseError::Trailing(t) => ("unexpected '\x01'\x01", &[Arg::Clip(t), Arg::Str(COMMANDS)]),
     };
     fill(out, template, args)
 }

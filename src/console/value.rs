@@ -194,8 +194,12 @@ fn to_raw(m: u64, k: i32, frac: u32) -> Option<(u64, bool)> {
     }
     if k >= 0 {
         let p = ten_to(k.unsigned_abs())?;
-        let v = m.checked_mul(p)?.checked_mul(1u64.checked_shl(frac)?)?;
-        return Some((v, true));
+        let v = m.checked_mul(p)?;
+        // `v·2^frac` fits when no set bit is shifted out.
+        if frac >= 64 || v.leading_zeros() < frac {
+            return None;
+        }
+        return Some((v << frac, true));
     }
     // round(x) = floor((floor(2x) + 1)/2) for x ≥ 0; x is an integer iff 2x is an even one.
     let (t, exact) = shl_div_pow10(m, frac + 1, k.unsigned_abs())?;

@@ -76,8 +76,31 @@ static LIFT: Mutex<CriticalSectionRawMutex, RefCell<Option<&'static mut Controll
 /// task's storage, so 4.4 KiB of buffers in the future were 4.4 KiB more boot stack.
 static CONSOLE_TX: ConstStaticCell<[u8; 256]> = ConstStaticCell::new([0; 256]);
 static CONSOLE_RX: ConstStaticCell<[u8; 64]> = ConstStaticCell::new([0; 64]);
-static CONSOLE_REPLY: ConstStaticCell<heapless::String<REPLY_LEN>> =
-    ConstStaticCell::new(heapless::String::new());
+static CONSOLE_REPLY: ConstStaticCell<Reply> = ConstStaticCell::new(Reply(heapless::String::new()));
+
+/// The console's reply buffer. Its `core::fmt::Write` is only what the core's replies use:
+/// they are written with `write_str` alone (`liftfw::text`, `console::fill`), never with
+/// `write!`, so `write_fmt` takes a plain string only (anything else is an error, the reply is
+/// then marked cut) instead of linking `core::fmt::write`'s argument loop into the sink's
+/// vtable (≈ 0.2 KiB of flash), and `write_char` goes through `write_str`.
+struct Reply(heapless::String<REPLY_LEN>);
+
+impl core::fmt::Write for Reply {
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        self.0.push_str(s).map_err(|_| core::fmt::Error)
+    }
+
+    fn write_char(&mut self, c: char) -> core::fmt::Result {
+        self.write_str(c.encode_utf8(&mut [0; 4]))
+    }
+
+    fn write_fmt(&mut self, args: core::fmt::Arguments<'_>) -> core::fmt::Result {
+        match args.as_str() {
+            Some(s) => self.write_str(s),
+            None => Err(core::fmt::Error),
+        }
+    }
+}
 
 /// Work for the storage task.
 enum StoreRequest {
@@ -488,43 +511,31 @@ async fn console_task(
     let _ = service::write_version(reply);
     let _ = reply.write_str("\r\n");
     let _ = source.write_to(reply);
-    let _ = reply.write_str("\r\n");
     if !lift.status().homed {
-        let _ = reply.write_str(Refusal::NotHomed.message());
         let _ = reply.write_str("\r\n");
-    }
-    if uart.write_all(reply.as_bytes()).await.is_err() {
-        warn!("console write failed");
+        let _ = reply.write_str(Refusal::NotHomed.message());
     }
 
     let mut lines = LineBuffer::new();
     let mut chunk = [0u8; 16];
+    // Bytes of `chunk` not fed yet: `next..read`.
+    let (mut next, mut read) = (0, 0);
     loop {
-        // A notice from the control task, or bytes from the host (BufferedUart's read is
-        // cancel-safe: unread bytes stay in its ring buffer).
-        let n = match select(uart.read(&mut chunk), NOTICES.receive()).await {
-            Either::First(Ok(n)) => n,
-            // Framing/noise/overrun: drop the bytes and keep listening.
-            Either::First(Err(e)) => {
-                warn!("console read error: {}", e);
-                continue;
+        // One place sends every reply, notice and the greeting, each ended with CRLF (one
+        // await point instead of one per kind: less state machine on the board).
+        if !reply.0.is_empty() {
+            let _ = reply.write_str("\r\n");
+            if uart.write_all(reply.0.as_bytes()).await.is_err() {
+                warn!("console write failed");
             }
-            Either::Second(event) => {
-                reply.clear();
-                let _ = write_notice(reply, &event);
-                let _ = reply.write_str("\r\n");
-                if uart.write_all(reply.as_bytes()).await.is_err() {
-                    warn!("console write failed");
-                }
-                continue;
-            }
-        };
-        for &b in chunk.get(..n).unwrap_or(&[]) {
+            reply.0.clear();
+        }
+        if let Some(&b) = chunk.get(next..read).and_then(|rest| rest.first()) {
+            next += 1;
             let feed = lines.feed(b);
             if matches!(feed, Feed::Pending) {
                 continue;
             }
-            reply.clear();
             let outcome = service::handle_feed(feed, &mut lift, &mut running, reply);
             match outcome.action {
                 Action::None => {}
@@ -547,16 +558,21 @@ async fn console_task(
             }
             if outcome.reply.is_err() {
                 // The reply outgrew the buffer: say so rather than cut it silently.
-                while reply.len() > REPLY_LEN - 24 {
-                    reply.pop();
+                while reply.0.len() > REPLY_LEN - 24 {
+                    reply.0.pop();
                 }
                 let _ = reply.write_str(" ... (reply cut)");
             }
-            if !reply.is_empty() {
-                let _ = reply.write_str("\r\n");
-                if uart.write_all(reply.as_bytes()).await.is_err() {
-                    warn!("console write failed");
-                }
+            continue;
+        }
+        // A notice from the control task, or bytes from the host (BufferedUart's read is
+        // cancel-safe: unread bytes stay in its ring buffer).
+        match select(uart.read(&mut chunk), NOTICES.receive()).await {
+            Either::First(Ok(n)) => (next, read) = (0, n),
+            // Framing/noise/overrun: drop the bytes and keep listening.
+            Either::First(Err(e)) => warn!("console read error: {}", e),
+            Either::Second(event) => {
+                let _ = write_notice(reply, &event);
             }
         }
     }

@@ -23,86 +23,120 @@ use fixed::types::{I16F16, I32F32};
 pub struct Unit {
     /// The unit values are shown in (empty: a plain number).
     pub display: &'static str,
-    /// Accepted suffixes (lower case) with their power of ten relative to `display`; a bare
-    /// number is always read in `display`.
+    /// Accepted suffixes other than `display` (lower case) with their power of ten relative
+    /// to `display`; `display` itself (any case) and a bare number are always read in
+    /// `display`.
     pub accepts: &'static [(&'static str, i32)],
     /// What the value is, for messages ("a length").
     pub what: &'static str,
 }
 
-macro_rules! unit {
-    ($(#[$doc:meta])* $name:ident, $display:literal, $what:literal, [$(($s:literal, $p:literal)),* $(,)?]) => {
-        $(#[$doc])*
-        pub const $name: Unit = Unit { display: $display, accepts: &[$(($s, $p)),*], what: $what };
+/// The units ([`UNITS`]) and a [`UnitId`] constant for each (`NAME, display, what,
+/// [accepted suffixes]`).
+macro_rules! units {
+    ($($(#[$doc:meta])* $name:ident, $display:literal, $what:literal, [$(($s:literal, $p:literal)),* $(,)?];)*) => {
+        /// Positions in [`UNITS`].
+        #[allow(non_camel_case_types, clippy::upper_case_acronyms)]
+        #[repr(u8)]
+        enum UnitIndex { $($name),* }
+
+        $(
+            $(#[$doc])*
+            pub const $name: UnitId = UnitId(UnitIndex::$name as u8);
+        )*
+
+        /// Every unit, in [`UnitId`] order.
+        pub static UNITS: [Unit; [$(UnitIndex::$name),*].len()] = [$(
+            Unit { display: $display, accepts: &[$(($s, $p)),*], what: $what },
+        )*];
     };
 }
 
-unit!(
+/// A unit by its position in [`UNITS`]; reads as the [`Unit`] (`Deref`). One byte instead of a
+/// reference keeps each registry entry 4 bytes smaller on the board.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UnitId(u8);
+
+impl core::ops::Deref for UnitId {
+    type Target = Unit;
+
+    fn deref(&self) -> &Unit {
+        // Ids are only the constants below: the index is in bounds; `get` keeps it total.
+        UNITS.get(usize::from(self.0)).unwrap_or(&UNITS[0])
+    }
+}
+
+units! {
     /// Lengths, shown in mm.
-    MILLIMETRES, "mm", "a length", [("mm", 0), ("m", 3), ("cm", 1), ("um", -3)]);
-unit!(
+    MILLIMETRES, "mm", "a length", [("m", 3), ("cm", 1), ("um", -3)];
     /// Screw or motor speeds.
-    RAD_PER_S, "rad/s", "an angular speed", [("rad/s", 0)]);
-unit!(
+    RAD_PER_S, "rad/s", "an angular speed", [];
     /// Durations in ms.
-    MILLIS, "ms", "a duration", [("ms", 0), ("s", 3)]);
-unit!(
+    MILLIS, "ms", "a duration", [("s", 3)];
     /// Durations in µs.
-    MICROS, "us", "a duration", [("us", 0), ("ms", 3), ("s", 6)]);
-unit!(
+    MICROS, "us", "a duration", [("ms", 3), ("s", 6)];
     /// Currents.
-    AMPS, "A", "a current", [("a", 0), ("ma", -3)]);
-unit!(
+    AMPS, "A", "a current", [("ma", -3)];
     /// Voltages.
-    VOLTS, "V", "a voltage", [("v", 0), ("mv", -3)]);
-unit!(
+    VOLTS, "V", "a voltage", [("mv", -3)];
     /// Masses.
-    KILOGRAMS, "kg", "a mass", [("kg", 0), ("t", 3), ("g", -3)]);
-unit!(
+    KILOGRAMS, "kg", "a mass", [("t", 3), ("g", -3)];
     /// Dimensionless ratios (a percentage is accepted).
-    RATIO, "", "a ratio", [("%", -2)]);
-unit!(
+    RATIO, "", "a ratio", [("%", -2)];
     /// Plain numbers (gear ratio, law parameters).
-    NUMBER, "", "a number", []);
-unit!(
+    NUMBER, "", "a number", [];
     /// Counts and ADC codes.
-    COUNTS, "", "a whole number", [("counts", 0), ("codes", 0)]);
-unit!(
+    COUNTS, "", "a whole number", [("counts", 0), ("codes", 0)];
     /// Angles in degrees.
-    DEGREES, "deg", "an angle", [("deg", 0), ("°", 0)]);
-unit!(
+    DEGREES, "deg", "an angle", [("°", 0)];
     /// Torques.
-    NEWTON_METRES, "Nm", "a torque", [("nm", 0), ("n*m", 0), ("n.m", 0), ("n·m", 0), ("mnm", -3)]);
-unit!(
+    NEWTON_METRES, "Nm", "a torque", [("n*m", 0), ("n.m", 0), ("n·m", 0), ("mnm", -3)];
     /// Torque constants.
-    NM_PER_AMP, "Nm/A", "a torque constant", [("nm/a", 0), ("n*m/a", 0), ("n·m/a", 0)]);
-unit!(
+    NM_PER_AMP, "Nm/A", "a torque constant", [("n*m/a", 0), ("n·m/a", 0)];
     /// Frequencies.
-    HERTZ, "Hz", "a frequency", [("hz", 0)]);
-unit!(
+    HERTZ, "Hz", "a frequency", [];
     /// ADC scalings of current, per code.
-    MICROAMPS, "uA", "a current per ADC code", [("ua", 0), ("ma", 3)]);
-unit!(
+    MICROAMPS, "uA", "a current per ADC code", [("ma", 3)];
     /// ADC scalings of voltage, per code.
-    MICROVOLTS, "uV", "a voltage per ADC code", [("uv", 0), ("mv", 3)]);
-unit!(
+    MICROVOLTS, "uV", "a voltage per ADC code", [("mv", 3)];
     /// Torsional stiffness.
-    NM_PER_RAD, "Nm/rad", "a torsional stiffness", [("nm/rad", 0), ("n*m/rad", 0), ("n·m/rad", 0)]);
-unit!(
+    NM_PER_RAD, "Nm/rad", "a torsional stiffness", [("n*m/rad", 0), ("n·m/rad", 0)];
     /// Resistances.
-    OHMS, "ohm", "a resistance", [("ohm", 0), ("mohm", -3), ("Ω", 0), ("mΩ", -3)]);
-unit!(
+    OHMS, "ohm", "a resistance", [("mohm", -3), ("Ω", 0), ("mΩ", -3)];
     /// Screw inertia in µkg·m².
-    MICRO_KGM2, "ukgm2", "an inertia", [("ukgm2", 0), ("ukg*m2", 0)]);
-unit!(
+    MICRO_KGM2, "ukgm2", "an inertia", [("ukg*m2", 0)];
     /// Forces.
-    NEWTONS, "N", "a force", [("n", 0), ("kn", 3)]);
-unit!(
+    NEWTONS, "N", "a force", [("kn", 3)];
     /// Dynamic viscosity.
-    PASCAL_SECONDS, "Pa.s", "a viscosity", [("pa.s", 0), ("mpa.s", -3)]);
-unit!(
+    PASCAL_SECONDS, "Pa.s", "a viscosity", [("mpa.s", -3)];
     /// Screw support damping in µN·m·s/rad.
-    MICRO_NMS, "uNms/rad", "a rotational damping", [("unms/rad", 0), ("unms", 0)]);
+    MICRO_NMS, "uNms/rad", "a rotational damping", [("unms", 0)];
+}
+
+/// A choice setting's names, by position in [`CHOICES`]; reads as the names (`Deref`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ChoiceId(u8);
+
+impl core::ops::Deref for ChoiceId {
+    type Target = [&'static str];
+
+    fn deref(&self) -> &[&'static str] {
+        // Ids are only the ones of the registry: the index is in bounds; `get` keeps it total.
+        CHOICES.get(usize::from(self.0)).copied().unwrap_or(&[])
+    }
+}
+
+/// The names of every choice setting, in [`ChoiceId`] order (a test checks each against its
+/// setting's range text).
+static CHOICES: [&[&str]; 7] = [
+    &["trapezoid", "scurve"],
+    &["hold", "latched"],
+    &["lead", "ball"],
+    &["none", "spring"],
+    &["dry", "ptfe", "lithium", "ball"],
+    &["rate", "speed", "tau"],
+    &["log", "warn", "speed"],
+];
 
 /// How a setting's raw bits read as a value.
 #[derive(Debug, PartialEq, Eq)]
@@ -115,13 +149,13 @@ pub enum Kind {
         /// Display unit per base unit as a power of ten (mm per m: 3).
         pow10: i8,
         /// Unit for parsing and display.
-        unit: &'static Unit,
+        unit: UnitId,
         /// The field's largest value means "no limit" (typed and shown as `none`).
         none_at_max: bool,
     },
-    /// An index into the names. (Behind a thin reference: the kind is then 8 bytes instead of
-    /// 12, 4 bytes less per registry entry on the board.)
-    Choice(&'static &'static [&'static str]),
+    /// An index into the names. (Ids of one byte: the kind is then 4 bytes instead of 8, 4
+    /// bytes less per registry entry on the board.)
+    Choice(ChoiceId),
 }
 
 /// One configurable field.
@@ -140,10 +174,10 @@ pub struct Setting {
     /// Part of the flash record (false only for derived settings such as `friction.law`).
     pub stored: bool,
     /// The raw bits' integer type: [`Setting::set`] refuses what it cannot hold, so the
-    /// per-setting `set` functions only store.
+    /// field writes only store.
     width: Width,
-    get: fn(&ControlConfig) -> i64,
-    set: fn(&mut ControlConfig, i64) -> bool,
+    /// Its position in [`SETTINGS`]: the field [`Setting::get`] and [`Setting::set`] access.
+    field: u8,
 }
 
 /// The integer type a setting's raw bits are stored in.
@@ -205,13 +239,13 @@ impl Setting {
 
     /// The field's raw bits in `cfg`.
     pub fn get(&self, cfg: &ControlConfig) -> i64 {
-        (self.get)(cfg)
+        read_field(self.field, cfg)
     }
 
     /// Write raw bits into the field; false (and `cfg` unchanged) if they do not fit its type.
     /// No range check: see [`apply`].
     pub fn set(&self, cfg: &mut ControlConfig, raw: i64) -> bool {
-        self.width.holds(raw) && (self.set)(cfg, raw)
+        self.width.holds(raw) && write_field(self.field, cfg, raw)
     }
 }
 
@@ -296,7 +330,7 @@ bits32!(
     I16F16
 );
 
-const fn num(frac: u8, unit: &'static Unit) -> Kind {
+const fn num(frac: u8, unit: UnitId) -> Kind {
     Kind::Number {
         frac,
         pow10: 0,
@@ -309,38 +343,105 @@ const fn num(frac: u8, unit: &'static Unit) -> Kind {
 const LEN: Kind = Kind::Number {
     frac: 24,
     pow10: 3,
-    unit: &MILLIMETRES,
+    unit: MILLIMETRES,
     none_at_max: false,
 };
 
-macro_rules! setting {
-    // A fixed-point field stored as 32 raw bits.
-    ($key:literal, $kind:expr, $range:literal, $about:literal, q32 $($f:ident).+) => {
-        Setting {
-            key: $key, kind: $kind, range: $range, #[cfg(feature = "help-text")] about: $about, stored: true,
-            width: Width::I32,
-            get: |c| i64::from(Bits32::bits(c.$($f).+)),
-            // `Setting::set` checked that the bits fit i32.
-            set: |c, v| { c.$($f).+ = Bits32::with_bits(v as i32); true },
+/// The field accessors of one setting, by its accessor form:
+/// - `q32 path`: a fixed-point field stored as its 32 raw bits;
+/// - `q64 path`: an I32F32 field stored as its 64 raw bits;
+/// - `int T, path`: an integer field of type `T`;
+/// - `choice path = [V0, V1, …]`: an enum (or bool) field stored as the index of its value;
+/// - `preset path = ARRAY`: like `choice`, but derived (not in the flash record; reads −1 when
+///   the field matches no preset).
+macro_rules! field_get {
+    ($c:ident, q32 $($f:ident).+) => { i64::from(Bits32::bits($c.$($f).+)) };
+    ($c:ident, q64 $($f:ident).+) => { $c.$($f).+.to_bits() };
+    ($c:ident, int $t:ty, $($f:ident).+) => { i64::from($c.$($f).+) };
+    ($c:ident, choice $($f:ident).+ = $values:expr) => {
+        $values.iter().position(|x| *x == $c.$($f).+).map_or(-1, |i| i as i64)
+    };
+    ($c:ident, preset $($f:ident).+ = $values:expr) => { field_get!($c, choice $($f).+ = $values) };
+}
+
+/// Store raw bits into a field (see [`field_get`]); `Setting::set` has checked that they fit
+/// the field's integer type, choices check their index here.
+macro_rules! field_set {
+    ($c:ident, $v:ident, q32 $($f:ident).+) => {{ $c.$($f).+ = Bits32::with_bits($v as i32); true }};
+    ($c:ident, $v:ident, q64 $($f:ident).+) => {{ $c.$($f).+ = I32F32::from_bits($v); true }};
+    ($c:ident, $v:ident, int $t:ty, $($f:ident).+) => {{ $c.$($f).+ = $v as $t; true }};
+    ($c:ident, $v:ident, choice $($f:ident).+ = $values:expr) => {
+        match usize::try_from($v).ok().and_then(|i| $values.get(i)) {
+            Some(x) => {
+                $c.$($f).+ = *x;
+                true
+            }
+            None => false,
         }
     };
-    // An I32F32 field stored as its 64 raw bits.
-    ($key:literal, $kind:expr, $range:literal, $about:literal, q64 $($f:ident).+) => {
-        Setting {
-            key: $key, kind: $kind, range: $range, #[cfg(feature = "help-text")] about: $about, stored: true,
-            width: Width::I64,
-            get: |c| c.$($f).+.to_bits(),
-            set: |c, v| { c.$($f).+ = I32F32::from_bits(v); true },
-        }
+    ($c:ident, $v:ident, preset $($f:ident).+ = $values:expr) => {
+        field_set!($c, $v, choice $($f).+ = $values)
     };
-    // An integer field.
-    ($key:literal, $kind:expr, $range:literal, $about:literal, int $t:ty, $($f:ident).+) => {
-        Setting {
-            key: $key, kind: $kind, range: $range, #[cfg(feature = "help-text")] about: $about, stored: true,
-            width: <$t as FieldInt>::WIDTH,
-            get: |c| i64::from(c.$($f).+),
-            // `Setting::set` checked that the value fits the field's type.
-            set: |c, v| { c.$($f).+ = v as $t; true },
+}
+
+/// The [`Width`] of an accessor form.
+macro_rules! field_width {
+    (q32 $($rest:tt)*) => {
+        Width::I32
+    };
+    (int $t:ty, $($rest:tt)*) => {
+        <$t as FieldInt>::WIDTH
+    };
+    ($($rest:tt)*) => {
+        Width::I64
+    };
+}
+
+/// Whether an accessor form is part of the flash record.
+macro_rules! field_stored {
+    (preset $($rest:tt)*) => {
+        false
+    };
+    ($($rest:tt)*) => {
+        true
+    };
+}
+
+/// [`SETTINGS`] and the two functions that read and write a setting's field by its index
+/// (`index => key, kind, range, help line, [accessor]`). One `match` per direction instead of
+/// a `get` and a `set` function per setting: on the board the table is 8 bytes per setting
+/// smaller and the field accesses share their code (≈ 1 KiB of flash less).
+macro_rules! registry {
+    ($($n:literal => $key:literal, $kind:expr, $range:literal, $about:literal, [$($acc:tt)+];)*) => {
+        /// Every setting. The flash record's layout follows this order (the `stored` ones):
+        /// changing it changes the record's schema fingerprint (see [`crate::config::record`]).
+        pub static SETTINGS: [Setting; 72] = [$(
+            Setting {
+                key: $key,
+                kind: $kind,
+                range: $range,
+                #[cfg(feature = "help-text")]
+                about: $about,
+                stored: field_stored!($($acc)+),
+                width: field_width!($($acc)+),
+                field: $n,
+            },
+        )*];
+
+        /// The raw bits of field `field` (a [`Setting::field`]).
+        fn read_field(field: u8, c: &ControlConfig) -> i64 {
+            match field {
+                $($n => field_get!(c, $($acc)+),)*
+                _ => 0,
+            }
+        }
+
+        /// Store raw bits into field `field`; false if the field refuses them.
+        fn write_field(field: u8, c: &mut ControlConfig, v: i64) -> bool {
+            match field {
+                $($n => field_set!(c, v, $($acc)+),)*
+                _ => false,
+            }
         }
     };
 }
@@ -353,295 +454,224 @@ pub const LAW_PRESETS: [FrictionLaw; 4] = [
     FrictionLaw::BALL_SCREW,
 ];
 
-/// Every setting. The flash record's layout follows this order (the `stored` ones): changing
-/// it changes the record's schema fingerprint (see [`crate::config::record`]).
-pub static SETTINGS: [Setting; 72] = [
-    setting!("limits.lower", LEN, "the mechanism's height range (see `limits`)",
-        "lowest head height the lift drives to", q32 limits.lower),
-    setting!("limits.upper", LEN, "the mechanism's height range (see `limits`)",
-        "highest head height the lift drives to", q32 limits.upper),
-    setting!("limits.switch_lower", LEN, "the mechanism's height range, at least 0.5 mm below limits.lower",
-        "head height where the lower limit switch closes (the homing reference)", q32 limits.switch_lower),
-    setting!("load.rated", num(12, &KILOGRAMS), "10..5000 kg",
-        "rated load of the lift", q32 rated_load),
-    setting!("motion.cruise_speed", num(16, &RAD_PER_S), "0.2..20 rad/s",
-        "cruise screw speed", q32 motion.cruise_speed),
-    setting!("motion.ramp_ms", num(0, &MILLIS), "10..2000 ms",
-        "time from rest to cruise speed (and back)", int u32, motion.ramp_ms),
-    Setting {
-        key: "motion.ramp_shape",
-        kind: Kind::Choice(&(&["trapezoid", "scurve"] as &[&str])),
-        range: "trapezoid or scurve",
-        #[cfg(feature = "help-text")]
-        about: "speed ramp: constant acceleration or jerk-limited",
-        stored: true,
-        width: Width::I64,
-        get: |c| match c.motion.ramp_shape {
-            RampShape::Trapezoid => 0,
-            RampShape::SCurve => 1,
-        },
-        set: |c, v| {
-            c.motion.ramp_shape = match v {
-                0 => RampShape::Trapezoid,
-                1 => RampShape::SCurve,
-                _ => return false,
-            };
-            true
-        },
-    },
-    Setting {
-        key: "motion.buttons",
-        kind: Kind::Choice(&(&["hold", "latched"] as &[&str])),
-        range: "hold or latched",
-        #[cfg(feature = "help-text")]
-        about: "UP/DOWN buttons: hold-to-run or latched until STOP",
-        stored: true,
-        width: Width::I64,
-        get: |c| match c.motion.buttons {
-            ButtonMode::HoldToRun => 0,
-            ButtonMode::Latched => 1,
-        },
-        set: |c, v| {
-            c.motion.buttons = match v {
-                0 => ButtonMode::HoldToRun,
-                1 => ButtonMode::Latched,
-                _ => return false,
-            };
-            true
-        },
-    },
-    setting!("protect.overcurrent", num(16, &AMPS), "1..60 A",
-        "motor current that trips the over-current fault", q32 protection.overcurrent),
-    setting!("protect.current_limit", num(16, &AMPS), "1..60 A",
+registry! {
+    0 => "limits.lower", LEN, "the mechanism's height range (see `limits`)",
+        "lowest head height the lift drives to",
+        [q32 limits.lower];
+    1 => "limits.upper", LEN, "the mechanism's height range (see `limits`)",
+        "highest head height the lift drives to",
+        [q32 limits.upper];
+    2 => "limits.switch_lower", LEN, "the mechanism's height range, at least 0.5 mm below limits.lower",
+        "head height where the lower limit switch closes (the homing reference)",
+        [q32 limits.switch_lower];
+    3 => "load.rated", num(12, KILOGRAMS), "10..5000 kg",
+        "rated load of the lift",
+        [q32 rated_load];
+    4 => "motion.cruise_speed", num(16, RAD_PER_S), "0.2..20 rad/s",
+        "cruise screw speed",
+        [q32 motion.cruise_speed];
+    5 => "motion.ramp_ms", num(0, MILLIS), "10..2000 ms",
+        "time from rest to cruise speed (and back)",
+        [int u32, motion.ramp_ms];
+    6 => "motion.ramp_shape", Kind::Choice(ChoiceId(0)), "trapezoid or scurve",
+        "speed ramp: constant acceleration or jerk-limited",
+        [choice motion.ramp_shape = [RampShape::Trapezoid, RampShape::SCurve]];
+    7 => "motion.buttons", Kind::Choice(ChoiceId(1)), "hold or latched",
+        "UP/DOWN buttons: hold-to-run or latched until STOP",
+        [choice motion.buttons = [ButtonMode::HoldToRun, ButtonMode::Latched]];
+    8 => "protect.overcurrent", num(16, AMPS), "1..60 A",
+        "motor current that trips the over-current fault",
+        [q32 protection.overcurrent];
+    9 => "protect.current_limit", num(16, AMPS), "1..60 A",
         "current the speed loop never asks for (at most protect.overcurrent)",
-        q32 protection.current_limit),
-    setting!("protect.stall_duty", num(28, &RATIO), "0.05..1",
-        "duty at or above which no encoder motion counts as a stall", q32 protection.stall_duty),
-    setting!("protect.stall_ms", num(0, &MILLIS), "20..5000 ms",
-        "time stalled before the fault", int u32, protection.stall_ms),
-    setting!("protect.max_motor_speed", num(16, &RAD_PER_S), "10..5000 rad/s",
-        "fastest plausible motor-shaft speed", q32 protection.max_motor_speed),
-    setting!("protect.supply_start_min", num(16, &VOLTS), "8..16 V",
-        "refuse to start below this supply voltage", q32 protection.supply_start_min),
-    setting!("protect.supply_run_min", num(16, &VOLTS), "6..16 V",
-        "stop while moving below this supply voltage", q32 protection.supply_run_min),
-    setting!("protect.supply_max", num(16, &VOLTS), "12..20 V",
-        "stop above this supply voltage", q32 protection.supply_max),
-    setting!("protect.supply_ms", num(0, &MILLIS), "1..1000 ms",
-        "supply out of range this long trips the fault", int u32, protection.supply_ms),
-    setting!("protect.overload_margin", num(28, &RATIO), "0.05..2",
+        [q32 protection.current_limit];
+    10 => "protect.stall_duty", num(28, RATIO), "0.05..1",
+        "duty at or above which no encoder motion counts as a stall",
+        [q32 protection.stall_duty];
+    11 => "protect.stall_ms", num(0, MILLIS), "20..5000 ms",
+        "time stalled before the fault",
+        [int u32, protection.stall_ms];
+    12 => "protect.max_motor_speed", num(16, RAD_PER_S), "10..5000 rad/s",
+        "fastest plausible motor-shaft speed",
+        [q32 protection.max_motor_speed];
+    13 => "protect.supply_start_min", num(16, VOLTS), "8..16 V",
+        "refuse to start below this supply voltage",
+        [q32 protection.supply_start_min];
+    14 => "protect.supply_run_min", num(16, VOLTS), "6..16 V",
+        "stop while moving below this supply voltage",
+        [q32 protection.supply_run_min];
+    15 => "protect.supply_max", num(16, VOLTS), "12..20 V",
+        "stop above this supply voltage",
+        [q32 protection.supply_max];
+    16 => "protect.supply_ms", num(0, MILLIS), "1..1000 ms",
+        "supply out of range this long trips the fault",
+        [int u32, protection.supply_ms];
+    17 => "protect.overload_margin", num(28, RATIO), "0.05..2",
         "overload: measured torque above the rated-load model by this fraction",
-        q32 protection.overload_margin),
-    setting!("protect.overload_ms", num(0, &MILLIS), "10..5000 ms",
-        "overload held this long trips the fault", int u32, protection.overload_ms),
-    setting!("protect.runaway_travel", LEN, "0.01..10 mm",
-        "uncommanded nut travel before the runaway fault", q32 protection.runaway_travel),
-    setting!("sense.current_zero", num(0, &COUNTS), "0..4095 codes",
-        "current-sense ADC code at 0 A", int u16, sensing.current_zero_code),
-    setting!("sense.current_ua_per_code", num(0, &MICROAMPS), "1..1000000 uA",
-        "motor current per ADC code", int u32, sensing.current_ua_per_code),
-    setting!("sense.supply_uv_per_code", num(0, &MICROVOLTS), "1..100000 uV",
-        "supply voltage per ADC code", int u32, sensing.supply_uv_per_code),
-    setting!("geometry.length", LEN, "0.05..2 m",
-        "Eq 1's length L (twice the arm length)", q32 estimator.geometry.length),
-    setting!("geometry.alpha0", num(16, &DEGREES), "12..60 deg",
-        "arm angle fully down", q32 estimator.geometry.alpha0_deg),
-    setting!("geometry.alpha_max", num(16, &DEGREES), "alpha0+5..89 deg",
-        "largest arm angle of the mechanism", q32 estimator.geometry.alpha_max_deg),
-    setting!("geometry.h0", LEN, "0..1 m",
-        "head height with the arms collapsed", q32 estimator.geometry.h0),
-    setting!("geometry.mu_pin", num(28, &RATIO), "0..1",
-        "pin friction coefficient (Eq 6)", q32 estimator.geometry.mu_pin),
-    setting!("drive.counts_per_rev", num(0, &COUNTS), "4..65536",
-        "encoder counts per motor turn", int u32, estimator.drive.counts_per_rev),
-    setting!("drive.gear_ratio", num(16, &NUMBER), "1..1000",
-        "motor turns per screw turn", q32 estimator.drive.gear_ratio),
-    setting!("drive.pitch_radius", LEN, "1..50 mm",
-        "screw pitch radius r_m", q32 estimator.drive.pitch_radius),
-    setting!("drive.lead_angle", num(16, &DEGREES), "0.5..20 deg",
-        "screw lead angle", q32 estimator.drive.lead_angle_deg),
-    Setting {
-        key: "drive.screw",
-        kind: Kind::Choice(&(&["lead", "ball"] as &[&str])),
-        range: "lead or ball",
-        #[cfg(feature = "help-text")]
-        about: "screw type: lead (self-locking) or ball (held actively at rest)",
-        stored: true,
-        width: Width::I64,
-        get: |c| match c.screw {
-            ScrewKind::Lead => 0,
-            ScrewKind::Ball => 1,
-        },
-        set: |c, v| {
-            c.screw = match v {
-                0 => ScrewKind::Lead,
-                1 => ScrewKind::Ball,
-                _ => return false,
-            };
-            true
-        },
-    },
-    Setting {
-        key: "drive.brake",
-        kind: Kind::Choice(&(&["none", "spring"] as &[&str])),
-        range: "none or spring",
-        #[cfg(feature = "help-text")]
-        about: "holding brake: none, or spring-applied (engaged unless the brake output is on)",
-        stored: true,
-        width: Width::I64,
-        get: |c| i64::from(c.brake.present),
-        set: |c, v| {
-            c.brake.present = match v {
-                0 => false,
-                1 => true,
-                _ => return false,
-            };
-            true
-        },
-    },
-    setting!("drive.brake_ms", num(0, &MILLIS), "5..1000 ms",
-        "time the brake takes to release or engage", int u32, brake.delay_ms),
-    setting!("mech.inertia", num(0, &MICRO_KGM2), "0..100000 ukgm2",
-        "screw inertia I", int i32, estimator.mechanics.inertia_ukgm2),
-    setting!("mech.damping", num(0, &MICRO_NMS), "0..1e6 uNms/rad",
-        "screw support damping c", int i32, estimator.mechanics.damping_unms),
-    setting!("mech.support_torque", num(16, &NEWTON_METRES), "0..10 Nm",
-        "support friction torque T0", q32 estimator.mechanics.support_torque),
-    setting!("mech.nut_mass", num(12, &KILOGRAMS), "0..5 kg",
-        "translating (nut) mass m", q32 estimator.mechanics.nut_mass),
-    setting!("mech.coupling_stiffness", num(16, &NM_PER_RAD), "1..10000 Nm/rad",
-        "torsional stiffness k of the coupling", q32 estimator.mechanics.coupling_stiffness),
-    Setting {
-        key: "friction.law",
-        kind: Kind::Choice(&(&["dry", "ptfe", "lithium", "ball"] as &[&str])),
-        range: "dry, ptfe, lithium or ball",
-        #[cfg(feature = "help-text")]
-        about: "load a preset friction law (shows `custom` after edits)",
-        stored: false,
-        width: Width::I64,
-        get: |c| {
-            LAW_PRESETS
-                .iter()
-                .position(|l| *l == c.estimator.law)
-                .map_or(-1, |i| i as i64)
-        },
-        set: |c, v| match usize::try_from(v).ok().and_then(|i| LAW_PRESETS.get(i)) {
-            Some(l) => {
-                c.estimator.law = *l;
-                true
-            }
-            None => false,
-        },
-    },
-    Setting {
-        key: "friction.variable",
-        kind: Kind::Choice(&(&["rate", "speed", "tau"] as &[&str])),
-        range: "rate, speed or tau",
-        #[cfg(feature = "help-text")]
-        about: "law variable: screw rate |w| rad/s, sliding speed m/s, or tau",
-        stored: true,
-        width: Width::I64,
-        get: |c| match c.estimator.law.variable {
-            LawVariable::ScrewRate => 0,
-            LawVariable::SlidingSpeed => 1,
-            LawVariable::Lubrication => 2,
-        },
-        set: |c, v| {
-            c.estimator.law.variable = match v {
-                0 => LawVariable::ScrewRate,
-                1 => LawVariable::SlidingSpeed,
-                2 => LawVariable::Lubrication,
-                _ => return false,
-            };
-            true
-        },
-    },
-    setting!("friction.base", num(28, &RATIO), "0..1",
-        "law: constant term", q32 estimator.law.base),
-    setting!("friction.amp", num(28, &RATIO), "-1..1",
-        "law: exponential (Stribeck) amplitude", q32 estimator.law.amp),
-    setting!("friction.rate", num(32, &NUMBER), "0..1e6",
-        "law: exponential rate per unit of the variable", q64 estimator.law.rate),
-    setting!("friction.slope", num(32, &NUMBER), "-1000..1000",
-        "law: viscous slope per unit of the variable", q64 estimator.law.slope),
-    setting!("friction.s_max", Kind::Number { frac: 32, pow10: 0, unit: &NUMBER, none_at_max: true },
-        ">0..1e6", "law: viscous term flat beyond this (none: never)", q64 estimator.law.s_max),
-    setting!("motor.kt", num(28, &NM_PER_AMP), "0.001..1 Nm/A",
-        "motor torque constant", q32 estimator.motor.torque_constant),
-    setting!("motor.gear_efficiency", num(28, &RATIO), "0.1..1",
-        "gearbox efficiency", q32 estimator.motor.gear_efficiency),
-    setting!("motor.resistance", num(28, &OHMS), "0.001..4 ohm",
-        "motor loop resistance (armature, bridge, battery)", q32 estimator.motor.resistance),
-    setting!("control.tick_us", num(0, &MICROS), "100..10000 us",
-        "control tick period", int u32, estimator.tick_us),
-    setting!("control.speed_bandwidth", num(0, &HERTZ), "1..tick rate/10 Hz",
-        "speed filter bandwidth", int u32, estimator.speed_bandwidth_hz),
-    setting!("control.rest_speed", num(16, &RAD_PER_S), "0..50 rad/s",
-        "screw speed below which the screw counts as at rest", q32 estimator.rest_speed),
-    Setting {
-        key: "stickslip.reaction",
-        kind: Kind::Choice(&(&["log", "warn", "speed"] as &[&str])),
-        range: "log, warn or speed",
-        #[cfg(feature = "help-text")]
-        about:
-            "on stick-slip: log it, also warn on the console, or also change to the escape speed",
-        stored: true,
-        width: Width::I64,
-        get: |c| match c.stick_slip.reaction {
-            Reaction::Log => 0,
-            Reaction::Warn => 1,
-            Reaction::ChangeSpeed => 2,
-        },
-        set: |c, v| {
-            c.stick_slip.reaction = match v {
-                0 => Reaction::Log,
-                1 => Reaction::Warn,
-                2 => Reaction::ChangeSpeed,
-                _ => return false,
-            };
-            true
-        },
-    },
-    setting!("stickslip.drop", num(16, &NEWTON_METRES), "0.2..50 Nm",
+        [q32 protection.overload_margin];
+    18 => "protect.overload_ms", num(0, MILLIS), "10..5000 ms",
+        "overload held this long trips the fault",
+        [int u32, protection.overload_ms];
+    19 => "protect.runaway_travel", LEN, "0.01..10 mm",
+        "uncommanded nut travel before the runaway fault",
+        [q32 protection.runaway_travel];
+    20 => "sense.current_zero", num(0, COUNTS), "0..4095 codes",
+        "current-sense ADC code at 0 A",
+        [int u16, sensing.current_zero_code];
+    21 => "sense.current_ua_per_code", num(0, MICROAMPS), "1..1000000 uA",
+        "motor current per ADC code",
+        [int u32, sensing.current_ua_per_code];
+    22 => "sense.supply_uv_per_code", num(0, MICROVOLTS), "1..100000 uV",
+        "supply voltage per ADC code",
+        [int u32, sensing.supply_uv_per_code];
+    23 => "geometry.length", LEN, "0.05..2 m",
+        "Eq 1's length L (twice the arm length)",
+        [q32 estimator.geometry.length];
+    24 => "geometry.alpha0", num(16, DEGREES), "12..60 deg",
+        "arm angle fully down",
+        [q32 estimator.geometry.alpha0_deg];
+    25 => "geometry.alpha_max", num(16, DEGREES), "alpha0+5..89 deg",
+        "largest arm angle of the mechanism",
+        [q32 estimator.geometry.alpha_max_deg];
+    26 => "geometry.h0", LEN, "0..1 m",
+        "head height with the arms collapsed",
+        [q32 estimator.geometry.h0];
+    27 => "geometry.mu_pin", num(28, RATIO), "0..1",
+        "pin friction coefficient (Eq 6)",
+        [q32 estimator.geometry.mu_pin];
+    28 => "drive.counts_per_rev", num(0, COUNTS), "4..65536",
+        "encoder counts per motor turn",
+        [int u32, estimator.drive.counts_per_rev];
+    29 => "drive.gear_ratio", num(16, NUMBER), "1..1000",
+        "motor turns per screw turn",
+        [q32 estimator.drive.gear_ratio];
+    30 => "drive.pitch_radius", LEN, "1..50 mm",
+        "screw pitch radius r_m",
+        [q32 estimator.drive.pitch_radius];
+    31 => "drive.lead_angle", num(16, DEGREES), "0.5..20 deg",
+        "screw lead angle",
+        [q32 estimator.drive.lead_angle_deg];
+    32 => "drive.screw", Kind::Choice(ChoiceId(2)), "lead or ball",
+        "screw type: lead (self-locking) or ball (held actively at rest)",
+        [choice screw = [ScrewKind::Lead, ScrewKind::Ball]];
+    33 => "drive.brake", Kind::Choice(ChoiceId(3)), "none or spring",
+        "holding brake: none, or spring-applied (engaged unless the brake output is on)",
+        [choice brake.present = [false, true]];
+    34 => "drive.brake_ms", num(0, MILLIS), "5..1000 ms",
+        "time the brake takes to release or engage",
+        [int u32, brake.delay_ms];
+    35 => "mech.inertia", num(0, MICRO_KGM2), "0..100000 ukgm2",
+        "screw inertia I",
+        [int i32, estimator.mechanics.inertia_ukgm2];
+    36 => "mech.damping", num(0, MICRO_NMS), "0..1e6 uNms/rad",
+        "screw support damping c",
+        [int i32, estimator.mechanics.damping_unms];
+    37 => "mech.support_torque", num(16, NEWTON_METRES), "0..10 Nm",
+        "support friction torque T0",
+        [q32 estimator.mechanics.support_torque];
+    38 => "mech.nut_mass", num(12, KILOGRAMS), "0..5 kg",
+        "translating (nut) mass m",
+        [q32 estimator.mechanics.nut_mass];
+    39 => "mech.coupling_stiffness", num(16, NM_PER_RAD), "1..10000 Nm/rad",
+        "torsional stiffness k of the coupling",
+        [q32 estimator.mechanics.coupling_stiffness];
+    40 => "friction.law", Kind::Choice(ChoiceId(4)), "dry, ptfe, lithium or ball",
+        "load a preset friction law (shows `custom` after edits)",
+        [preset estimator.law = LAW_PRESETS];
+    41 => "friction.variable", Kind::Choice(ChoiceId(5)), "rate, speed or tau",
+        "law variable: screw rate |w| rad/s, sliding speed m/s, or tau",
+        [choice estimator.law.variable = [LawVariable::ScrewRate, LawVariable::SlidingSpeed, LawVariable::Lubrication]];
+    42 => "friction.base", num(28, RATIO), "0..1",
+        "law: constant term",
+        [q32 estimator.law.base];
+    43 => "friction.amp", num(28, RATIO), "-1..1",
+        "law: exponential (Stribeck) amplitude",
+        [q32 estimator.law.amp];
+    44 => "friction.rate", num(32, NUMBER), "0..1e6",
+        "law: exponential rate per unit of the variable",
+        [q64 estimator.law.rate];
+    45 => "friction.slope", num(32, NUMBER), "-1000..1000",
+        "law: viscous slope per unit of the variable",
+        [q64 estimator.law.slope];
+    46 => "friction.s_max", Kind::Number { frac: 32, pow10: 0, unit: NUMBER, none_at_max: true },
+        ">0..1e6", "law: viscous term flat beyond this (none: never)",
+        [q64 estimator.law.s_max];
+    47 => "motor.kt", num(28, NM_PER_AMP), "0.001..1 Nm/A",
+        "motor torque constant",
+        [q32 estimator.motor.torque_constant];
+    48 => "motor.gear_efficiency", num(28, RATIO), "0.1..1",
+        "gearbox efficiency",
+        [q32 estimator.motor.gear_efficiency];
+    49 => "motor.resistance", num(28, OHMS), "0.001..4 ohm",
+        "motor loop resistance (armature, bridge, battery)",
+        [q32 estimator.motor.resistance];
+    50 => "control.tick_us", num(0, MICROS), "100..10000 us",
+        "control tick period",
+        [int u32, estimator.tick_us];
+    51 => "control.speed_bandwidth", num(0, HERTZ), "1..tick rate/10 Hz",
+        "speed filter bandwidth",
+        [int u32, estimator.speed_bandwidth_hz];
+    52 => "control.rest_speed", num(16, RAD_PER_S), "0..50 rad/s",
+        "screw speed below which the screw counts as at rest",
+        [q32 estimator.rest_speed];
+    53 => "stickslip.reaction", Kind::Choice(ChoiceId(6)), "log, warn or speed",
+        "on stick-slip: log it, also warn on the console, or also change to the escape speed",
+        [choice stick_slip.reaction = [Reaction::Log, Reaction::Warn, Reaction::ChangeSpeed]];
+    54 => "stickslip.drop", num(16, NEWTON_METRES), "0.2..50 Nm",
         "smallest fall of the measured screw torque that counts as a slip",
-        q32 stick_slip.drop_threshold),
-    setting!("stickslip.window_ms", num(0, &MILLIS), "100..10000 ms",
-        "slips further apart start a new chain", int u32, stick_slip.window_ms),
-    setting!("stickslip.escape_speed", num(16, &RAD_PER_S), "0.2..20 rad/s",
+        [q32 stick_slip.drop_threshold];
+    55 => "stickslip.window_ms", num(0, MILLIS), "100..10000 ms",
+        "slips further apart start a new chain",
+        [int u32, stick_slip.window_ms];
+    56 => "stickslip.escape_speed", num(16, RAD_PER_S), "0.2..20 rad/s",
         "cruise speed for the rest of a motion after stick-slip (reaction speed)",
-        q32 stick_slip.escape_speed),
-    setting!("ballscrew.r_m", LEN, "2..100 mm",
-        "ball screw: ball-centre circle radius r_m", q32 ball_screw.r_m),
-    setting!("ballscrew.r_b", LEN, "0.5..20 mm",
-        "ball screw: ball radius r_b (less than r_m)", q32 ball_screw.r_b),
-    setting!("ballscrew.contact_angle", num(16, &DEGREES), "20..80 deg",
-        "ball screw: contact angle alpha", q32 ball_screw.contact_angle_deg),
-    setting!("ballscrew.lead", LEN, "0.5..50 mm",
-        "ball screw: lead (nut travel per screw turn)", q32 ball_screw.lead),
-    setting!("ballscrew.balls", num(0, &COUNTS), "1..1000",
-        "ball screw: number of loaded balls M", int u16, ball_screw.loaded_balls),
-    setting!("ballscrew.preload", num(8, &NEWTONS), "0..100 kN",
-        "ball screw: preload F_p", q32 ball_screw.preload),
-    setting!("ballscrew.viscosity", num(32, &PASCAL_SECONDS), "1e-4..10 Pa.s",
-        "ball screw: lubricant dynamic viscosity eta0", q64 ball_screw.viscosity),
-    setting!("ballscrew.f_base", num(28, &RATIO), "0..1",
-        "ball screw f(tau): constant term", q32 ball_screw.law.base),
-    setting!("ballscrew.f_amp", num(28, &RATIO), "-1..1",
-        "ball screw f(tau): exponential amplitude", q32 ball_screw.law.amp),
-    setting!("ballscrew.f_rate", num(32, &NUMBER), "0..1e6",
-        "ball screw f(tau): exponential rate per unit of tau", q64 ball_screw.law.rate),
-    setting!("ballscrew.f_slope", num(32, &NUMBER), "-1000..1000",
-        "ball screw f(tau): slope per unit of tau", q64 ball_screw.law.slope),
-    setting!("ballscrew.f_s_max", Kind::Number { frac: 32, pow10: 0, unit: &NUMBER, none_at_max: true },
-        ">0..1e6", "ball screw f(tau): flat beyond this tau (none: never)", q64 ball_screw.law.s_max),
-    setting!("ballscrew.lube_band", num(28, &RATIO), "0.05..4",
-        "warn when the identified f leaves law*(1 +- band)", q32 lube.band),
-    setting!("ballscrew.ident_min_speed", num(16, &RAD_PER_S), "0.05..20 rad/s",
-        "slowest cruise whose motor current identifies f", q32 lube.min_speed),
-    setting!("ballscrew.no_load_current", num(16, &AMPS), "0..20 A",
+        [q32 stick_slip.escape_speed];
+    57 => "ballscrew.r_m", LEN, "2..100 mm",
+        "ball screw: ball-centre circle radius r_m",
+        [q32 ball_screw.r_m];
+    58 => "ballscrew.r_b", LEN, "0.5..20 mm",
+        "ball screw: ball radius r_b (less than r_m)",
+        [q32 ball_screw.r_b];
+    59 => "ballscrew.contact_angle", num(16, DEGREES), "20..80 deg",
+        "ball screw: contact angle alpha",
+        [q32 ball_screw.contact_angle_deg];
+    60 => "ballscrew.lead", LEN, "0.5..50 mm",
+        "ball screw: lead (nut travel per screw turn)",
+        [q32 ball_screw.lead];
+    61 => "ballscrew.balls", num(0, COUNTS), "1..1000",
+        "ball screw: number of loaded balls M",
+        [int u16, ball_screw.loaded_balls];
+    62 => "ballscrew.preload", num(8, NEWTONS), "0..100 kN",
+        "ball screw: preload F_p",
+        [q32 ball_screw.preload];
+    63 => "ballscrew.viscosity", num(32, PASCAL_SECONDS), "1e-4..10 Pa.s",
+        "ball screw: lubricant dynamic viscosity eta0",
+        [q64 ball_screw.viscosity];
+    64 => "ballscrew.f_base", num(28, RATIO), "0..1",
+        "ball screw f(tau): constant term",
+        [q32 ball_screw.law.base];
+    65 => "ballscrew.f_amp", num(28, RATIO), "-1..1",
+        "ball screw f(tau): exponential amplitude",
+        [q32 ball_screw.law.amp];
+    66 => "ballscrew.f_rate", num(32, NUMBER), "0..1e6",
+        "ball screw f(tau): exponential rate per unit of tau",
+        [q64 ball_screw.law.rate];
+    67 => "ballscrew.f_slope", num(32, NUMBER), "-1000..1000",
+        "ball screw f(tau): slope per unit of tau",
+        [q64 ball_screw.law.slope];
+    68 => "ballscrew.f_s_max", Kind::Number { frac: 32, pow10: 0, unit: NUMBER, none_at_max: true },
+        ">0..1e6", "ball screw f(tau): flat beyond this tau (none: never)",
+        [q64 ball_screw.law.s_max];
+    69 => "ballscrew.lube_band", num(28, RATIO), "0.05..4",
+        "warn when the identified f leaves law*(1 +- band)",
+        [q32 lube.band];
+    70 => "ballscrew.ident_min_speed", num(16, RAD_PER_S), "0.05..20 rad/s",
+        "slowest cruise whose motor current identifies f",
+        [q32 lube.min_speed];
+    71 => "ballscrew.no_load_current", num(16, AMPS), "0..20 A",
         "motor current at cruise speed with the gearbox output free (drive friction)",
-        q32 lube.no_load_current),
-];
+        [q32 lube.no_load_current];
+}
 
 #[cfg(test)]
 mod tests {
@@ -795,6 +825,50 @@ mod tests {
         // 71 fields above, one key each (the ball screw's law variable is fixed), plus the
         // `friction.law` preset selector.
         assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 71);
+    }
+
+    /// The display unit is accepted without an entry: `accepts` repeats none (the messages'
+    /// "(or …)" list relies on it).
+    #[test]
+    fn accepted_suffixes_do_not_repeat_the_display_unit() {
+        for u in UNITS.iter() {
+            for (s, _) in u.accepts {
+                assert!(!s.eq_ignore_ascii_case(u.display), "{}", u.display);
+                assert_eq!(*s, s.to_ascii_lowercase());
+            }
+        }
+    }
+
+    #[test]
+    fn every_setting_accesses_its_own_field() {
+        // Indices written in the registry are the positions (the field accessors are found
+        // by them).
+        for (i, s) in SETTINGS.iter().enumerate() {
+            assert_eq!(usize::from(s.field), i, "{}", s.key);
+        }
+        // Each stored setting's field is its own: changing one leaves every other reading.
+        let c = ControlConfig::DEFAULT;
+        for s in SETTINGS.iter().filter(|s| s.stored) {
+            let raw = s.get(&c);
+            let Some(d) = [raw ^ 1, raw.wrapping_add(2), 0, 1]
+                .into_iter()
+                .find_map(|v| {
+                    let mut d = c;
+                    (v != raw && s.set(&mut d, v)).then_some(d)
+                })
+            else {
+                panic!("{} takes no other value", s.key)
+            };
+            for t in SETTINGS.iter().filter(|t| t.stored) {
+                assert_eq!(
+                    t.get(&d) == t.get(&c),
+                    !core::ptr::eq(s, t),
+                    "{} {}",
+                    s.key,
+                    t.key
+                );
+            }
+        }
     }
 
     #[test]

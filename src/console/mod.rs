@@ -98,18 +98,19 @@ pub enum ParseError<'a> {
 const HEIGHT: Kind = Kind::Number {
     frac: 24,
     pow10: 3,
-    unit: &settings::MILLIMETRES,
+    unit: settings::MILLIMETRES,
     none_at_max: false,
 };
 
-/// Split off the first word (ASCII whitespace separated).
+/// Split off the first word (ASCII whitespace separated; all trimming here is ASCII: a
+/// person's terminal sends no other whitespace, and Unicode's would link its 0.5 KiB table).
 fn word(s: &str) -> (&str, &str) {
-    let s = s.trim_start();
-    match s.find(|c: char| c.is_ascii_whitespace()) {
-        // `split_at_checked`, not `[..i]`: `find` gives a char boundary, and the firmware then
-        // links no slicing panic (whose message formatting costs ≈ 2 KiB of flash).
+    let s = s.trim_ascii_start();
+    match s.bytes().position(|b| b.is_ascii_whitespace()) {
+        // `split_at_checked`, not `[..i]`: an ASCII byte is a char boundary, and the firmware
+        // then links no slicing panic (whose message formatting costs ≈ 2 KiB of flash).
         Some(i) => match s.split_at_checked(i) {
-            Some((w, rest)) => (w, rest.trim_start()),
+            Some((w, rest)) => (w, rest.trim_ascii_start()),
             None => (s, ""),
         },
         None => (s, ""),
@@ -117,7 +118,7 @@ fn word(s: &str) -> (&str, &str) {
 }
 
 fn no_more(rest: &str, r: Request) -> Result<Option<Request>, ParseError<'_>> {
-    let rest = rest.trim();
+    let rest = rest.trim_ascii();
     if rest.is_empty() {
         Ok(Some(r))
     } else {
@@ -142,7 +143,7 @@ pub fn parse(line: &[u8]) -> Result<Option<Request>, ParseError<'_>> {
         return Err(ParseError::TooLong);
     }
     let line = core::str::from_utf8(line).map_err(|_| ParseError::NotText)?;
-    let line = line.trim();
+    let line = line.trim_ascii();
     if line.is_empty() || line.starts_with('#') {
         return Ok(None);
     }
@@ -155,7 +156,7 @@ pub fn parse(line: &[u8]) -> Result<Option<Request>, ParseError<'_>> {
         no_more(rest, Request::Get(id))
     } else if is("set") {
         let (id, rest) = key("set", rest)?;
-        if rest.trim().is_empty() {
+        if rest.is_empty() {
             return Err(ParseError::MissingValue(id));
         }
         let raw =
@@ -221,13 +222,10 @@ fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {
                 out.write_str(" in ")?;
                 out.write_str(unit.display)?;
             }
-            // The ASCII spellings other than the display unit, once each.
+            // The other ASCII spellings, once each (`accepts` has no display unit).
             let mut n = 0;
             for (s, _) in unit.accepts {
-                if s.eq_ignore_ascii_case(unit.display)
-                    || !s.is_ascii()
-                    || s.bytes().any(|b| b == b'*')
-                {
+                if !s.is_ascii() || s.bytes().any(|b| b == b'*') {
                     continue;
                 }
                 out.write_str(if n == 0 { " (or " } else { ", " })?;
@@ -247,49 +245,42 @@ fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {
 
 /// The reply to a line that was not understood.
 pub fn write_parse_error(out: &mut dyn Write, e: &ParseError<'_>) -> fmt::Result {
+    // Shared pieces: the prefix, and the two endings that point to `help`.
+    const COMMANDS: &str = "; type `help` for the commands";
+    const KEYS: &str = "; `help keys` lists them";
+    out.write_str("error: ")?;
     let (template, args): (&str, &[Arg<'_>]) = match e {
-        ParseError::NotText => ("error: line is not text (UTF-8); type `help`", &[]),
+        ParseError::NotText => ("line is not text (UTF-8); type `help`", &[]),
         ParseError::TooLong => (
-            "error: line longer than \x01 characters, ignored; type `help`",
+            "line longer than \x01 characters, ignored; type `help`",
             &[Arg::Uint(MAX_LINE as u32)],
         ),
         ParseError::UnknownCommand(c) => (
-            "error: unknown command '\x01'; type `help` for the commands",
-            &[Arg::Clip(c)],
+            "unknown command '\x01'\x01",
+            &[Arg::Clip(c), Arg::Str(COMMANDS)],
         ),
         ParseError::MissingKey(cmd) => (
-            "error: `\x01` needs a key, e.g. `\x01 limits.upper`; `help keys` lists them",
-            &[Arg::Str(cmd), Arg::Str(cmd)],
+            "`\x01` needs a key, e.g. `\x01 limits.upper`\x01",
+            &[Arg::Str(cmd), Arg::Str(cmd), Arg::Str(KEYS)],
         ),
-        ParseError::UnknownKey(k) => (
-            "error: unknown key '\x01'; `help keys` lists them",
-            &[Arg::Clip(k)],
-        ),
+        ParseError::UnknownKey(k) => ("unknown key '\x01'\x01", &[Arg::Clip(k), Arg::Str(KEYS)]),
         ParseError::MissingValue(id) => {
-            fill(
-                out,
-                "error: `set \x01` needs a value: ",
-                &[Arg::Str(id.key())],
-            )?;
+            fill(out, "`set \x01` needs a value: ", &[Arg::Str(id.key())])?;
             return write_expected(out, *id);
         }
         ParseError::BadValue(id, v) => {
             fill(
                 out,
-                "error: bad value for \x01: \x01; ",
+                "bad value for \x01: \x01; ",
                 &[Arg::Str(id.key()), Arg::Str(v.message())],
             )?;
             return write_expected(out, *id);
         }
         ParseError::BadHeight(v) => (
-            "error: bad height for goto: \x01; expected a length in mm (or m, cm), e.g. \
-             `goto 300mm`",
+            "bad height for goto: \x01; expected a length in mm (or m, cm), e.g. `goto 300mm`",
             &[Arg::Str(v.message())],
         ),
-        ParseError::Trailing(t) => (
-            "error: unexpected '\x01'; type `help` for the commands",
-            &[Arg::Clip(t)],
-        ),
+        ParseError::Trailing(t) => ("unexpected '\x01'\x01", &[Arg::Clip(t), Arg::Str(COMMANDS)]),
     };
     fill(out, template, args)
 }
@@ -367,15 +358,6 @@ fn height_at(cfg: &ValidatedConfig, deg: I16F16) -> Metres {
     let g = &cfg.get().estimator.geometry;
     let (_, sin) = Angle::from_degrees(deg).cos_sin();
     g.h0.sat_add(crate::units::qmul::<Metres, Ratio, Metres>(g.length, sin))
-}
-
-fn write_mm(out: &mut dyn Write, m: Metres) -> fmt::Result {
-    // 0.1 mm is the resolution a person reads heights in.
-    let tenths = (i64::from(m.to_bits()) * 10_000 + (1 << 23)) >> 24;
-    // The whole millimetres (with their sign) and the tenth's digit.
-    text::int(out, tenths / 10)?;
-    out.write_char('.')?;
-    text::uint(out, (tenths % 10).unsigned_abs())
 }
 
 /// "mechanism 133.5..416.4 mm" (α₀ … α_max of the geometry).
@@ -492,21 +474,29 @@ pub struct StatusView {
     pub ball_f: Option<(Ratio, Ratio)>,
 }
 
-/// Fixed-point value with `dec` decimals (rounded), for status lines.
-fn write_fixed(out: &mut dyn Write, bits: i32, frac: u32, dec: u32) -> fmt::Result {
-    let scale = 10i64.pow(dec);
+/// A fixed-point value `bits·2^−frac` rounded to `dec` decimals (ties away from zero), as a
+/// count of `10^−dec` ([`write_decimal`] prints it), for status lines.
+fn fixed_decimal(bits: i32, frac: u32, dec: u32) -> i64 {
+    // dec ≤ 5 in every reply: fits.
+    let scale = value::ten_to(dec).unwrap_or(1) as i64;
     let v = i64::from(bits) * scale;
     let half = 1i64 << (frac - 1);
-    let q = if v >= 0 {
+    if v >= 0 {
         (v + half) >> frac
     } else {
         -((-v + half) >> frac)
-    };
+    }
+}
+
+/// `q·10^−dec` in decimal: the sign, the whole part, and `dec` digits after the point (no
+/// point for 0). Every number of the replies goes through here.
+fn write_decimal(out: &mut dyn Write, q: i64, dec: u32) -> fmt::Result {
     if q < 0 {
         out.write_char('-')?;
     }
     let m = q.unsigned_abs();
-    let s = scale.unsigned_abs();
+    // dec ≤ 5 in every reply: fits.
+    let s = value::ten_to(dec).unwrap_or(1);
     text::uint(out, m / s)?;
     if dec != 0 {
         out.write_char('.')?;
@@ -574,9 +564,9 @@ pub(crate) enum Arg<'a> {
     /// An unsigned integer in decimal.
     Uint(u32),
     /// A fixed-point value: its bits, fractional bits and the decimals shown
-    /// ([`write_fixed`]).
+    /// ([`fixed_decimal`]).
     Fixed(i32, u8, u8),
-    /// A height in mm with one decimal ([`write_mm`]).
+    /// A height in mm with one decimal.
     Mm(Metres),
     /// An integer count of 10^−d units with `d` decimals (`Deci(-5, 1)`: `-0.5`).
     Deci(i32, u8),
@@ -601,25 +591,23 @@ pub(crate) fn fill(out: &mut dyn Write, template: &str, args: &[Arg<'_>]) -> fmt
             return out.write_str(rest);
         };
         out.write_str(piece)?;
-        match args.next() {
-            Some(Arg::Str(t)) => out.write_str(t)?,
-            Some(Arg::Word(t)) => write_word(out, t)?,
-            Some(Arg::Clip(t)) => clip(out, t)?,
-            Some(Arg::Uint(v)) => text::uint(out, u64::from(*v))?,
-            Some(&Arg::Fixed(bits, frac, dec)) => {
-                write_fixed(out, bits, u32::from(frac), u32::from(dec))?
-            }
-            Some(Arg::Mm(m)) => write_mm(out, *m)?,
-            Some(&Arg::Deci(v, d)) => {
-                if v < 0 {
-                    out.write_char('-')?;
-                }
-                let scale = 10u32.pow(u32::from(d));
-                text::uint(out, u64::from(v.unsigned_abs() / scale))?;
-                out.write_char('.')?;
-                text::uint_padded(out, u64::from(v.unsigned_abs() % scale), usize::from(d))?;
-            }
-            None => {}
+        // A number as its count of 10^−dec and dec.
+        let number = match args.next() {
+            Some(Arg::Str(t)) => out.write_str(t).map(|_| None)?,
+            Some(Arg::Word(t)) => write_word(out, t).map(|_| None)?,
+            Some(Arg::Clip(t)) => clip(out, t).map(|_| None)?,
+            Some(&Arg::Uint(v)) => Some((i64::from(v), 0)),
+            Some(&Arg::Fixed(bits, frac, dec)) => Some((
+                fixed_decimal(bits, u32::from(frac), u32::from(dec)),
+                u32::from(dec),
+            )),
+            // 0.1 mm is the resolution a person reads heights in (rounded half up).
+            Some(Arg::Mm(m)) => Some(((i64::from(m.to_bits()) * 10_000 + (1 << 23)) >> 24, 1)),
+            Some(&Arg::Deci(v, d)) => Some((i64::from(v), u32::from(d))),
+            None => None,
+        };
+        if let Some((q, dec)) = number {
+            write_decimal(out, q, dec)?;
         }
         rest = tail.get(1..).unwrap_or("");
     }
@@ -628,7 +616,7 @@ pub(crate) fn fill(out: &mut dyn Write, template: &str, args: &[Arg<'_>]) -> fmt
 /// A name as one `key=value` word: spaces become `-` ("encoder lost" → `encoder-lost`).
 fn write_word(out: &mut dyn Write, name: &str) -> fmt::Result {
     for c in name.chars() {
-        out.write_char(if c.is_whitespace() { '-' } else { c })?;
+        out.write_char(if c.is_ascii_whitespace() { '-' } else { c })?;
     }
     Ok(())
 }
@@ -748,9 +736,13 @@ mod tests {
             }
         }
 
+        /// (Before [`write_decimal`], heights between −1 and 0 mm lost their sign: `-0.3`
+        /// was written `0.3`.)
         pub fn mm(m: Metres) -> String {
             let tenths = (i64::from(m.to_bits()) * 10_000 + (1 << 23)) >> 24;
-            format!("{}.{}", tenths / 10, (tenths % 10).abs())
+            let sign = if tenths < 0 { "-" } else { "" };
+            let t = tenths.unsigned_abs();
+            format!("{sign}{}.{}", t / 10, t % 10)
         }
 
         pub fn word(name: &str) -> String {
@@ -943,6 +935,37 @@ mod tests {
                 )
             );
         }
+    }
+
+    /// Heights keep their sign below one millimetre (they lost it before `write_decimal`).
+    #[test]
+    fn small_negative_heights_keep_their_sign() {
+        let text = |mm: f64| {
+            let mut s = String::new();
+            fill(&mut s, "\x01", &[Arg::Mm(Metres::from_f64(mm / 1000.0))]).unwrap();
+            s
+        };
+        assert_eq!(text(-0.3), "-0.3");
+        assert_eq!(text(-12.34), "-12.3");
+        assert_eq!(text(0.04), "0.0");
+        assert_eq!(text(416.44), "416.4");
+    }
+
+    /// Each choice setting's names (by their id in the registry) are the ones its range
+    /// text lists.
+    #[test]
+    fn choice_names_are_those_of_the_range_text() {
+        let mut n = 0;
+        for id in settings::all() {
+            let s = id.setting();
+            if let Kind::Choice(_) = s.kind {
+                let mut names = String::new();
+                write_unit(&mut names, &s.kind).unwrap();
+                assert_eq!(names, s.range, "{}", s.key);
+                n += 1;
+            }
+        }
+        assert_eq!(n, 7);
     }
 
     /// Host builds have the help lines (`help-text`, turned on by host-sim and liftctl); the

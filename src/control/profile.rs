@@ -274,10 +274,12 @@ impl Profile {
         let step = (self.v + v_new) / 2;
         let p_new = add(self.p, step);
         let remaining = sub(self.target, p_new);
-        // Arrived: the next step would reach or pass the target at a speed the ramp can stop.
+        // Arrived: the next step would reach or pass the target at a speed the ramp can stop
+        // (the speed first: it is false on all but the last ticks of a move).
+        let slow = v_new.unsigned_abs() <= 2 * self.accel as u64;
         if remaining == 0
             || remaining.signum() != dir
-            || (remaining.abs() <= v_new.abs().max(ONE) && v_new.abs() <= 2 * self.accel)
+            || (slow && remaining.unsigned_abs() <= v_new.unsigned_abs().max(ONE as u64))
         {
             self.p = self.target;
             self.v = 0;

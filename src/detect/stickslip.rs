@@ -494,7 +494,7 @@ impl StickSlipDetector {
     }
 
     /// One tick. `law` is the configured friction law (for the branch of μ(θ̇)), the same on
-    /// every call of a detector (the branch test reuses μ worked out on the tick before). Total:
+    /// every call of a detector (the branch test's halves run on two successive ticks). Total:
     /// no panic, no wrap, whatever the inputs.
     #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn step(&mut self, x: &DetectorInputs, law: &CompiledLaw) -> StickSlipOutput {

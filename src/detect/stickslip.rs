@@ -522,7 +522,7 @@ impl StickSlipDetector {
                 .saturating_sub(self.last[0])
                 .saturating_sub(self.last[0].saturating_sub(self.last[1]))
                 .saturating_abs();
-            let cap = self.noise.max(self.threshold / 4).saturating_mul(4);
+            let cap = times4(self.noise.max(self.threshold / 4));
             let d2 = d2.min(cap);
             // 0 ≤ noise, d2 < 2^31: the step stays in i32.
             self.noise = self.noise.saturating_add(
@@ -601,7 +601,13 @@ impl StickSlipDetector {
                     self.out.amplitude = NewtonMetres::from_raw(self.event_drop);
                     self.peak = mean;
                 }
-            } else if drop >= self.threshold.max(self.noise.saturating_mul(NOISE_GAIN)) {
+            } else if drop
+                >= self.threshold.max({
+                    // × NOISE_GAIN: a saturating double is one `QADD`, a saturating multiply ≈ 6.
+                    const { assert!(NOISE_GAIN == 2) };
+                    self.noise.saturating_add(self.noise)
+                })
+            {
                 self.slip();
             }
         }
@@ -652,6 +658,12 @@ impl StickSlipDetector {
     fn ring_mean(&self) -> i32 {
         (self.sum / MEAN_LEN as i64) as i32
     }
+}
+
+/// `x.saturating_mul(4)` as two saturating doubles (two `QADD`s; the same value for every x).
+fn times4(x: i32) -> i32 {
+    let d = x.saturating_add(x);
+    d.saturating_add(d)
 }
 
 /// Whether μ falls with speed at the reference speed: μ(v + Δ) < μ(v), Δ = max(v/4, 0.05 rad/s).
@@ -947,6 +959,32 @@ mod tests {
                 range: "100..10000 ms"
             })
         );
+    }
+
+    #[test]
+    fn times4_is_the_saturating_multiply() {
+        for x in [
+            0,
+            1,
+            -1,
+            7,
+            -9,
+            1 << 28,
+            -(1 << 28),
+            (1 << 29) - 1,
+            1 << 29,
+            -(1 << 29),
+        ]
+        .into_iter()
+        .chain([
+            (1 << 29) + 1,
+            -(1 << 29) - 1,
+            i32::MAX,
+            i32::MIN,
+            i32::MAX / 2,
+        ]) {
+            assert_eq!(times4(x), x.saturating_mul(4), "{x}");
+        }
     }
 
     #[test]

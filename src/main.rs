@@ -354,31 +354,7 @@ async fn control(mut board: Board, mut park: ParkLog) {
         // the reactions `warn` and `speed` as a warning); faults, homing and those stick-slip
         // warnings also to the console.
         if let Some(e) = outputs.event {
-            let notify = match e {
-                Event::Fault(f) => {
-                    error!("FAULT {}", f);
-                    true
-                }
-                Event::StickSlip { reaction, .. } if reaction != Reaction::Log => {
-                    warn!("{}", e);
-                    true
-                }
-                Event::Homed { .. } | Event::SwitchStop => {
-                    info!("{}", e);
-                    true
-                }
-                Event::Lubrication(_) => {
-                    warn!("{}", e);
-                    true
-                }
-                _ => {
-                    info!("{}", e);
-                    false
-                }
-            };
-            if notify && NOTICES.try_send(e).is_err() {
-                warn!("console notice dropped (console behind)");
-            }
+            report_event(e);
         }
         if outputs.bridge != last_bridge {
             info!("bridge {} -> {}", last_bridge, outputs.bridge);
@@ -388,6 +364,38 @@ async fn control(mut board: Board, mut park: ParkLog) {
         if ticks % STATUS_EVERY_TICKS == 0 {
             info!("t={} us {}", now.0, status);
         }
+    }
+}
+
+/// An event of the tick to the defmt log and, for faults, homing and the stick-slip and
+/// lubrication warnings, to the console. Out of line: a tick rarely has an event, and the
+/// logging calls were inlined into the control task's poll (issue 5).
+#[inline(never)]
+fn report_event(e: Event) {
+    let notify = match e {
+        Event::Fault(f) => {
+            error!("FAULT {}", f);
+            true
+        }
+        Event::StickSlip { reaction, .. } if reaction != Reaction::Log => {
+            warn!("{}", e);
+            true
+        }
+        Event::Homed { .. } | Event::SwitchStop => {
+            info!("{}", e);
+            true
+        }
+        Event::Lubrication(_) => {
+            warn!("{}", e);
+            true
+        }
+        _ => {
+            info!("{}", e);
+            false
+        }
+    };
+    if notify && NOTICES.try_send(e).is_err() {
+        warn!("console notice dropped (console behind)");
     }
 }
 

@@ -90,6 +90,10 @@ fn insns(ticks: u32) -> u32 {
     (ticks * 10 + 128) / 256
 }
 
+/// Built with `QEMU_TICK_TRACE` set: every control tick's count on a `TRACE` line (which tick
+/// of a phase is the expensive one).
+const TICK_TRACE: bool = option_env!("QEMU_TICK_TRACE").is_some();
+
 struct Stats {
     prefix: &'static str,
     name: &'static str,
@@ -112,6 +116,9 @@ impl Stats {
     fn push(&mut self, ticks: u32, overhead: u32) {
         if let Some(s) = self.samples.get_mut(self.n) {
             *s = insns(ticks.saturating_sub(overhead));
+            if TICK_TRACE && self.name.starts_with("control.tick") {
+                println!("TRACE {} #{} {}", self.name, self.n, *s);
+            }
             self.n += 1;
         }
     }

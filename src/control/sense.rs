@@ -9,17 +9,21 @@ use crate::units::{Amperes, Volts, Q};
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Adc {
     zero: i32,
-    /// A per code in Q16·2^8 (Q24), so that one `SMULL` and a shift give Q16 amperes.
-    amps_q24: i64,
-    /// V per code in Q24.
-    volts_q24: i64,
+    /// A per code in Q16·2^8 (Q24), so that one `SMULL` and a shift give Q16 amperes: ≤ 2^24
+    /// for a validated scaling (≤ 1 A per code), an i32 (it was an i64: a 64 × 64-bit product
+    /// on every tick).
+    amps_q24: i32,
+    /// V per code in Q24 (≤ 0.1 V per code validated).
+    volts_q24: i32,
 }
 
 impl Adc {
     /// From validated scalings.
     pub fn new(s: &SensingConfig) -> Adc {
         // µ-units per code → Q24 per code: x·2^24/10^6.
-        let q24 = |micro: u32| (i64::from(micro) << 24) / 1_000_000;
+        // (Saturated beyond 128 units per code, far outside the validated ranges.)
+        let q24 =
+            |micro: u32| i32::try_from((i64::from(micro) << 24) / 1_000_000).unwrap_or(i32::MAX);
         Adc {
             zero: i32::from(s.current_zero_code),
             amps_q24: q24(s.current_ua_per_code),
@@ -31,14 +35,14 @@ impl Adc {
     #[inline]
     pub fn current(&self, code: u16) -> Amperes {
         let c = i64::from(i32::from(code.min(4095)) - self.zero);
-        Amperes::from_raw(crate::units::sat32((c * self.amps_q24) >> 8))
+        Amperes::from_raw(crate::units::sat32((c * i64::from(self.amps_q24)) >> 8))
     }
 
     /// Supply voltage for a divider code.
     #[inline]
     pub fn supply(&self, code: u16) -> Volts {
         let c = i64::from(code.min(4095));
-        Volts::from_raw(crate::units::sat32((c * self.volts_q24) >> 8))
+        Volts::from_raw(crate::units::sat32((c * i64::from(self.volts_q24)) >> 8))
     }
 }
 
@@ -138,6 +142,28 @@ mod tests {
         assert!((adc.supply(2820).to_f64() - 12.6).abs() < 5e-3);
         // Out-of-range codes clamp instead of wrapping.
         assert_eq!(adc.current(u16::MAX), adc.current(4095));
+    }
+
+    #[test]
+    fn validated_extreme_scalings_convert_as_with_a_64_bit_scale() {
+        // The i32 scale holds the largest validated scalings (1 A and 0.1 V per code): every
+        // code converts exactly as with the i64 scale it replaced.
+        for (ua, uv, zero) in [(1_000_000, 100_000, 0), (1, 1, 4095), (32_227, 4_468, 2048)] {
+            let s = SensingConfig {
+                current_zero_code: zero,
+                current_ua_per_code: ua,
+                supply_uv_per_code: uv,
+            };
+            let adc = Adc::new(&s);
+            let q24 = |micro: u32| (i64::from(micro) << 24) / 1_000_000;
+            for code in (0..=4095u16).chain([4096, u16::MAX]) {
+                let c = i64::from(code.min(4095));
+                let amps = crate::units::sat32(((c - i64::from(zero)) * q24(ua)) >> 8);
+                let volts = crate::units::sat32((c * q24(uv)) >> 8);
+                assert_eq!(adc.current(code).bits(), amps, "{ua} uA, code {code}");
+                assert_eq!(adc.supply(code).bits(), volts, "{uv} uV, code {code}");
+            }
+        }
     }
 
     #[test]

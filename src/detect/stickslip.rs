@@ -194,10 +194,12 @@ pub struct StickSlipDetector {
     interval: u32,
     chain: u32,
     falling: bool,
-    /// μ at the speed the branch test is expected to see on the next tick, worked out on the
-    /// tick before it (one of the test's two law evaluations moved off its tick); used only if
-    /// the speed is exactly that one.
-    branch_ahead: Option<(RadiansPerSecond, Ratio)>,
+    /// The branch test in halves on the two ticks before the one that arms it, one law
+    /// evaluation each (issue 8: two on one tick put it over budget): on the tick with
+    /// `steady + 2 == settle_ticks` the speed above the reference speed v and μ(v), on the
+    /// next one the answer, used on the next one again.
+    branch_above: (RadiansPerSecond, Ratio),
+    branch_next: bool,
     /// Ticks since the flag last fell in this motion (`u32::MAX`: not yet).
     since_fall: u32,
     /// Fast-periodic test and its run of periodic ticks.
@@ -433,7 +435,10 @@ impl StickSlipDetector {
                 (t * t >> 16).max(1)
             },
             window_ticks: ticks(cfg.window_ms),
-            settle_ticks: ticks(SETTLE_MS),
+            // ≥ MEAN_LEN: the armed path (and its branch test, on the tick with
+            // `steady == settle_ticks`) waits for the mean anyway, and the test's two halves
+            // run on the two ticks before (a tick over 6.25 ms used to skip the test).
+            settle_ticks: ticks(SETTLE_MS).max(MEAN_LEN as u32),
             event_ticks: ticks(EVENT_MS),
             min_hold_ticks: ticks(MIN_HOLD_MS),
             ring: [0; MEAN_LEN],
@@ -450,7 +455,8 @@ impl StickSlipDetector {
             interval: 0,
             chain: 0,
             falling: false,
-            branch_ahead: None,
+            branch_above: (RadiansPerSecond::ZERO, Ratio::ZERO),
+            branch_next: false,
             since_fall: u32::MAX,
             periodicity: Periodicity::new(),
             periodic_run: 0,
@@ -488,7 +494,7 @@ impl StickSlipDetector {
     }
 
     /// One tick. `law` is the configured friction law (for the branch of μ(θ̇)), the same on
-    /// every call of a detector (the branch test reuses μ worked out on the tick before). Total:
+    /// every call of a detector (the branch test's halves run on two successive ticks). Total:
     /// no panic, no wrap, whatever the inputs.
     #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn step(&mut self, x: &DetectorInputs, law: &CompiledLaw) -> StickSlipOutput {
@@ -516,7 +522,7 @@ impl StickSlipDetector {
                 .saturating_sub(self.last[0])
                 .saturating_sub(self.last[0].saturating_sub(self.last[1]))
                 .saturating_abs();
-            let cap = self.noise.max(self.threshold / 4).saturating_mul(4);
+            let cap = times4(self.noise.max(self.threshold / 4));
             let d2 = d2.min(cap);
             // 0 ≤ noise, d2 < 2^31: the step stays in i32.
             self.noise = self.noise.saturating_add(
@@ -531,18 +537,28 @@ impl StickSlipDetector {
 
         let reference = x.reference.to_bits();
         let accel = reference.saturating_sub(self.prev_reference);
-        if reference == 0 || accel.saturating_sub(self.prev_accel).saturating_abs() > ACCEL_TOL {
+        // A motion's first tick starts a steady run at 0 whatever its reference (so a run
+        // passes through every count up to `settle_ticks` on consecutive ticks: the branch
+        // test's halves below).
+        if reference == 0
+            || self.filled == 1
+            || accel.saturating_sub(self.prev_accel).saturating_abs() > ACCEL_TOL
+        {
             self.steady = 0;
         } else {
             self.steady = self.steady.saturating_add(1);
         }
         self.prev_reference = reference;
         self.prev_accel = accel;
-        if self.steady.saturating_add(1) == self.settle_ticks {
-            // The branch test may run on the next tick: μ at the speed it will see if the
-            // reference keeps this tick's step (this tick does not run the armed path below).
-            let v = RadiansPerSecond::from_raw(reference.saturating_add(accel)).sat_abs();
-            self.branch_ahead = Some((v, law.mu(v)));
+        // The branch of μ(θ̇) at this tick's speed, in two halves on this tick and the next
+        // (neither runs the armed path below), used on the one after: the ticks with
+        // `steady` = settle − 2, settle − 1, settle are consecutive steps of one steady run.
+        if self.steady.saturating_add(2) == self.settle_ticks {
+            let v = x.reference.sat_abs();
+            self.branch_above = (v.sat_add(branch_step(v)), law.mu(v));
+        } else if self.steady.saturating_add(1) == self.settle_ticks {
+            let (above, mu_v) = self.branch_above;
+            self.branch_next = law.mu(above) < mu_v;
         }
         if self.steady < self.settle_ticks || self.filled < MEAN_LEN {
             self.peak = mean;
@@ -564,7 +580,8 @@ impl StickSlipDetector {
                 self.raise();
             }
             if self.steady == self.settle_ticks {
-                self.falling = falling_branch_from(law, x.reference, self.branch_ahead.take());
+                // = falling_branch(law, the reference two ticks ago).
+                self.falling = self.branch_next;
                 self.out.falling_branch = self.falling;
             }
             // The peak holds during a slip (no leak) and the slip lasts until the torque has not
@@ -584,7 +601,13 @@ impl StickSlipDetector {
                     self.out.amplitude = NewtonMetres::from_raw(self.event_drop);
                     self.peak = mean;
                 }
-            } else if drop >= self.threshold.max(self.noise.saturating_mul(NOISE_GAIN)) {
+            } else if drop
+                >= self.threshold.max({
+                    // × NOISE_GAIN: a saturating double is one `QADD`, a saturating multiply ≈ 6.
+                    const { assert!(NOISE_GAIN == 2) };
+                    self.noise.saturating_add(self.noise)
+                })
+            {
                 self.slip();
             }
         }
@@ -637,29 +660,25 @@ impl StickSlipDetector {
     }
 }
 
-/// Whether μ falls with speed at the reference speed: μ(v + Δ) < μ(v), Δ = max(v/4, 0.05 rad/s).
-/// Two evaluations of the law, once per steady motion.
-pub fn falling_branch(law: &CompiledLaw, reference: RadiansPerSecond) -> bool {
-    falling_branch_from(law, reference, None)
+/// `x.saturating_mul(4)` as two saturating doubles (two `QADD`s; the same value for every x).
+fn times4(x: i32) -> i32 {
+    let d = x.saturating_add(x);
+    d.saturating_add(d)
 }
 
-/// [`falling_branch`] with `ahead`, a speed and μ there worked out earlier with the same law:
-/// used for μ(v) when the speed is exactly v (one law evaluation, ≈ 85 instructions, instead
-/// of two on the tick that tests); anything else evaluates it. Same result either way.
-fn falling_branch_from(
-    law: &CompiledLaw,
-    reference: RadiansPerSecond,
-    ahead: Option<(RadiansPerSecond, Ratio)>,
-) -> bool {
+/// Whether μ falls with speed at the reference speed: μ(v + Δ) < μ(v), Δ = max(v/4, 0.05 rad/s).
+/// Two evaluations of the law, once per steady motion (the detector splits them over two
+/// ticks: the answer for the speed of the tick two before the one that arms).
+pub fn falling_branch(law: &CompiledLaw, reference: RadiansPerSecond) -> bool {
     let v = reference.sat_abs();
-    let dv = RadiansPerSecond::from_raw(
+    law.mu(v.sat_add(branch_step(v))) < law.mu(v)
+}
+
+/// The branch test's speed step Δ above |v| = `v`.
+fn branch_step(v: RadiansPerSecond) -> RadiansPerSecond {
+    RadiansPerSecond::from_raw(
         (v.to_bits() / 4).max(const { RadiansPerSecond::lit("0.05") }.bits()),
-    );
-    let mu_v = match ahead {
-        Some((at, mu)) if at == v => mu,
-        _ => law.mu(v),
-    };
-    law.mu(v.sat_add(dv)) < mu_v
+    )
 }
 
 #[cfg(test)]
@@ -831,7 +850,10 @@ mod tests {
             self.since = self.since.saturating_add(1);
             self.since_fall = self.since_fall.saturating_add(1);
             let accel = reference - self.prev_ref;
-            if reference == 0.0 || (accel - self.prev_accel).abs() > 2.0 / 65536.0 {
+            if reference == 0.0
+                || self.filled == 1
+                || (accel - self.prev_accel).abs() > 2.0 / 65536.0
+            {
                 self.steady = 0;
             } else {
                 self.steady += 1;
@@ -937,6 +959,32 @@ mod tests {
                 range: "100..10000 ms"
             })
         );
+    }
+
+    #[test]
+    fn times4_is_the_saturating_multiply() {
+        for x in [
+            0,
+            1,
+            -1,
+            7,
+            -9,
+            1 << 28,
+            -(1 << 28),
+            (1 << 29) - 1,
+            1 << 29,
+            -(1 << 29),
+        ]
+        .into_iter()
+        .chain([
+            (1 << 29) + 1,
+            -(1 << 29) - 1,
+            i32::MAX,
+            i32::MIN,
+            i32::MAX / 2,
+        ]) {
+            assert_eq!(times4(x), x.saturating_mul(4), "{x}");
+        }
     }
 
     #[test]
@@ -1237,26 +1285,96 @@ mod tests {
         }
     }
 
+    /// Runs a detector on a reference ramp `r0 + k·step` (rad/s, Q16 raw) with a flat torque
+    /// until it arms (its branch test's tick), and returns its branch answer and the reference
+    /// of every tick; `None` if a zero reference restarts the run.
+    fn branch_on_ramp(
+        l: &CompiledLaw,
+        r0: i32,
+        step: i32,
+        tick_us: u32,
+    ) -> Option<(bool, Vec<i32>)> {
+        let mut d = StickSlipDetector::new(&cfg("1"), tick_us);
+        let mut refs = Vec::new();
+        for k in 0..d.settle_ticks as i32 + 8 {
+            let r = r0.saturating_add(step.saturating_mul(k));
+            if r == 0 {
+                return None;
+            }
+            refs.push(r);
+            let x = DetectorInputs {
+                reference: RadiansPerSecond::from_raw(r),
+                ..drive(NewtonMetres::lit("10"), "1")
+            };
+            let answer = d.step(&x, l).falling_branch;
+            if d.steady == d.settle_ticks {
+                // The armed path ran its branch test on this tick.
+                assert!(d.filled >= MEAN_LEN);
+                return Some((answer, refs));
+            }
+            assert!(
+                !answer,
+                "the answer appears on the arming tick, not before (tick {k})"
+            );
+        }
+        panic!("never armed");
+    }
+
+    #[test]
+    fn the_branch_is_the_speed_two_ticks_before_arming() {
+        // Where a law's branch flips between two speeds a ramp step apart, the detector's
+        // answer is the one of the speed two ticks before it arms (not the arming tick's).
+        // ±0.05 rad/s per tick: the default 60 ms ramp to 3 rad/s and its braking.
+        let mut flips = 0;
+        for (l, step) in [FrictionLaw::DRY, FrictionLaw::PTFE, FrictionLaw::LITHIUM]
+            .into_iter()
+            .flat_map(|l| [(l, 3277), (l, -3277)])
+        {
+            let l = law(l);
+            for v in (3 * 3277..20 << 16).step_by(3277) {
+                let at = |v: i32| falling_branch(&l, RadiansPerSecond::from_raw(v));
+                if at(v) == at(v + 2 * step) {
+                    continue;
+                }
+                for tick_us in [1000, 10_000] {
+                    // The run restarts on its second tick (the reference's first step is r0,
+                    // then `step`): it arms on tick settle + 1, and v is on tick settle − 1.
+                    let settle = (SETTLE_MS * 1000 / tick_us).max(MEAN_LEN as u32) as i32;
+                    let r0 = v - (settle - 1) * step;
+                    if r0 <= 0 || r0 == step {
+                        continue;
+                    }
+                    let (got, refs) = branch_on_ramp(&l, r0, step, tick_us).unwrap();
+                    assert_eq!(refs.len() as i32, settle + 2);
+                    assert_eq!(refs[refs.len() - 3], v);
+                    assert_eq!(got, at(v), "{tick_us} µs, v {v}");
+                    assert_ne!(got, at(v + 2 * step));
+                    flips += 1;
+                }
+            }
+        }
+        assert!(
+            flips > 0,
+            "no flip checked: the test would not see the tick"
+        );
+    }
+
     proptest! {
-        /// The branch test gives the same answer with μ(v) worked out ahead (the speed it
-        /// expected) as without, and ignores μ worked out for another speed.
+        /// On any constant-acceleration reference, the detector's branch answer when it arms
+        /// is `falling_branch` of the reference two ticks before (its halves on those ticks).
         #[test]
-        fn falling_branch_ahead_is_the_same_test(
-            reference in -2_000_000i32..2_000_000,
-            other in -2_000_000i32..2_000_000,
-            junk in -(1i32 << 29)..(1i32 << 29),
+        fn the_branch_test_in_halves_is_falling_branch(
+            r0 in -2_000_000i32..2_000_000,
+            step in -20_000i32..20_000,
+            tick_us in 100u32..=10_000,
         ) {
             for l in [FrictionLaw::DRY, FrictionLaw::PTFE, FrictionLaw::LITHIUM] {
-                let law = law(l);
-                let r = RadiansPerSecond::from_raw(reference);
-                let v = r.sat_abs();
-                let plain = falling_branch(&law, r);
-                prop_assert_eq!(falling_branch_from(&law, r, Some((v, law.mu(v)))), plain);
-                let o = RadiansPerSecond::from_raw(other).sat_abs();
-                if o != v {
-                    let ahead = Some((o, Ratio::from_raw(junk)));
-                    prop_assert_eq!(falling_branch_from(&law, r, ahead), plain);
-                }
+                let l = law(l);
+                let Some((got, refs)) = branch_on_ramp(&l, r0, step, tick_us) else {
+                    continue; // the run restarts on a zero reference
+                };
+                let want = falling_branch(&l, RadiansPerSecond::from_raw(refs[refs.len() - 3]));
+                prop_assert_eq!(got, want);
             }
         }
     }

@@ -18,10 +18,10 @@
 use core::hint::black_box;
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::entry;
-use liftfw::estimator::{Estimator, EstimatorConfig, Measurements};
 use liftfw::control::config::{ControlConfig, RampShape};
 use liftfw::control::profile::Profile;
 use liftfw::control::{Command, Controller, Inputs, State, Switches};
+use liftfw::estimator::{Estimator, EstimatorConfig, Measurements};
 use liftfw::math::{
     exp_neg_q16, first_quadrant_angle, recip_q16_fast, recip_q30, sqrt_q30, sqrt_rsqrt_q30,
 };
@@ -136,6 +136,10 @@ impl Stats {
             self.prefix, self.name, self.n, min, median, mean, max
         );
         median
+    }
+    /// The largest sample (after [`Self::report`] sorted them).
+    fn max(&self) -> u32 {
+        self.samples[..self.n].iter().copied().max().unwrap_or(0)
     }
 }
 
@@ -289,7 +293,10 @@ fn count_instructions() {
             }),
             overhead,
         );
-        p_cx.push(ticks(pose.cos_alpha, |c| geo.structure_damping(c)), overhead);
+        p_cx.push(
+            ticks(pose.cos_alpha, |c| geo.structure_damping(c)),
+            overhead,
+        );
         p_mu.push(ticks(w, |w| law.mu(w)), overhead);
         let mu = law.mu(w);
         let (r, f0) = geo.axial_and_pin(&pose, weight);
@@ -311,7 +318,9 @@ fn count_instructions() {
             overhead,
         );
         p_req.push(
-            ticks((w, a, contact), |(w, a, c)| screw.required_torque(w, a, 1, &c)),
+            ticks((w, a, contact), |(w, a, c)| {
+                screw.required_torque(w, a, 1, &c)
+            }),
             overhead,
         );
         let v = (k as u32) << 22 | 0x1234;
@@ -319,7 +328,10 @@ fn count_instructions() {
         p_rsqrt.push(ticks(v, sqrt_rsqrt_q30), overhead);
         p_angle.push(
             ticks(
-                ((pose.cos_alpha.to_bits() as u32) << 3, (pose.sin_alpha.to_bits() as u32) << 3),
+                (
+                    (pose.cos_alpha.to_bits() as u32) << 3,
+                    (pose.sin_alpha.to_bits() as u32) << 3,
+                ),
                 |(c, s)| first_quadrant_angle(c, s),
             ),
             overhead,
@@ -365,7 +377,11 @@ fn count_instructions() {
     let mut s_det = Stats::new("stickslip.step fixed");
     for k in 0..N {
         let ph = (k % 53) as i32;
-        let torque = if ph < 50 { 25 + ph } else { 75 - 16 * (ph - 49) };
+        let torque = if ph < 50 {
+            25 + ph
+        } else {
+            75 - 16 * (ph - 49)
+        };
         let x = liftfw::detect::stickslip::DetectorInputs {
             driving: true,
             direction: 1,
@@ -385,7 +401,10 @@ fn count_instructions() {
         let count = (x / 10_000) as i32;
         let age = ((x % 10_000) * 1000 / 917) as u16;
         let now = liftfw::units::Instant(k as u32 * 1000);
-        s_edges.push(ticks((now, count, age), |a| edges.update(a.0, a.1, a.2)), overhead);
+        s_edges.push(
+            ticks((now, count, age), |a| edges.update(a.0, a.1, a.2)),
+            overhead,
+        );
     }
     s_edges.report();
 
@@ -488,6 +507,7 @@ fn count_control(overhead: u32) {
         braking.push(ticks(&inp, |i| c.step(now, i)), overhead);
     }
     braking.report();
+    let mut worst = tick_all.max().max(braking.max());
     println!(
         "ICOUNT-STATE after the lift motion: {} (fault: {:?})",
         c.state().name(),
@@ -504,11 +524,19 @@ fn count_control(overhead: u32) {
             );
         }
         st.report();
+        worst = worst.max(st.max());
     }
     println!(
         "ICOUNT-GOAL control.tick at cruise median {} (goal <= 2000: {})",
         cruise_median,
         if cruise_median <= 2000 { "met" } else { "OVER" }
+    );
+    // Issue 8's budget holds for every tick, not only the typical one: the worst tick of the
+    // ramp, cruise, braking, settling and idle runs above.
+    println!(
+        "ICOUNT-GOAL control.tick every tick max {} (goal <= 2000: {})",
+        worst,
+        if worst <= 2000 { "met" } else { "OVER" }
     );
 
     // Console: one line each.

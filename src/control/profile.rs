@@ -179,7 +179,10 @@ impl Profile {
         let v = self.v.unsigned_abs() as i128;
         // v²/(2a) + v/2 (the discrete ramp covers half a step more than the continuous one).
         // (Once per stop: the shared 128-bit division, see `cruise_room`.)
-        let dist = (crate::math::div128(v * v, 2 * self.accel.max(1) as i128) + v / 2) as i64;
+        // Saturated, not cast: with an absurd acceleration (a few Q32 LSB per tick²) the
+        // distance exceeds i64 and a cast would wrap it to a target behind the head.
+        let dist = i64::try_from(crate::math::div128(v * v, 2 * self.accel.max(1) as i128) + v / 2)
+            .unwrap_or(i64::MAX);
         self.target = self.p.saturating_add(dist * self.v.signum());
         self.done = false;
     }
@@ -331,6 +334,21 @@ impl Profile {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `stop` at the fastest reference the planner allows with the smallest acceleration: the
+    /// braking distance (≈ 2^75 Q32 counts) does not fit i64 and must saturate ahead of the
+    /// head in the direction of motion (a cast wrapped it).
+    #[test]
+    fn stop_distance_saturates_instead_of_wrapping() {
+        for sign in [1i64, -1] {
+            let mut p = Profile::new(0, 64 * ONE, 2, RampShape::Trapezoid);
+            p.v = sign * 64 * ONE;
+            p.accel = 1;
+            p.stop();
+            assert_eq!(p.target.signum(), sign, "target {} for v {}", p.target, p.v);
+            assert!(p.target.unsigned_abs() >= (i64::MAX as u64) / 2);
+        }
+    }
 
     fn run(shape: RampShape, from: i32, to: i32, cruise: f64, ramp: u32) -> Vec<Reference> {
         let mut p = Profile::new(from, (cruise * ONE as f64) as i64, ramp, shape);

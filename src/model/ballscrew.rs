@@ -152,7 +152,8 @@ impl BallScrewConfig {
         let arm_scale = Scale::from_ratio(num52, sa << 16);
         // Lever l/(2π): F (Q8) → N·m (Q16) is ×lever·2^8 = lead/(2^16·2π).
         let lever_scale = Scale::from_ratio(lead << 60, TWO_PI_Q60 << 16);
-        let lever_q24 = (lead << 60) / TWO_PI_Q60;
+        // Through the one out-of-line `div128` (an inline `/` on i128 is a 0.6 KiB loop here).
+        let lever_q24 = crate::math::div128(lead << 60, TWO_PI_Q60);
         // Helix angle β: cos β = 2π r_m / √((2π r_m)² + l²), lengths in Q32 (≤ 0.63 m).
         let circ = (rm * TWO_PI_Q60) >> 52;
         let l32 = lead << 8;
@@ -162,7 +163,8 @@ impl BallScrewConfig {
         // τ (Q28) = η₀·r_m·M·sin α·cos β · |θ̇| / F: numerator constant c (N·s), |θ̇| in Q16,
         // F in Q8 → τ_bits = c·2^20·θ̇_bits / F_bits, c·2^20 = η(Q32)·r_m(Q24)·M·(sa_cb)(Q28)/2^64.
         let eta = i128::from(self.viscosity.to_bits());
-        let tau_num = eta * rm * i128::from(self.loaded_balls) * sa_cb;
+        let mul = crate::math::mul128;
+        let tau_num = mul(mul(eta * rm, i128::from(self.loaded_balls)), sa_cb);
         let tau_scale = Scale::from_ratio(tau_num, 1i128 << 64);
         Ok(BallScrew {
             preload: self.preload,

@@ -72,10 +72,21 @@ macro_rules! quantity {
             pub const fn to_bits(self) -> i32 {
                 self.0.to_bits()
             }
-            /// From an integer number of units, saturating.
+            /// From an integer number of units, saturating (like `saturating_from_num`, but
+            /// a `const fn` of shifts and compares: a constant argument folds away instead of
+            /// calling `fixed`'s generic conversion at run time).
             #[inline]
-            pub fn from_int(v: i32) -> Self {
-                Self(<$repr>::saturating_from_num(v))
+            pub const fn from_int(v: i32) -> Self {
+                // Every Q format here has at most 28 fractional bits: v·2^frac fits in i64.
+                let wide = (v as i64) << <$repr>::FRAC_NBITS;
+                let bits = if wide > i32::MAX as i64 {
+                    i32::MAX
+                } else if wide < i32::MIN as i64 {
+                    i32::MIN
+                } else {
+                    wide as i32
+                };
+                Self(<$repr>::from_bits(bits))
             }
             /// Saturating sum.
             #[inline]
@@ -230,7 +241,8 @@ impl Angle {
             (x, 1)
         };
         // a·b/2^60 for |a|, |b| ≤ 2^61: the result is below 2^62.
-        let mul = |a: i64, b: i64| (i128::from(a) * i128::from(b) >> 60) as i64;
+        // Through the one out-of-line `mul128` (three inline 64×64-bit products cost more).
+        let mul = |a: i64, b: i64| (crate::math::mul128(i128::from(a), i128::from(b)) >> 60) as i64;
         let one: i64 = 1 << 60;
         let (mut c, mut s) = (one, x);
         let (mut tc, mut ts) = (one, x);
@@ -367,6 +379,40 @@ mod tests {
         ] {
             let want = v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
             assert_eq!(sat32(v), want, "{v}");
+        }
+    }
+
+    /// `from_int` (a `const fn`) is `fixed`'s `saturating_from_num` for every Q format.
+    #[test]
+    fn from_int_is_saturating_from_num() {
+        let vs = [
+            i32::MIN,
+            -70_000,
+            -32_769,
+            -2049,
+            -8,
+            -1,
+            0,
+            1,
+            7,
+            8,
+            2047,
+            2048,
+            32_767,
+            32_768,
+            8_388_608,
+            i32::MAX,
+        ];
+        for v in vs {
+            assert_eq!(Ratio::from_int(v).0, I4F28::saturating_from_num(v), "{v}");
+            assert_eq!(Factor::from_int(v).0, I16F16::saturating_from_num(v), "{v}");
+            assert_eq!(Metres::from_int(v).0, I8F24::saturating_from_num(v), "{v}");
+            assert_eq!(Newtons::from_int(v).0, I24F8::saturating_from_num(v), "{v}");
+            assert_eq!(
+                Kilograms::from_int(v).0,
+                I20F12::saturating_from_num(v),
+                "{v}"
+            );
         }
     }
 

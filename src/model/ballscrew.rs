@@ -121,23 +121,17 @@ impl BallScrewConfig {
         }
         // The law's r_m/cos λ only matter for sliding-speed laws: any valid values do. Its
         // refusals name the `ballscrew.f_*` keys (the law's own name the estimator's).
-        let law = self
-            .law
-            .compile(self.r_m, Ratio::ONE)
-            .map_err(|e| match e {
-                ConfigError::OutOfRange { field, range } => ConfigError::OutOfRange {
-                    field: match field {
-                        "friction.base" => "ballscrew.f_base",
-                        "friction.amp" => "ballscrew.f_amp",
-                        "friction.rate" => "ballscrew.f_rate",
-                        "friction.slope" => "ballscrew.f_slope",
-                        "friction.s_max" => "ballscrew.f_s_max",
-                        other => other,
-                    },
-                    range,
-                },
-                other => other,
-            })?;
+        let law = self.law.compile_keyed(
+            self.r_m,
+            Ratio::ONE,
+            &[
+                "ballscrew.f_base",
+                "ballscrew.f_amp",
+                "ballscrew.f_rate",
+                "ballscrew.f_slope",
+                "ballscrew.f_s_max",
+            ],
+        )?;
 
         // Design in integers (no floating point linked into the firmware): lengths in Q24,
         // cos α and sin α in Q28, rationals in i128, quantised once by `Scale::from_ratio`.

@@ -83,23 +83,37 @@ impl FrictionLaw {
     };
 
     /// Validate and compile for a screw of pitch radius `r_m` and lead angle cosine `cos_lambda`.
+    /// Refusals name the `friction.*` keys.
     pub fn compile(&self, r_m: Metres, cos_lambda: Ratio) -> Result<CompiledLaw, ConfigError> {
+        self.compile_keyed(r_m, cos_lambda, &FRICTION_KEYS)
+    }
+
+    /// [`FrictionLaw::compile`] with the refusals naming `keys` (base, amp, rate, slope,
+    /// s_max): the ball screw's law is the same shape under its `ballscrew.f_*` keys (a key
+    /// table instead of renaming the refusal by string compares afterwards).
+    #[inline(never)]
+    pub(crate) fn compile_keyed(
+        &self,
+        r_m: Metres,
+        cos_lambda: Ratio,
+        keys: &[&'static str; 5],
+    ) -> Result<CompiledLaw, ConfigError> {
         let in_range = |v: I32F32, lo: I32F32, hi: I32F32| v >= lo && v <= hi;
         if !(self.base >= Ratio::ZERO && self.base <= Ratio::ONE) {
             return Err(ConfigError::OutOfRange {
-                field: "friction.base",
+                field: keys[0],
                 range: "0..1",
             });
         }
         if !(self.amp >= Ratio::ONE.sat_neg() && self.amp <= Ratio::ONE) {
             return Err(ConfigError::OutOfRange {
-                field: "friction.amp",
+                field: keys[1],
                 range: "-1..1",
             });
         }
         if !in_range(self.rate, I32F32::ZERO, const { I32F32::lit("1000000") }) {
             return Err(ConfigError::OutOfRange {
-                field: "friction.rate",
+                field: keys[2],
                 range: "0..1e6",
             });
         }
@@ -109,7 +123,7 @@ impl FrictionLaw {
             const { I32F32::lit("1000") },
         ) {
             return Err(ConfigError::OutOfRange {
-                field: "friction.slope",
+                field: keys[3],
                 range: "-1000..1000",
             });
         }
@@ -119,7 +133,7 @@ impl FrictionLaw {
             || (self.s_max > const { I32F32::lit("1000000") } && self.s_max != I32F32::MAX)
         {
             return Err(ConfigError::OutOfRange {
-                field: "friction.s_max",
+                field: keys[4],
                 range: ">0..1e6",
             });
         }
@@ -164,6 +178,15 @@ impl FrictionLaw {
         })
     }
 }
+
+/// The estimator's law's keys, in [`FrictionLaw::compile_keyed`]'s order.
+pub(crate) const FRICTION_KEYS: [&str; 5] = [
+    "friction.base",
+    "friction.amp",
+    "friction.rate",
+    "friction.slope",
+    "friction.s_max",
+];
 
 /// A law with its variable folded into the constants: evaluated from raw input bits.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

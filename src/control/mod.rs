@@ -437,20 +437,7 @@ impl Controller {
         let est = Estimator::new(&cfg.estimator)?;
         let ball_screw = cfg.ball_screw.compile()?;
         let geometry = est.geometry();
-        cfg.validate(geometry)?;
-        // `validate` checked these heights against the geometry already; a refusal here
-        // would only name the field.
-        let counts = |h: Metres, field: &'static str| {
-            geometry
-                .counts_for_height(h)
-                .ok_or(ConfigError::OutOfRange {
-                    field,
-                    range: "the mechanism's height range (see `limits`)",
-                })
-        };
-        let lower_counts = counts(cfg.limits.lower, "limits.lower")?;
-        let upper_counts = counts(cfg.limits.upper, "limits.upper")?;
-        let switch_counts = counts(cfg.limits.switch_lower, "limits.switch_lower")?;
+        let (lower_counts, upper_counts, switch_counts) = cfg.validate_limit_counts(geometry)?;
         let tick_us = cfg.estimator.tick_us;
         let tick_hz = i128::from(1_000_000 / tick_us);
         let rad_per_count = geometry.screw_rad_per_count(); // counts → Q16 rad

@@ -137,6 +137,40 @@ async fn main(spawner: Spawner) {
     spawn_tasks(spawner, board, console, boot, parked);
 }
 
+/// A HAL error for the defmt log. embassy-stm32 is built without its `defmt` feature: with
+/// it, each of the HAL's internal assertions and unwraps logged a message of its own before
+/// panicking (1.4 KiB of flash); without it they panic like the core does (a HardFault on
+/// `scripts/fw-build`'s default route, panic-probe's message with `FW_PANIC=handler`). The two
+/// HAL errors the firmware logs are named here instead of by the HAL's derive.
+struct HalError<E>(E);
+
+impl defmt::Format for HalError<usart::Error> {
+    fn format(&self, f: defmt::Formatter) {
+        match self.0 {
+            usart::Error::Framing => defmt::write!(f, "Framing"),
+            usart::Error::Noise => defmt::write!(f, "Noise"),
+            usart::Error::Overrun => defmt::write!(f, "Overrun"),
+            usart::Error::Parity => defmt::write!(f, "Parity"),
+            usart::Error::BufferTooLong => defmt::write!(f, "BufferTooLong"),
+            _ => defmt::write!(f, "unknown"),
+        }
+    }
+}
+
+impl defmt::Format for HalError<usart::ConfigError> {
+    fn format(&self, f: defmt::Formatter) {
+        match self.0 {
+            usart::ConfigError::BaudrateTooLow => defmt::write!(f, "BaudrateTooLow"),
+            usart::ConfigError::BaudrateTooHigh => defmt::write!(f, "BaudrateTooHigh"),
+            usart::ConfigError::RxOrTxNotEnabled => defmt::write!(f, "RxOrTxNotEnabled"),
+            usart::ConfigError::DataParityNotSupported => {
+                defmt::write!(f, "DataParityNotSupported")
+            }
+            _ => defmt::write!(f, "unknown"),
+        }
+    }
+}
+
 /// Clocks, the board's pins and peripherals (the bridge coasting), and whether the watchdog
 /// caused the last reset.
 #[inline(never)]
@@ -509,7 +543,7 @@ async fn console_task(
     ) {
         Ok(uart) => uart,
         Err(e) => {
-            warn!("console disabled: USART2 config rejected: {}", e);
+            warn!("console disabled: USART2 config rejected: {}", HalError(e));
             return;
         }
     };

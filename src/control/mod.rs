@@ -325,6 +325,14 @@ const BRAKE_AMPS: i32 = 30;
 /// Overload monitoring starts this long after a motion starts (breakaway, winding the coupling).
 const OVERLOAD_HOLDOFF_MS: u32 = 250;
 
+/// `ms` milliseconds in ticks of `tick_us` µs, rounded down: `ms·1000/tick_us`, the product
+/// saturated. One out-of-line copy for every configured duration (the constructors converted
+/// eighteen of them inline).
+#[inline(never)]
+pub(crate) fn ms_to_ticks(ms: u32, tick_us: u32) -> u32 {
+    ms.saturating_mul(1000) / tick_us.max(1)
+}
+
 /// The supervisor's durations in control ticks.
 #[derive(Clone, Copy, Debug)]
 struct TickCounts {
@@ -338,7 +346,7 @@ struct TickCounts {
 
 impl TickCounts {
     fn new(tick_us: u32, ramp_ms: u32) -> TickCounts {
-        let t = |ms: u32| ms.saturating_mul(1000) / tick_us.max(1);
+        let t = |ms: u32| ms_to_ticks(ms, tick_us);
         TickCounts {
             overload_holdoff: t(OVERLOAD_HOLDOFF_MS).saturating_add(t(ramp_ms)),
             settle: t(SETTLE_MS),
@@ -460,7 +468,7 @@ impl Controller {
         };
         let cruise_q32 = per_tick_q32(cfg.motion.cruise_speed);
         let escape_q32 = per_tick_q32(cfg.stick_slip.escape_speed);
-        let ramp_ticks = cfg.motion.ramp_ms.saturating_mul(1000) / tick_us;
+        let ramp_ticks = ms_to_ticks(cfg.motion.ramp_ms, tick_us);
         let gear_ratio = cfg.estimator.drive.gear_ratio;
         let counts_per_motor_rad_q16 = div128(
             i128::from(counts_per_rad_q16) << 16,
@@ -483,7 +491,7 @@ impl Controller {
             tick_us,
         );
         let inv_ke_n = Ratio::from_raw(sat32((1i64 << 44) / i64::from(gains.ke_n.bits().max(1))));
-        let debounce_ticks = (DEBOUNCE_MS * 1000 / tick_us).max(1) as u16;
+        let debounce_ticks = ms_to_ticks(DEBOUNCE_MS, tick_us).max(1) as u16;
         Ok(Controller {
             cfg: *cfg,
             est,

@@ -53,6 +53,14 @@ pub fn mul128(a: i128, b: i128) -> i128 {
     a * b
 }
 
+/// `v << n` like `<<` on `i128` (`n < 128`), out of line: a shift by a run-time amount is a
+/// dozen instructions and two or three runtime calls on this core, so the configuration-time
+/// code shifts through this one copy (constant shifts stay inline). Not for the tick path.
+#[inline(never)]
+pub fn shl128(v: i128, n: u32) -> i128 {
+    v << n
+}
+
 /// `n / d` truncated toward zero like `/` on `i128` (`d = 0` gives 0, `i128::MIN / −1` wraps),
 /// through the one [`udiv128`].
 #[inline]

@@ -452,7 +452,8 @@ impl Controller {
         let speed_scale = rad_per_count.times(tick_hz, 1 << 16);
         // counts per screw rad (Q16) = 2^32 / rad_per_count(Q16 value).
         let (mant, shift) = rad_per_count.parts();
-        let counts_per_rad_q16 = div128(1i128 << (32 + shift), i128::from(mant.max(1))) as i64;
+        let counts_per_rad_q16 =
+            div128(crate::math::shl128(1, 32 + shift), i128::from(mant.max(1))) as i64;
         // Twist counts = T/k · counts/rad: from Q16 N·m.
         let k = i128::from(cfg.estimator.mechanics.coupling_stiffness.bits()); // Q16
         let twist_scale = Scale::from_ratio(i128::from(counts_per_rad_q16), k << 16);

@@ -152,16 +152,17 @@ impl FrictionLaw {
         // y (Q16) = rate·s = rate(Q32)·k·in_bits/2^in_frac → scale = rate·k·2^16/2^(32+in_frac).
         let rate = i128::from(self.rate.to_bits());
         let mul = crate::math::mul128;
-        let exp_scale = Scale::from_ratio(mul(rate, k_num), k_den << (16 + in_frac));
+        let shl = crate::math::shl128;
+        let exp_scale = Scale::from_ratio(mul(rate, k_num), shl(k_den, 16 + in_frac));
         // μ (Q28) = slope·s → scale = slope(Q32)·k·2^28/2^(32+in_frac).
         let slope = i128::from(self.slope.to_bits());
-        let lin_scale = Scale::from_ratio(mul(slope, k_num), k_den << (4 + in_frac));
+        let lin_scale = Scale::from_ratio(mul(slope, k_num), shl(k_den, 4 + in_frac));
         // s_max in input bits = s_max(Q32)/k·2^in_frac/2^32.
         let smax = i128::from(self.s_max.to_bits());
         let in_max = if self.s_max == I32F32::MAX {
             u32::MAX
         } else {
-            let v = crate::math::div128(mul(smax, k_den) << in_frac, k_num << 32);
+            let v = crate::math::div128(shl(mul(smax, k_den), in_frac), k_num << 32);
             if v > i128::from(u32::MAX) {
                 u32::MAX
             } else {

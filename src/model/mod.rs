@@ -115,7 +115,7 @@ impl Scale {
     pub fn times(self, num: i128, den: i128) -> Scale {
         Scale::from_ratio(
             crate::math::mul128(i128::from(self.mant), num),
-            den << self.shift,
+            crate::math::shl128(den, self.shift),
         )
     }
 

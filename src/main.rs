@@ -23,7 +23,7 @@ use board::{Board, ConsolePins, CONSOLE_BAUD, STORE_RANGE};
 use core::cell::RefCell;
 use core::mem::MaybeUninit;
 use defmt::{error, info, warn};
-use embassy_executor::Spawner;
+use embassy_executor::{SpawnError, SpawnToken, Spawner};
 use embassy_futures::select::{select, Either};
 use embassy_stm32::flash::{Blocking, Flash};
 use embassy_stm32::peripherals::FLASH;
@@ -275,16 +275,28 @@ fn spawn_tasks(
     );
     let store_ok = boot.store.is_some();
     if let Some(store) = boot.store {
-        spawner.spawn(defmt::unwrap!(storage(store)));
+        spawner.spawn(token(storage(store)));
     }
     let park = ParkLog::new(parked.map(Parked::At));
-    spawner.spawn(defmt::unwrap!(control(board, park)));
-    spawner.spawn(defmt::unwrap!(console_task(
+    spawner.spawn(token(control(board, park)));
+    spawner.spawn(token(console_task(
         console,
         boot.config,
         boot.source,
-        store_ok
+        store_ok,
     )));
+}
+
+/// A task's spawn token. Each task is spawned once, into a pool of one, so this cannot fail;
+/// if it did, it panics plainly (a HardFault on `scripts/fw-build`'s default route, the
+/// message through panic-probe with `FW_PANIC=handler`) rather than through `defmt::unwrap!`'s
+/// own message (≈ 30 B of flash per spawn).
+#[inline(always)]
+fn token<S>(spawned: Result<SpawnToken<S>, SpawnError>) -> SpawnToken<S> {
+    match spawned {
+        Ok(token) => token,
+        Err(_) => panic!("task spawned twice"),
+    }
 }
 
 /// Builds the controller in [`CONTROLLER`] from the running configuration (the factory one if

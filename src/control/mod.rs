@@ -458,12 +458,10 @@ impl Controller {
         let k = i128::from(cfg.estimator.mechanics.coupling_stiffness.bits()); // Q16
         let twist_scale = Scale::from_ratio(i128::from(counts_per_rad_q16), k << 16);
         // Cruise: rad/s → Q32 counts/tick = ω·counts/rad·T·2^32.
+        let counts_per_rad_tick = i128::from(counts_per_rad_q16) * i128::from(tick_us);
         let per_tick_q32 = |speed: RadiansPerSecond| {
             div128(
-                crate::math::mul128(
-                    i128::from(speed.bits()),
-                    i128::from(counts_per_rad_q16) * i128::from(tick_us),
-                ),
+                crate::math::mul128(i128::from(speed.bits()), counts_per_rad_tick),
                 1_000_000,
             ) as i64
         };

@@ -49,7 +49,10 @@ fn preset_law_is_seed_002_eq_3() {
 fn law_refusals_name_the_ball_screw_keys() {
     use fixed::types::I32F32;
     use liftfw::ConfigError;
-    let bad = |f: fn(&mut liftfw::model::friction::FrictionLaw)| {
+    type Law = liftfw::model::friction::FrictionLaw;
+    /// A change that puts one term of the law out of its range, its key suffix and range.
+    type Case = (fn(&mut Law), &'static str, &'static str);
+    let bad = |f: fn(&mut Law)| {
         let mut c = BallScrewConfig::SEED_001_4008;
         f(&mut c.law);
         let e = c.compile().unwrap_err();
@@ -62,7 +65,7 @@ fn law_refusals_name_the_ball_screw_keys() {
                 .unwrap_err(),
         )
     };
-    let cases: [(fn(&mut liftfw::model::friction::FrictionLaw), &str, &str); 5] = [
+    let cases: [Case; 5] = [
         (|l| l.base = Ratio::lit("1.5"), "f_base", "0..1"),
         (|l| l.amp = Ratio::lit("-1.5"), "f_amp", "-1..1"),
         (|l| l.rate = I32F32::lit("-1"), "f_rate", "0..1e6"),

@@ -258,6 +258,11 @@ fn trusted_position(boot: &Boot) -> Option<i32> {
     parked
 }
 
+/// The board, for the control task: a task argument with drop glue (the HAL's drivers reset
+/// their peripherals when dropped) costs its whole destructor in flash for the spawn's
+/// failure path (which cannot happen: see [`token`]); a reference has none.
+static BOARD: StaticCell<Board> = StaticCell::new();
+
 /// Spawns the tasks (each spawn builds the task's future on this frame and copies it into
 /// the task's storage).
 #[inline(never)]
@@ -278,7 +283,7 @@ fn spawn_tasks(
         spawner.spawn(token(storage(store)));
     }
     let park = ParkLog::new(parked.map(Parked::At));
-    spawner.spawn(token(control(board, park)));
+    spawner.spawn(token(control(BOARD.init(board), park)));
     spawner.spawn(token(console_task(
         console,
         boot.config,
@@ -351,7 +356,7 @@ fn construct_unhomed<'a>(
 /// `Ticker` keeps its schedule and runs the missed ticks back to back; each one passes the
 /// real `now`, so the core sees the short intervals as they are.
 #[embassy_executor::task]
-async fn control(mut board: Board, mut park: ParkLog) {
+async fn control(board: &'static mut Board, mut park: ParkLog) {
     let mut ticker = Ticker::every(Duration::from_hz(CONTROL_HZ));
     let mut last_bridge = Bridge::Coast;
     let mut ticks: u32 = 0;

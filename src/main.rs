@@ -171,15 +171,15 @@ impl defmt::Format for HalError<usart::ConfigError> {
     }
 }
 
-/// Clocks, the board's pins and peripherals (the bridge coasting), and whether the watchdog
-/// caused the last reset.
+/// Clocks, the board's pins and peripherals (the bridge coasting; the board in [`BOARD`],
+/// where it stays), and whether the watchdog caused the last reset.
 #[inline(never)]
-fn bring_up() -> (Board, ConsolePins, Peri<'static, FLASH>, bool) {
+fn bring_up() -> (&'static mut Board, ConsolePins, Peri<'static, FLASH>, bool) {
     let p = embassy_stm32::init(board::clock_config());
     info!("liftfw {} booting", env!("CARGO_PKG_VERSION"));
     let watchdog_reset = board::Watchdog::caused_last_reset();
     let (board, console, flash) = Board::new(p);
-    (board, console, flash, watchdog_reset)
+    (BOARD.init(board), console, flash, watchdog_reset)
 }
 
 /// The configuration store, for the storage task (a static rather than in the task's
@@ -258,9 +258,10 @@ fn trusted_position(boot: &Boot) -> Option<i32> {
     parked
 }
 
-/// The board, for the control task: a task argument with drop glue (the HAL's drivers reset
-/// their peripherals when dropped) costs its whole destructor in flash for the spawn's
-/// failure path (which cannot happen: see [`token`]); a reference has none.
+/// The board, for the control task. Passed on by reference: a `Board` task argument (with
+/// the drop glue of the HAL's drivers, which reset their peripherals when dropped) linked
+/// that whole destructor for the spawn's failure path (which cannot happen: see [`token`]),
+/// and by value it crossed the boot task's `await` in its future.
 static BOARD: StaticCell<Board> = StaticCell::new();
 
 /// Spawns the tasks (each spawn builds the task's future on this frame and copies it into
@@ -268,7 +269,7 @@ static BOARD: StaticCell<Board> = StaticCell::new();
 #[inline(never)]
 fn spawn_tasks(
     spawner: Spawner,
-    board: Board,
+    board: &'static mut Board,
     console: ConsolePins,
     boot: Boot,
     parked: Option<i32>,
@@ -283,7 +284,7 @@ fn spawn_tasks(
         spawner.spawn(token(storage(store)));
     }
     let park = ParkLog::new(parked.map(Parked::At));
-    spawner.spawn(token(control(BOARD.init(board), park)));
+    spawner.spawn(token(control(board, park)));
     spawner.spawn(token(console_task(
         console,
         boot.config,

@@ -684,8 +684,10 @@ impl Controller {
             return Err(Refusal::BadConfig);
         };
         if cfg.estimator == self.cfg.estimator {
-            // Same model and filter: keep the speed estimate running.
-            next.est = self.est.clone();
+            // Same model and filter: keep the speed estimate running. Swapped rather than
+            // cloned (`self` is replaced by `next` below and reads no `est` before that; the
+            // field-by-field clone was 0.3 KiB of flash).
+            core::mem::swap(&mut next.est, &mut self.est);
         }
         if next.tick_us == self.tick_us {
             next.debounce = self.debounce;

@@ -49,7 +49,7 @@ pub fn udiv128(n: u128, d: u128) -> u128 {
 /// is expanded inline (≈ 10 multiplies and their carries); the configuration-time code
 /// multiplies through this one copy instead. Not for the tick path (a call per product).
 #[inline(never)]
-pub fn mul128(a: i128, b: i128) -> i128 {
+pub const fn mul128(a: i128, b: i128) -> i128 {
     a * b
 }
 

@@ -214,7 +214,7 @@ impl Geometry {
         let (cos_a0, _) = alpha0.cos_sin();
         let (cos_hi, _) =
             Angle::from_degrees(cfg.alpha0_deg - const { I16F16::lit("5") }).cos_sin();
-        let (cos_lo, _) = Angle::from_degrees(const { I16F16::lit("89.5") }).cos_sin();
+        let (cos_lo, _) = const { Angle::from_degrees(I16F16::lit("89.5")).cos_sin() };
         let inv_len_q24 = ((1i64 << 48) / i64::from(cfg.length.bits())) as i32;
 
         // Nut travel per count = r_m·tanλ·2π / (counts_per_rev·gear_ratio).

@@ -630,7 +630,7 @@ async fn console_task(
         match select(uart.read(&mut chunk), NOTICES.receive()).await {
             Either::First(Ok(n)) => (next, read) = (0, n),
             // Framing/noise/overrun: drop the bytes and keep listening.
-            Either::First(Err(e)) => warn!("console read error: {}", e),
+            Either::First(Err(e)) => warn!("console read error: {}", HalError(e)),
             Either::Second(event) => {
                 let _ = write_notice(reply, &event);
             }

@@ -23,7 +23,7 @@ use board::{Board, ConsolePins, CONSOLE_BAUD, STORE_RANGE};
 use core::cell::RefCell;
 use core::mem::MaybeUninit;
 use defmt::{error, info, warn};
-use embassy_executor::Spawner;
+use embassy_executor::{SpawnError, SpawnToken, Spawner};
 use embassy_futures::select::{select, Either};
 use embassy_stm32::flash::{Blocking, Flash};
 use embassy_stm32::peripherals::FLASH;
@@ -137,15 +137,49 @@ async fn main(spawner: Spawner) {
     spawn_tasks(spawner, board, console, boot, parked);
 }
 
-/// Clocks, the board's pins and peripherals (the bridge coasting), and whether the watchdog
-/// caused the last reset.
+/// A HAL error for the defmt log. embassy-stm32 is built without its `defmt` feature: with
+/// it, each of the HAL's internal assertions and unwraps logged a message of its own before
+/// panicking (1.4 KiB of flash); without it they panic like the core does (a HardFault on
+/// `scripts/fw-build`'s default route, panic-probe's message with `FW_PANIC=handler`). The two
+/// HAL errors the firmware logs are named here instead of by the HAL's derive.
+struct HalError<E>(E);
+
+impl defmt::Format for HalError<usart::Error> {
+    fn format(&self, f: defmt::Formatter) {
+        match self.0 {
+            usart::Error::Framing => defmt::write!(f, "Framing"),
+            usart::Error::Noise => defmt::write!(f, "Noise"),
+            usart::Error::Overrun => defmt::write!(f, "Overrun"),
+            usart::Error::Parity => defmt::write!(f, "Parity"),
+            usart::Error::BufferTooLong => defmt::write!(f, "BufferTooLong"),
+            _ => defmt::write!(f, "unknown"),
+        }
+    }
+}
+
+impl defmt::Format for HalError<usart::ConfigError> {
+    fn format(&self, f: defmt::Formatter) {
+        match self.0 {
+            usart::ConfigError::BaudrateTooLow => defmt::write!(f, "BaudrateTooLow"),
+            usart::ConfigError::BaudrateTooHigh => defmt::write!(f, "BaudrateTooHigh"),
+            usart::ConfigError::RxOrTxNotEnabled => defmt::write!(f, "RxOrTxNotEnabled"),
+            usart::ConfigError::DataParityNotSupported => {
+                defmt::write!(f, "DataParityNotSupported")
+            }
+            _ => defmt::write!(f, "unknown"),
+        }
+    }
+}
+
+/// Clocks, the board's pins and peripherals (the bridge coasting; the board in [`BOARD`],
+/// where it stays), and whether the watchdog caused the last reset.
 #[inline(never)]
-fn bring_up() -> (Board, ConsolePins, Peri<'static, FLASH>, bool) {
+fn bring_up() -> (&'static mut Board, ConsolePins, Peri<'static, FLASH>, bool) {
     let p = embassy_stm32::init(board::clock_config());
     info!("liftfw {} booting", env!("CARGO_PKG_VERSION"));
     let watchdog_reset = board::Watchdog::caused_last_reset();
     let (board, console, flash) = Board::new(p);
-    (board, console, flash, watchdog_reset)
+    (BOARD.init(board), console, flash, watchdog_reset)
 }
 
 /// The configuration store, for the storage task (a static rather than in the task's
@@ -224,12 +258,18 @@ fn trusted_position(boot: &Boot) -> Option<i32> {
     parked
 }
 
+/// The board, for the control task. Passed on by reference: a `Board` task argument (with
+/// the drop glue of the HAL's drivers, which reset their peripherals when dropped) linked
+/// that whole destructor for the spawn's failure path (which cannot happen: see [`token`]),
+/// and by value it crossed the boot task's `await` in its future.
+static BOARD: StaticCell<Board> = StaticCell::new();
+
 /// Spawns the tasks (each spawn builds the task's future on this frame and copies it into
 /// the task's storage).
 #[inline(never)]
 fn spawn_tasks(
     spawner: Spawner,
-    board: Board,
+    board: &'static mut Board,
     console: ConsolePins,
     boot: Boot,
     parked: Option<i32>,
@@ -241,16 +281,28 @@ fn spawn_tasks(
     );
     let store_ok = boot.store.is_some();
     if let Some(store) = boot.store {
-        spawner.spawn(defmt::unwrap!(storage(store)));
+        spawner.spawn(token(storage(store)));
     }
     let park = ParkLog::new(parked.map(Parked::At));
-    spawner.spawn(defmt::unwrap!(control(board, park)));
-    spawner.spawn(defmt::unwrap!(console_task(
+    spawner.spawn(token(control(board, park)));
+    spawner.spawn(token(console_task(
         console,
         boot.config,
         boot.source,
-        store_ok
+        store_ok,
     )));
+}
+
+/// A task's spawn token. Each task is spawned once, into a pool of one, so this cannot fail;
+/// if it did, it panics plainly (a HardFault on `scripts/fw-build`'s default route, the
+/// message through panic-probe with `FW_PANIC=handler`) rather than through `defmt::unwrap!`'s
+/// own message (≈ 30 B of flash per spawn).
+#[inline(always)]
+fn token<S>(spawned: Result<SpawnToken<S>, SpawnError>) -> SpawnToken<S> {
+    match spawned {
+        Ok(token) => token,
+        Err(_) => panic!("task spawned twice"),
+    }
 }
 
 /// Builds the controller in [`CONTROLLER`] from the running configuration (the factory one if
@@ -305,7 +357,7 @@ fn construct_unhomed<'a>(
 /// `Ticker` keeps its schedule and runs the missed ticks back to back; each one passes the
 /// real `now`, so the core sees the short intervals as they are.
 #[embassy_executor::task]
-async fn control(mut board: Board, mut park: ParkLog) {
+async fn control(board: &'static mut Board, mut park: ParkLog) {
     let mut ticker = Ticker::every(Duration::from_hz(CONTROL_HZ));
     let mut last_bridge = Bridge::Coast;
     let mut ticks: u32 = 0;
@@ -509,7 +561,7 @@ async fn console_task(
     ) {
         Ok(uart) => uart,
         Err(e) => {
-            warn!("console disabled: USART2 config rejected: {}", e);
+            warn!("console disabled: USART2 config rejected: {}", HalError(e));
             return;
         }
     };
@@ -578,7 +630,7 @@ async fn console_task(
         match select(uart.read(&mut chunk), NOTICES.receive()).await {
             Either::First(Ok(n)) => (next, read) = (0, n),
             // Framing/noise/overrun: drop the bytes and keep listening.
-            Either::First(Err(e)) => warn!("console read error: {}", e),
+            Either::First(Err(e)) => warn!("console read error: {}", HalError(e)),
             Either::Second(event) => {
                 let _ = write_notice(reply, &event);
             }

@@ -12,36 +12,53 @@
 /// `Scale::from_ratio`, `Angle::cos_sin`) divides through this and [`div128`] instead. Never
 /// on the tick path (a call and the generic loop).
 ///
-/// Written out rather than `n / d`, whose generic expansion is 0.8 KiB: shift-and-subtract
-/// over the quotient's bits only (at most 128 steps of a compare, a subtract and two shifts:
-/// a few thousand instructions at worst, at configuration time), calling nothing, so it adds
-/// only its own frame to the stack of the configuration path.
+/// Written out rather than `n / d`, whose generic expansion is 0.8 KiB: shift-and-subtract,
+/// with `d` aligned under `n` one bit at a time (a leading-zeros count and one variable 128-bit
+/// shift cost more flash than the loop), then one quotient bit per step: at most 127 + 128
+/// steps of a compare, a subtract and one-bit shifts (a few thousand instructions at worst, at
+/// configuration time), calling nothing, so it adds only its own frame to the stack of the
+/// configuration path.
 #[inline(never)]
 pub fn udiv128(n: u128, d: u128) -> u128 {
     if d == 0 || n < d {
         return 0;
     }
-    // d ≤ n: align d's top bit with n's (no overflow: same leading zeros), then one quotient
-    // bit per step.
-    let shift = d.leading_zeros() - n.leading_zeros();
-    let (mut n, mut d, mut q) = (n, d << shift, 0u128);
-    for _ in 0..=shift {
+    // Align: the largest d·2^k ≤ n (d ≤ n/2 keeps d·2 from overflowing).
+    let (mut n, mut d, mut k) = (n, d, 0u32);
+    while d <= n >> 1 {
+        d <<= 1;
+        k += 1;
+    }
+    // One quotient bit per step, from 2^k down.
+    let mut q = 0u128;
+    loop {
         q <<= 1;
         if n >= d {
             n -= d;
             q |= 1;
         }
+        if k == 0 {
+            return q;
+        }
         d >>= 1;
+        k -= 1;
     }
-    q
 }
 
 /// `a·b` like `*` on `i128`, out of line: Arm has no 128-bit multiply, so each `*` on `i128`
 /// is expanded inline (≈ 10 multiplies and their carries); the configuration-time code
 /// multiplies through this one copy instead. Not for the tick path (a call per product).
 #[inline(never)]
-pub fn mul128(a: i128, b: i128) -> i128 {
+pub const fn mul128(a: i128, b: i128) -> i128 {
     a * b
+}
+
+/// `v << n` like `<<` on `i128` (`n < 128`), out of line: a shift by a run-time amount is a
+/// dozen instructions and two or three runtime calls on this core, so the configuration-time
+/// code shifts through this one copy (constant shifts stay inline). Not for the tick path.
+#[inline(never)]
+pub fn shl128(v: i128, n: u32) -> i128 {
+    v << n
 }
 
 /// `n / d` truncated toward zero like `/` on `i128` (`d = 0` gives 0, `i128::MIN / −1` wraps),

@@ -72,10 +72,21 @@ macro_rules! quantity {
             pub const fn to_bits(self) -> i32 {
                 self.0.to_bits()
             }
-            /// From an integer number of units, saturating.
+            /// From an integer number of units, saturating (like `saturating_from_num`, but
+            /// a `const fn` of shifts and compares: a constant argument folds away instead of
+            /// calling `fixed`'s generic conversion at run time).
             #[inline]
-            pub fn from_int(v: i32) -> Self {
-                Self(<$repr>::saturating_from_num(v))
+            pub const fn from_int(v: i32) -> Self {
+                // Every Q format here has at most 28 fractional bits: v·2^frac fits in i64.
+                let wide = (v as i64) << <$repr>::FRAC_NBITS;
+                let bits = if wide > i32::MAX as i64 {
+                    i32::MAX
+                } else if wide < i32::MIN as i64 {
+                    i32::MIN
+                } else {
+                    wide as i32
+                };
+                Self(<$repr>::from_bits(bits))
             }
             /// Saturating sum.
             #[inline]
@@ -201,9 +212,9 @@ impl Angle {
     pub const QUARTER: Angle = Angle(1 << 30);
 
     /// From degrees given in I16F16 (exact to the binary-turn resolution).
-    pub fn from_degrees(deg: I16F16) -> Angle {
+    pub const fn from_degrees(deg: I16F16) -> Angle {
         // 2^32 / 360 per degree; deg·2^16 · 2^32/360 / 2^16.
-        let bits = (i64::from(deg.to_bits()) << 32) / (360 << 16);
+        let bits = ((deg.to_bits() as i64) << 32) / (360 << 16);
         Angle(bits as i32)
     }
 
@@ -217,11 +228,13 @@ impl Angle {
     /// Meant for configuration time (lead angle, α₀): a few hundred instructions, never per tick.
     /// Every term and partial sum is below 2^61, so they live in `i64`; only the products are
     /// widened (a 64×64-bit multiply, no 128-bit division).
-    pub fn cos_sin(self) -> (Ratio, Ratio) {
+    ///
+    /// A `const fn`, so that tables of constant angles are built at compile time.
+    pub const fn cos_sin(self) -> (Ratio, Ratio) {
         // |angle| in [0, π], as radians in Q60: turns·2π.
         const PI_Q60: i64 = 3_622_009_729_038_561_421; // π·2^60
         let neg = self.0 < 0;
-        let mag = u128::from(self.0.unsigned_abs()); // ≤ 2^31, 2^31 = π
+        let mag = self.0.unsigned_abs() as u128; // ≤ 2^31, 2^31 = π
         let x = (mag * PI_Q60 as u128 >> 31) as i64; // ≤ π·2^60 < 2^62
                                                      // Fold to [0, π/2]: cos(π − x) = −cos x, sin(π − x) = sin x.
         let (x, cos_sign) = if x > PI_Q60 / 2 {
@@ -230,7 +243,13 @@ impl Angle {
             (x, 1)
         };
         // a·b/2^60 for |a|, |b| ≤ 2^61: the result is below 2^62.
-        let mul = |a: i64, b: i64| (i128::from(a) * i128::from(b) >> 60) as i64;
+        // Through the one out-of-line `mul128` (three inline 64×64-bit products cost more).
+        const fn mul(a: i64, b: i64) -> i64 {
+            (crate::math::mul128(a as i128, b as i128) >> 60) as i64
+        }
+        const fn q28(v: i64) -> Ratio {
+            Ratio::from_bits(((v + (1 << 31)) >> 32) as i32)
+        }
         let one: i64 = 1 << 60;
         let (mut c, mut s) = (one, x);
         let (mut tc, mut ts) = (one, x);
@@ -243,7 +262,6 @@ impl Angle {
             s += ts;
             n += 1;
         }
-        let q28 = |v: i64| Ratio::from_bits(((v + (1 << 31)) >> 32) as i32);
         (q28(c * cos_sign), q28(if neg { -s } else { s }))
     }
 
@@ -367,6 +385,40 @@ mod tests {
         ] {
             let want = v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
             assert_eq!(sat32(v), want, "{v}");
+        }
+    }
+
+    /// `from_int` (a `const fn`) is `fixed`'s `saturating_from_num` for every Q format.
+    #[test]
+    fn from_int_is_saturating_from_num() {
+        let vs = [
+            i32::MIN,
+            -70_000,
+            -32_769,
+            -2049,
+            -8,
+            -1,
+            0,
+            1,
+            7,
+            8,
+            2047,
+            2048,
+            32_767,
+            32_768,
+            8_388_608,
+            i32::MAX,
+        ];
+        for v in vs {
+            assert_eq!(Ratio::from_int(v).0, I4F28::saturating_from_num(v), "{v}");
+            assert_eq!(Factor::from_int(v).0, I16F16::saturating_from_num(v), "{v}");
+            assert_eq!(Metres::from_int(v).0, I8F24::saturating_from_num(v), "{v}");
+            assert_eq!(Newtons::from_int(v).0, I24F8::saturating_from_num(v), "{v}");
+            assert_eq!(
+                Kilograms::from_int(v).0,
+                I20F12::saturating_from_num(v),
+                "{v}"
+            );
         }
     }
 

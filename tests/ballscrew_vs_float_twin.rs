@@ -43,6 +43,44 @@ fn preset_law_is_seed_002_eq_3() {
     }
 }
 
+/// The law's refusals name the `ballscrew.f_*` keys (the estimator's own law names
+/// `friction.*`), each with the law's range.
+#[test]
+fn law_refusals_name_the_ball_screw_keys() {
+    use fixed::types::I32F32;
+    use liftfw::ConfigError;
+    type Law = liftfw::model::friction::FrictionLaw;
+    /// A change that puts one term of the law out of its range, its key suffix and range.
+    type Case = (fn(&mut Law), &'static str, &'static str);
+    let bad = |f: fn(&mut Law)| {
+        let mut c = BallScrewConfig::SEED_001_4008;
+        f(&mut c.law);
+        let e = c.compile().unwrap_err();
+        let mut l = c.law;
+        l.variable = liftfw::model::friction::LawVariable::ScrewRate;
+        f(&mut l);
+        (
+            e,
+            l.compile(liftfw::units::Metres::lit("0.004"), Ratio::ONE)
+                .unwrap_err(),
+        )
+    };
+    let cases: [Case; 5] = [
+        (|l| l.base = Ratio::lit("1.5"), "f_base", "0..1"),
+        (|l| l.amp = Ratio::lit("-1.5"), "f_amp", "-1..1"),
+        (|l| l.rate = I32F32::lit("-1"), "f_rate", "0..1e6"),
+        (|l| l.slope = I32F32::lit("2000"), "f_slope", "-1000..1000"),
+        (|l| l.s_max = I32F32::ZERO, "f_s_max", ">0..1e6"),
+    ];
+    for (f, key, range) in cases {
+        let (ball, own) = bad(f);
+        let want = |field: &'static str| ConfigError::OutOfRange { field, range };
+        assert_eq!(ball, want(format!("ballscrew.{key}").leak()), "{key}");
+        let own_key = format!("friction.{}", &key[2..]);
+        assert_eq!(own, want(own_key.leak()), "{key}");
+    }
+}
+
 #[test]
 fn turning_point_matches_the_closed_form() {
     // d f/dτ = 0.9117 − 0.0028·8863·e^(−8863τ) = 0 ⇒ τ* = ln(0.0028·8863/0.9117)/8863.

@@ -138,3 +138,35 @@ fn a_geometry_change_at_rest_forgets_the_position_and_other_changes_keep_it() {
     assert!(!c.homed());
     assert_eq!(c.command(Command::Up), Err(Refusal::NotHomed));
 }
+
+#[test]
+fn a_change_outside_the_model_keeps_the_estimators_state() {
+    use liftfw::control::{config::ControlConfig, Controller, Inputs};
+    use liftfw::units::Instant;
+    let cfg = ControlConfig::DEFAULT;
+    let mut c = Controller::new(&cfg, 9_000).unwrap();
+    // A few ticks at rest: the speed filter has a state a fresh estimator does not (the
+    // time of its last tick, the count it holds).
+    for k in 0..20u32 {
+        let inputs = Inputs {
+            encoder_count: 9_003,
+            encoder_edge_age: 0,
+            current_raw: 2048,
+            supply_raw: 2_800,
+            switches: Switches(0),
+        };
+        c.step(Instant(1_000 + k * 1_000), &inputs);
+    }
+    let running = format!("{:?}", c.estimator());
+    let fresh = format!("{:?}", Controller::new(&cfg, 9_000).unwrap().estimator());
+    assert_ne!(running, fresh);
+    let mut faster = cfg;
+    faster.motion.ramp_ms = 120;
+    c.reconfigure(&faster).unwrap();
+    assert_eq!(format!("{:?}", c.estimator()), running);
+    // A model change starts it afresh.
+    let mut stiffer = faster;
+    stiffer.estimator.mechanics.inertia_ukgm2 += 10;
+    c.reconfigure(&stiffer).unwrap();
+    assert_ne!(format!("{:?}", c.estimator()), running);
+}

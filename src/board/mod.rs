@@ -32,7 +32,6 @@ pub mod sensors;
 
 use embassy_stm32::peripherals::{FLASH, PA2, PA3, USART2};
 use embassy_stm32::time::Hertz;
-use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{Peri, Peripherals};
 
 pub use bridge::HBridge;
@@ -213,27 +212,56 @@ unsafe fn HardFault() -> ! {
     }
 }
 
+/// IWDG prescaler (PR value) and reload (RLR) for [`WATCHDOG_TIMEOUT_US`]: the values
+/// embassy-stm32's `IndependentWatchdog::new` computes at run time (the smallest prescaler
+/// 4…256 whose longest period reaches the timeout, then the reload for it, same integer
+/// arithmetic), here at compile time. For 50 ms at 32 kHz: PR = 0 (÷4), RLR = 399.
+const IWDG_SETUP: (u8, u16) = {
+    let lsi = embassy_stm32::rcc::LSI_FREQ.0;
+    let mut power = 2;
+    while WATCHDOG_TIMEOUT_US > 1_000_000 * (0xFFF + 1) / (lsi / (1 << power)) {
+        power += 1;
+        assert!(power <= 8, "IWDG timeout beyond the 256 prescaler");
+    }
+    let psc = 1u32 << power;
+    (
+        (power - 2) as u8,
+        (WATCHDOG_TIMEOUT_US / psc * lsi / 1_000_000) as u16 - 1,
+    )
+};
+const _: () = assert!(IWDG_SETUP.0 == 0 && IWDG_SETUP.1 == 399);
+
 /// The IWDG, fed only on the core's say-so ([`liftfw::control::Outputs::feed_watchdog`]).
+///
+/// Written to through the PAC with the register writes of embassy-stm32's
+/// `IndependentWatchdog` (unlock, PR, RLR; start and reload keys), whose constructor found the
+/// prescaler at run time with a search loop and a panic path (≈ 0.2 KiB of flash).
 pub struct Watchdog {
-    iwdg: IndependentWatchdog<'static, embassy_stm32::peripherals::IWDG>,
+    _iwdg: Peri<'static, embassy_stm32::peripherals::IWDG>,
 }
 
 impl Watchdog {
     fn new(iwdg: Peri<'static, embassy_stm32::peripherals::IWDG>) -> Self {
+        use embassy_stm32::pac::iwdg::vals::{Key, Pr};
         // Freeze the IWDG while a debugger halts the core, so a breakpoint does not reset
         // the chip. No effect without a debugger attached.
         embassy_stm32::pac::DBGMCU
             .apb1lfzr()
             .modify(|w| w.set_iwdg(true));
-        Self {
-            iwdg: IndependentWatchdog::new(iwdg, WATCHDOG_TIMEOUT_US),
-        }
+        let wdg = embassy_stm32::pac::IWDG;
+        let (pr, rl) = IWDG_SETUP;
+        wdg.kr().write(|w| w.set_key(Key::ENABLE));
+        wdg.pr().write(|w| w.set_pr(Pr::from_bits(pr)));
+        wdg.rlr().write(|w| w.set_rl(rl));
+        Self { _iwdg: iwdg }
     }
 
     /// Start it (it cannot be stopped again): the control task does so right before its first
     /// tick, after the configuration was loaded from flash.
     pub fn start(&mut self) {
-        self.iwdg.unleash();
+        embassy_stm32::pac::IWDG
+            .kr()
+            .write(|w| w.set_key(embassy_stm32::pac::iwdg::vals::Key::START));
     }
 
     /// True when the last reset came from the IWDG; clears the reset flags.
@@ -248,6 +276,8 @@ impl Watchdog {
     /// [`WATCHDOG_TIMEOUT_US`] resets the MCU; its pins then float, and the 10 kΩ
     /// pull-downs on R_EN/L_EN (docs/board.md) make the bridge coast.
     pub fn feed(&mut self) {
-        self.iwdg.pet();
+        embassy_stm32::pac::IWDG
+            .kr()
+            .write(|w| w.set_key(embassy_stm32::pac::iwdg::vals::Key::RESET));
     }
 }

@@ -146,37 +146,38 @@ impl LimitStops {
 
     /// Check the stops against the mechanism: both inside α₀ … α_max and `lower + MIN_GAP ≤ upper`.
     pub fn validate(&self, geometry: &Geometry) -> Result<(), ConfigError> {
-        if geometry.counts_for_height(self.lower).is_none() {
-            return Err(ConfigError::OutOfRange {
-                field: "limits.lower",
-                range: "the mechanism's height range (see `limits`)",
-            });
-        }
-        if geometry.counts_for_height(self.upper).is_none() {
-            return Err(ConfigError::OutOfRange {
-                field: "limits.upper",
-                range: "the mechanism's height range (see `limits`)",
-            });
-        }
+        self.counts(geometry).map(|_| ())
+    }
+
+    /// [`LimitStops::validate`], returning the lower stop, the upper stop and the lower switch
+    /// in encoder counts (the controller's form of them: mapped once, where they are checked).
+    pub fn counts(&self, geometry: &Geometry) -> Result<(i32, i32, i32), ConfigError> {
+        let out_of_range = |field| ConfigError::OutOfRange {
+            field,
+            range: "the mechanism's height range (see `limits`)",
+        };
+        let lower = geometry
+            .counts_for_height(self.lower)
+            .ok_or(out_of_range("limits.lower"))?;
+        let upper = geometry
+            .counts_for_height(self.upper)
+            .ok_or(out_of_range("limits.upper"))?;
         if self.lower.sat_add(Self::MIN_GAP) > self.upper {
             return Err(ConfigError::Conflict {
                 field: "limits.lower",
                 reason: "must be at least 10 mm below limits.upper",
             });
         }
-        if geometry.counts_for_height(self.switch_lower).is_none() {
-            return Err(ConfigError::OutOfRange {
-                field: "limits.switch_lower",
-                range: "the mechanism's height range (see `limits`)",
-            });
-        }
+        let switch = geometry
+            .counts_for_height(self.switch_lower)
+            .ok_or(out_of_range("limits.switch_lower"))?;
         if self.switch_lower.sat_add(Self::SWITCH_GAP) > self.lower {
             return Err(ConfigError::Conflict {
                 field: "limits.switch_lower",
                 reason: "must be at least 0.5 mm below limits.lower (the switch is the backstop under the soft stop)",
             });
         }
-        Ok(())
+        Ok((lower, upper, switch))
     }
 }
 
@@ -323,6 +324,15 @@ impl ControlConfig {
     /// Check every range that does not need the compiled geometry, then the limit stops
     /// against it. The estimator's own settings are checked by [`crate::estimator::Estimator::new`].
     pub fn validate(&self, geometry: &Geometry) -> Result<(), ConfigError> {
+        self.validate_limit_counts(geometry).map(|_| ())
+    }
+
+    /// [`ControlConfig::validate`], returning the limit stops in counts
+    /// ([`LimitStops::counts`]): the controller maps them once, here.
+    pub(crate) fn validate_limit_counts(
+        &self,
+        geometry: &Geometry,
+    ) -> Result<(i32, i32, i32), ConfigError> {
         range(
             self.rated_load,
             const { Kilograms::lit("10") },
@@ -456,7 +466,7 @@ impl ControlConfig {
         self.ball_screw.compile()?;
         self.lube.validate()?;
         self.brake.validate()?;
-        self.limits.validate(geometry)
+        self.limits.counts(geometry)
     }
 }
 

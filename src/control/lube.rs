@@ -250,7 +250,7 @@ impl LubeMonitor {
     /// A monitor for a (validated) configuration.
     pub fn new(cfg: &ControlConfig) -> LubeMonitor {
         let tick_us = cfg.estimator.tick_us;
-        let t = |ms: u32| ms.saturating_mul(1000) / tick_us.max(1);
+        let t = |ms: u32| super::ms_to_ticks(ms, tick_us);
         // k_t·I₀·n at the screw (Q16), then through the gearbox either way.
         let m = &cfg.estimator.motor;
         let t_motor: NewtonMetres = qmul(cfg.lube.no_load_current, m.torque_constant);

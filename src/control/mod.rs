@@ -325,6 +325,14 @@ const BRAKE_AMPS: i32 = 30;
 /// Overload monitoring starts this long after a motion starts (breakaway, winding the coupling).
 const OVERLOAD_HOLDOFF_MS: u32 = 250;
 
+/// `ms` milliseconds in ticks of `tick_us` µs, rounded down: `ms·1000/tick_us`, the product
+/// saturated. One out-of-line copy for every configured duration (the constructors converted
+/// eighteen of them inline).
+#[inline(never)]
+pub(crate) fn ms_to_ticks(ms: u32, tick_us: u32) -> u32 {
+    ms.saturating_mul(1000) / tick_us.max(1)
+}
+
 /// The supervisor's durations in control ticks.
 #[derive(Clone, Copy, Debug)]
 struct TickCounts {
@@ -338,7 +346,7 @@ struct TickCounts {
 
 impl TickCounts {
     fn new(tick_us: u32, ramp_ms: u32) -> TickCounts {
-        let t = |ms: u32| ms.saturating_mul(1000) / tick_us.max(1);
+        let t = |ms: u32| ms_to_ticks(ms, tick_us);
         TickCounts {
             overload_holdoff: t(OVERLOAD_HOLDOFF_MS).saturating_add(t(ramp_ms)),
             settle: t(SETTLE_MS),
@@ -437,43 +445,29 @@ impl Controller {
         let est = Estimator::new(&cfg.estimator)?;
         let ball_screw = cfg.ball_screw.compile()?;
         let geometry = est.geometry();
-        cfg.validate(geometry)?;
-        // `validate` checked these heights against the geometry already; a refusal here
-        // would only name the field.
-        let counts = |h: Metres, field: &'static str| {
-            geometry
-                .counts_for_height(h)
-                .ok_or(ConfigError::OutOfRange {
-                    field,
-                    range: "the mechanism's height range (see `limits`)",
-                })
-        };
-        let lower_counts = counts(cfg.limits.lower, "limits.lower")?;
-        let upper_counts = counts(cfg.limits.upper, "limits.upper")?;
-        let switch_counts = counts(cfg.limits.switch_lower, "limits.switch_lower")?;
+        let (lower_counts, upper_counts, switch_counts) = cfg.validate_limit_counts(geometry)?;
         let tick_us = cfg.estimator.tick_us;
         let tick_hz = i128::from(1_000_000 / tick_us);
         let rad_per_count = geometry.screw_rad_per_count(); // counts → Q16 rad
         let speed_scale = rad_per_count.times(tick_hz, 1 << 16);
         // counts per screw rad (Q16) = 2^32 / rad_per_count(Q16 value).
         let (mant, shift) = rad_per_count.parts();
-        let counts_per_rad_q16 = div128(1i128 << (32 + shift), i128::from(mant.max(1))) as i64;
+        let counts_per_rad_q16 =
+            div128(crate::math::shl128(1, 32 + shift), i128::from(mant.max(1))) as i64;
         // Twist counts = T/k · counts/rad: from Q16 N·m.
         let k = i128::from(cfg.estimator.mechanics.coupling_stiffness.bits()); // Q16
         let twist_scale = Scale::from_ratio(i128::from(counts_per_rad_q16), k << 16);
         // Cruise: rad/s → Q32 counts/tick = ω·counts/rad·T·2^32.
+        let counts_per_rad_tick = i128::from(counts_per_rad_q16) * i128::from(tick_us);
         let per_tick_q32 = |speed: RadiansPerSecond| {
             div128(
-                crate::math::mul128(
-                    i128::from(speed.bits()),
-                    i128::from(counts_per_rad_q16) * i128::from(tick_us),
-                ),
+                crate::math::mul128(i128::from(speed.bits()), counts_per_rad_tick),
                 1_000_000,
             ) as i64
         };
         let cruise_q32 = per_tick_q32(cfg.motion.cruise_speed);
         let escape_q32 = per_tick_q32(cfg.stick_slip.escape_speed);
-        let ramp_ticks = cfg.motion.ramp_ms.saturating_mul(1000) / tick_us;
+        let ramp_ticks = ms_to_ticks(cfg.motion.ramp_ms, tick_us);
         let gear_ratio = cfg.estimator.drive.gear_ratio;
         let counts_per_motor_rad_q16 = div128(
             i128::from(counts_per_rad_q16) << 16,
@@ -496,7 +490,7 @@ impl Controller {
             tick_us,
         );
         let inv_ke_n = Ratio::from_raw(sat32((1i64 << 44) / i64::from(gains.ke_n.bits().max(1))));
-        let debounce_ticks = (DEBOUNCE_MS * 1000 / tick_us).max(1) as u16;
+        let debounce_ticks = ms_to_ticks(DEBOUNCE_MS, tick_us).max(1) as u16;
         Ok(Controller {
             cfg: *cfg,
             est,
@@ -690,8 +684,10 @@ impl Controller {
             return Err(Refusal::BadConfig);
         };
         if cfg.estimator == self.cfg.estimator {
-            // Same model and filter: keep the speed estimate running.
-            next.est = self.est.clone();
+            // Same model and filter: keep the speed estimate running. Swapped rather than
+            // cloned (`self` is replaced by `next` below and reads no `est` before that; the
+            // field-by-field clone was 0.3 KiB of flash).
+            core::mem::swap(&mut next.est, &mut self.est);
         }
         if next.tick_us == self.tick_us {
             next.debounce = self.debounce;

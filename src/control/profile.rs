@@ -121,7 +121,7 @@ fn cruise_room(cruise: i64, accel: i64) -> i64 {
     let c = i128::from(cruise) + (1 << 14);
     // One shared 128-bit division (crate::math::div128), not an inline expansion: this runs
     // when a motion is planned, not per tick.
-    let room = crate::math::div128(c * c, i128::from(accel.max(1))) + c + 1;
+    let room = crate::math::div128(crate::math::mul128(c, c), i128::from(accel.max(1))) + c + 1;
     i64::try_from(room).unwrap_or(i64::MAX)
 }
 
@@ -142,7 +142,8 @@ impl Profile {
             accel,
             cruise,
             cruise_room: cruise_room(cruise, accel),
-            accel_sq_4: u128::from(accel.unsigned_abs()).pow(2) / 4,
+            // accel ≥ 1: a²/4 through the shared out-of-line product (configuration time).
+            accel_sq_4: crate::math::mul128(i128::from(accel), i128::from(accel)) as u128 >> 2,
             roots: [0; 2],
             shape,
             p,

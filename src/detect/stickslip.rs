@@ -425,7 +425,7 @@ const NOISE_GAIN: i32 = 2;
 impl StickSlipDetector {
     /// A detector for a validated configuration at a tick of `tick_us` µs (100…10 000).
     pub fn new(cfg: &StickSlipConfig, tick_us: u32) -> StickSlipDetector {
-        let ticks = |ms: u32| (ms.saturating_mul(1000) / tick_us.max(1)).max(1);
+        let ticks = |ms: u32| crate::control::ms_to_ticks(ms, tick_us).max(1);
         let threshold = cfg.drop_threshold.to_bits().max(1);
         StickSlipDetector {
             threshold,

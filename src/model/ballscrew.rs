@@ -121,23 +121,17 @@ impl BallScrewConfig {
         }
         // The law's r_m/cos λ only matter for sliding-speed laws: any valid values do. Its
         // refusals name the `ballscrew.f_*` keys (the law's own name the estimator's).
-        let law = self
-            .law
-            .compile(self.r_m, Ratio::ONE)
-            .map_err(|e| match e {
-                ConfigError::OutOfRange { field, range } => ConfigError::OutOfRange {
-                    field: match field {
-                        "friction.base" => "ballscrew.f_base",
-                        "friction.amp" => "ballscrew.f_amp",
-                        "friction.rate" => "ballscrew.f_rate",
-                        "friction.slope" => "ballscrew.f_slope",
-                        "friction.s_max" => "ballscrew.f_s_max",
-                        other => other,
-                    },
-                    range,
-                },
-                other => other,
-            })?;
+        let law = self.law.compile_keyed(
+            self.r_m,
+            Ratio::ONE,
+            &[
+                "ballscrew.f_base",
+                "ballscrew.f_amp",
+                "ballscrew.f_rate",
+                "ballscrew.f_slope",
+                "ballscrew.f_s_max",
+            ],
+        )?;
 
         // Design in integers (no floating point linked into the firmware): lengths in Q24,
         // cos α and sin α in Q28, rationals in i128, quantised once by `Scale::from_ratio`.
@@ -152,7 +146,8 @@ impl BallScrewConfig {
         let arm_scale = Scale::from_ratio(num52, sa << 16);
         // Lever l/(2π): F (Q8) → N·m (Q16) is ×lever·2^8 = lead/(2^16·2π).
         let lever_scale = Scale::from_ratio(lead << 60, TWO_PI_Q60 << 16);
-        let lever_q24 = (lead << 60) / TWO_PI_Q60;
+        // Through the one out-of-line `div128` (an inline `/` on i128 is a 0.6 KiB loop here).
+        let lever_q24 = crate::math::div128(lead << 60, TWO_PI_Q60);
         // Helix angle β: cos β = 2π r_m / √((2π r_m)² + l²), lengths in Q32 (≤ 0.63 m).
         let circ = (rm * TWO_PI_Q60) >> 52;
         let l32 = lead << 8;
@@ -162,7 +157,8 @@ impl BallScrewConfig {
         // τ (Q28) = η₀·r_m·M·sin α·cos β · |θ̇| / F: numerator constant c (N·s), |θ̇| in Q16,
         // F in Q8 → τ_bits = c·2^20·θ̇_bits / F_bits, c·2^20 = η(Q32)·r_m(Q24)·M·(sa_cb)(Q28)/2^64.
         let eta = i128::from(self.viscosity.to_bits());
-        let tau_num = eta * rm * i128::from(self.loaded_balls) * sa_cb;
+        let mul = crate::math::mul128;
+        let tau_num = mul(mul(eta * rm, i128::from(self.loaded_balls)), sa_cb);
         let tau_scale = Scale::from_ratio(tau_num, 1i128 << 64);
         Ok(BallScrew {
             preload: self.preload,

@@ -83,23 +83,37 @@ impl FrictionLaw {
     };
 
     /// Validate and compile for a screw of pitch radius `r_m` and lead angle cosine `cos_lambda`.
+    /// Refusals name the `friction.*` keys.
     pub fn compile(&self, r_m: Metres, cos_lambda: Ratio) -> Result<CompiledLaw, ConfigError> {
+        self.compile_keyed(r_m, cos_lambda, &FRICTION_KEYS)
+    }
+
+    /// [`FrictionLaw::compile`] with the refusals naming `keys` (base, amp, rate, slope,
+    /// s_max): the ball screw's law is the same shape under its `ballscrew.f_*` keys (a key
+    /// table instead of renaming the refusal by string compares afterwards).
+    #[inline(never)]
+    pub(crate) fn compile_keyed(
+        &self,
+        r_m: Metres,
+        cos_lambda: Ratio,
+        keys: &[&'static str; 5],
+    ) -> Result<CompiledLaw, ConfigError> {
         let in_range = |v: I32F32, lo: I32F32, hi: I32F32| v >= lo && v <= hi;
         if !(self.base >= Ratio::ZERO && self.base <= Ratio::ONE) {
             return Err(ConfigError::OutOfRange {
-                field: "friction.base",
+                field: keys[0],
                 range: "0..1",
             });
         }
         if !(self.amp >= Ratio::ONE.sat_neg() && self.amp <= Ratio::ONE) {
             return Err(ConfigError::OutOfRange {
-                field: "friction.amp",
+                field: keys[1],
                 range: "-1..1",
             });
         }
         if !in_range(self.rate, I32F32::ZERO, const { I32F32::lit("1000000") }) {
             return Err(ConfigError::OutOfRange {
-                field: "friction.rate",
+                field: keys[2],
                 range: "0..1e6",
             });
         }
@@ -109,7 +123,7 @@ impl FrictionLaw {
             const { I32F32::lit("1000") },
         ) {
             return Err(ConfigError::OutOfRange {
-                field: "friction.slope",
+                field: keys[3],
                 range: "-1000..1000",
             });
         }
@@ -119,7 +133,7 @@ impl FrictionLaw {
             || (self.s_max > const { I32F32::lit("1000000") } && self.s_max != I32F32::MAX)
         {
             return Err(ConfigError::OutOfRange {
-                field: "friction.s_max",
+                field: keys[4],
                 range: ">0..1e6",
             });
         }
@@ -138,16 +152,17 @@ impl FrictionLaw {
         // y (Q16) = rate·s = rate(Q32)·k·in_bits/2^in_frac → scale = rate·k·2^16/2^(32+in_frac).
         let rate = i128::from(self.rate.to_bits());
         let mul = crate::math::mul128;
-        let exp_scale = Scale::from_ratio(mul(rate, k_num), k_den << (16 + in_frac));
+        let shl = crate::math::shl128;
+        let exp_scale = Scale::from_ratio(mul(rate, k_num), shl(k_den, 16 + in_frac));
         // μ (Q28) = slope·s → scale = slope(Q32)·k·2^28/2^(32+in_frac).
         let slope = i128::from(self.slope.to_bits());
-        let lin_scale = Scale::from_ratio(mul(slope, k_num), k_den << (4 + in_frac));
+        let lin_scale = Scale::from_ratio(mul(slope, k_num), shl(k_den, 4 + in_frac));
         // s_max in input bits = s_max(Q32)/k·2^in_frac/2^32.
         let smax = i128::from(self.s_max.to_bits());
         let in_max = if self.s_max == I32F32::MAX {
             u32::MAX
         } else {
-            let v = crate::math::div128(mul(smax, k_den) << in_frac, k_num << 32);
+            let v = crate::math::div128(shl(mul(smax, k_den), in_frac), k_num << 32);
             if v > i128::from(u32::MAX) {
                 u32::MAX
             } else {
@@ -164,6 +179,15 @@ impl FrictionLaw {
         })
     }
 }
+
+/// The estimator's law's keys, in [`FrictionLaw::compile_keyed`]'s order.
+pub(crate) const FRICTION_KEYS: [&str; 5] = [
+    "friction.base",
+    "friction.amp",
+    "friction.rate",
+    "friction.slope",
+    "friction.s_max",
+];
 
 /// A law with its variable folded into the constants: evaluated from raw input bits.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -20,9 +20,33 @@ const G_Q16: i64 = 642_689; // 9.80665·2^16
 pub const DAMPING_TABLE: [(i32, i32); 3] = [(15, 58_544), (45, 28_878), (65, 23_175)];
 
 /// cos α of a Table 1 angle (degrees), as the model interpolates the table in cos α.
-pub fn damping_table_cos(deg: i32) -> Ratio {
-    Angle::from_degrees(I16F16::from_num(deg)).cos_sin().0
+pub const fn damping_table_cos(deg: i32) -> Ratio {
+    Angle::from_degrees(I16F16::from_bits(deg << 16))
+        .cos_sin()
+        .0
 }
+
+/// [`DAMPING_TABLE`] as [`Geometry`] interpolates it: (cos α, c_x, slope of c_x per unit of
+/// cos α below the row's, Q24), at compile time (it depends on no setting; built by every
+/// `Geometry::new` it was ≈ 0.1 KiB of code).
+const DAMPING: [(Ratio, KilogramsPerSecond, i64); 3] = {
+    let mut damping = [(Ratio::ZERO, KilogramsPerSecond::ZERO, 0i64); 3];
+    let mut i = 0;
+    while i < 3 {
+        let (deg, cx) = DAMPING_TABLE[i];
+        damping[i] = (damping_table_cos(deg), KilogramsPerSecond::from_int(cx), 0);
+        i += 1;
+    }
+    let mut i = 0;
+    while i < 2 {
+        // cos α falls as α rises: the slope is per unit of cos α below the row's.
+        let dcos = (damping[i].0.to_bits() - damping[i + 1].0.to_bits()) as i64;
+        let dc = (damping[i + 1].1.to_bits() - damping[i].1.to_bits()) as i64;
+        damping[i].2 = (dc << 24) / dcos;
+        i += 1;
+    }
+    damping
+};
 
 /// Lift geometry as the user configures it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -190,7 +214,7 @@ impl Geometry {
         let (cos_a0, _) = alpha0.cos_sin();
         let (cos_hi, _) =
             Angle::from_degrees(cfg.alpha0_deg - const { I16F16::lit("5") }).cos_sin();
-        let (cos_lo, _) = Angle::from_degrees(const { I16F16::lit("89.5") }).cos_sin();
+        let (cos_lo, _) = const { Angle::from_degrees(I16F16::lit("89.5")).cos_sin() };
         let inv_len_q24 = ((1i64 << 48) / i64::from(cfg.length.bits())) as i32;
 
         // Nut travel per count = r_m·tanλ·2π / (counts_per_rev·gear_ratio).
@@ -211,16 +235,6 @@ impl Geometry {
         // Screw radians per count in Q16: 2π·2^16/(counts·ratio) → num 2π(Q28)·2^16·2^16 / (den·2^28).
         let screw_rad_per_count = Scale::from_ratio(TWO_PI_Q28 << 32, den << 28);
 
-        let mut damping = [(Ratio::ZERO, KilogramsPerSecond::ZERO, 0i64); 3];
-        for (i, &(deg, cx)) in DAMPING_TABLE.iter().enumerate() {
-            damping[i] = (damping_table_cos(deg), KilogramsPerSecond::from_int(cx), 0);
-        }
-        for i in 0..2 {
-            // cos α falls as α rises: the slope is per unit of cos α below the row's.
-            let dcos = i64::from(damping[i].0.bits() - damping[i + 1].0.bits());
-            let dc = i64::from(damping[i + 1].1.bits() - damping[i].1.bits());
-            damping[i].2 = (dc << 24) / dcos;
-        }
         Ok(Geometry {
             cfg,
             cos_a0,
@@ -231,7 +245,7 @@ impl Geometry {
             cos_per_count,
             counts_per_metre,
             screw_rad_per_count,
-            damping,
+            damping: DAMPING,
             alpha_max: Angle::from_degrees(cfg.alpha_max_deg),
             alpha0,
         })
@@ -442,6 +456,23 @@ mod tests {
             );
         }
         assert_eq!(g.counts_for_height(Metres::lit("0.9")), None);
+    }
+
+    /// The compile-time damping table is what `Geometry::new` computed at run time before.
+    #[test]
+    fn damping_table_is_the_run_time_one() {
+        let mut damping = [(Ratio::ZERO, KilogramsPerSecond::ZERO, 0i64); 3];
+        for (i, &(deg, cx)) in DAMPING_TABLE.iter().enumerate() {
+            let c = Angle::from_degrees(I16F16::from_num(deg)).cos_sin().0;
+            damping[i] = (c, KilogramsPerSecond::from_f64(f64::from(cx)), 0);
+        }
+        for i in 0..2 {
+            let dcos = i64::from(damping[i].0.bits() - damping[i + 1].0.bits());
+            let dc = i64::from(damping[i + 1].1.bits() - damping[i].1.bits());
+            damping[i].2 = (dc << 24) / dcos;
+        }
+        assert_eq!(DAMPING, damping);
+        assert_eq!(geo().damping, damping);
     }
 
     #[test]

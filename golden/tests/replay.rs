@@ -72,3 +72,85 @@ fn malformed_files_are_errors_not_panics() {
         let _ = verify(&f[..n]);
     }
 }
+
+/// (kind, output offset, output length, input offset) of every record, in file order.
+fn records(f: &[u8]) -> Vec<(u8, usize, usize, usize)> {
+    let mut at = 6;
+    let mut out = Vec::new();
+    while at < f.len() {
+        let kind = f[at];
+        let in_len = u32::from_le_bytes(f[at + 1..at + 5].try_into().unwrap()) as usize;
+        let out_len = u32::from_le_bytes(f[at + 5..at + 9].try_into().unwrap()) as usize;
+        out.push((kind, at + 9 + in_len, out_len, at + 9));
+        at += 9 + in_len + out_len;
+    }
+    out
+}
+
+#[test]
+fn every_kind_is_generated_and_a_flipped_byte_in_any_kind_is_reported() {
+    let f = file();
+    let recs = records(&f);
+    for (k, kind) in Kind::ALL.iter().enumerate() {
+        let (i, &(_, out_at, out_len, _)) = recs
+            .iter()
+            .enumerate()
+            .find(|(_, r)| r.0 == *kind as u8)
+            .unwrap_or_else(|| panic!("no {} record", kind.name()));
+        assert!(out_len > 0, "{}", kind.name());
+        // The last output byte: the end of the record's last operation.
+        let mut bad = f.clone();
+        bad[out_at + out_len - 1] ^= 0x80;
+        let r = verify(&bad).unwrap();
+        assert_eq!(r.mismatches.iter().sum::<u32>(), 1, "{}", kind.name());
+        assert_eq!(r.mismatches[k], 1, "{}", kind.name());
+        assert_eq!(
+            r.first_mismatch,
+            Some((i as u32, *kind as u8, out_len as u32 - 1)),
+            "{}",
+            kind.name()
+        );
+    }
+}
+
+#[test]
+fn profile_scripts_cover_moves_to_rest_and_the_far_path() {
+    use liftfw_golden::{OP_RUN, OP_STEPS, OP_TARGET};
+    let f = file();
+    let (mut scripts, mut rested, mut far, mut s_curve) = (0, 0, 0, 0);
+    for (kind, out_at, _, in_at) in records(&f) {
+        if kind != Kind::ProfileSequence as u8 {
+            continue;
+        }
+        scripts += 1;
+        // Walk the script (input) and its outputs side by side.
+        let input = &f[in_at..out_at];
+        let start = i32::from_le_bytes(input[0..4].try_into().unwrap());
+        s_curve += usize::from(input[16] == 1);
+        let n = u16::from_le_bytes(input[17..19].try_into().unwrap()) as usize;
+        let mut o = out_at;
+        let mut is_far = start.unsigned_abs() > 1 << 29;
+        let mut rests = false;
+        for op in input[19..].chunks(9).take(n) {
+            let arg = i64::from_le_bytes(op[1..9].try_into().unwrap());
+            match op[0] {
+                OP_STEPS => o += 17 * arg as usize,
+                OP_RUN => {
+                    let at = u32::from_le_bytes(f[o + 25..o + 29].try_into().unwrap());
+                    rests |= at != u32::MAX;
+                    o += 29;
+                }
+                OP_TARGET => is_far |= arg.unsigned_abs() > 1 << 29,
+                _ => {}
+            }
+            o += 4; // the target after each operation
+        }
+        rested += usize::from(rests);
+        far += usize::from(is_far);
+    }
+    assert_eq!(scripts, 128);
+    assert_eq!(s_curve, 64);
+    // Most scripts bring the reference to rest at least once; a good share runs the far path.
+    assert!(rested >= 80, "{rested} of {scripts} scripts rest");
+    assert!(far >= 16, "{far} of {scripts} scripts go past 2^29 counts");
+}

@@ -154,3 +154,53 @@ fn profile_scripts_cover_moves_to_rest_and_the_far_path() {
     assert!(rested >= 80, "{rested} of {scripts} scripts rest");
     assert!(far >= 16, "{far} of {scripts} scripts go past 2^29 counts");
 }
+
+#[test]
+fn console_lines_reach_every_outcome() {
+    let f = file();
+    let mut outcomes = std::collections::BTreeMap::<String, usize>::new();
+    for (kind, out_at, out_len, _) in records(&f) {
+        if kind == Kind::ConsoleParse as u8 {
+            let text = String::from_utf8_lossy(&f[out_at..out_at + out_len]);
+            let head: String = text
+                .chars()
+                .take_while(|c| c.is_alphanumeric() || "(".contains(*c))
+                .collect();
+            let head = head.split('(').take(3).collect::<Vec<_>>().join("(");
+            *outcomes.entry(head).or_default() += 1;
+        }
+    }
+    assert_eq!(outcomes.values().sum::<usize>(), 2400);
+    for o in [
+        "Ok(None",
+        "Ok(Some(Status",
+        "Ok(Some(Get",
+        "Ok(Some(Set",
+        "Ok(Some(Save",
+        "Ok(Some(Limits",
+        "Ok(Some(Up",
+        "Ok(Some(Down",
+        "Ok(Some(Stop",
+        "Ok(Some(Goto",
+        "Ok(Some(Fault",
+        "Ok(Some(FaultClear",
+        "Ok(Some(Help",
+        "Ok(Some(Version",
+        "Err(NotText",
+        "Err(TooLong",
+        "Err(UnknownCommand",
+        "Err(MissingKey",
+        "Err(UnknownKey",
+        "Err(MissingValue",
+        "Err(BadValue",
+        "Err(BadHeight",
+        "Err(Trailing",
+    ] {
+        let n: usize = outcomes
+            .iter()
+            .filter(|(h, _)| *h == o || h.starts_with(&format!("{o}(")))
+            .map(|(_, n)| n)
+            .sum();
+        assert!(n >= 3, "{o}: {outcomes:?}");
+    }
+}

@@ -204,3 +204,34 @@ fn console_lines_reach_every_outcome() {
         assert!(n >= 3, "{o}: {outcomes:?}");
     }
 }
+
+#[test]
+fn detector_traces_slip_raise_episodes_and_stay_quiet() {
+    let f = file();
+    let (mut traces, mut with_onset, mut quiet, mut slips) = (0, 0, 0, 0);
+    for (kind, out_at, _, _) in records(&f) {
+        if kind != Kind::DetectorSequence as u8 {
+            continue;
+        }
+        traces += 1;
+        // Run-length coded reports: tick u32, flags u8, amplitude i32, episodes u32, branch u8.
+        let (mut o, mut onset, mut any) = (out_at, false, false);
+        loop {
+            let t = u32::from_le_bytes(f[o..o + 4].try_into().unwrap());
+            o += 4;
+            if t == u32::MAX {
+                break;
+            }
+            onset |= f[o] & 2 != 0;
+            any |= f[o] & 4 != 0;
+            slips += usize::from(f[o] & 4 != 0);
+            o += 10;
+        }
+        with_onset += usize::from(onset);
+        quiet += usize::from(!any);
+    }
+    assert_eq!(traces, 96);
+    assert!(with_onset >= 25, "{with_onset} traces with an episode");
+    assert!(quiet >= 25, "{quiet} traces without a slip");
+    assert!(slips >= 500, "{slips} slips");
+}

@@ -235,3 +235,37 @@ fn detector_traces_slip_raise_episodes_and_stay_quiet() {
     assert!(quiet >= 25, "{quiet} traces without a slip");
     assert!(slips >= 500, "{slips} slips");
 }
+
+#[test]
+fn control_runs_reach_motion_states_faults_and_refusals() {
+    let f = file();
+    let (mut runs, mut states, mut faults, mut refusals) = (0, [false; 5], 0, 0);
+    for (kind, out_at, _, _) in records(&f) {
+        if kind != Kind::ControlTick as u8 {
+            continue;
+        }
+        runs += 1;
+        let mut o = out_at;
+        loop {
+            let t = u32::from_le_bytes(f[o..o + 4].try_into().unwrap());
+            o += 4;
+            if t == u32::MAX {
+                break;
+            }
+            if f[o] == 0xfe {
+                refusals += usize::from(!matches!(f[o + 1], 0 | 0xff));
+                o += 2;
+                continue;
+            }
+            states[usize::from(f[o + 4])] = true;
+            let len = u16::from_le_bytes(f[o + 5..o + 7].try_into().unwrap()) as usize;
+            o += 7;
+            faults += usize::from(f[o..o + len].starts_with(b"Fault("));
+            o += len;
+        }
+    }
+    assert_eq!(runs, 24);
+    assert_eq!(states, [true; 5], "idle, lifting, lowering, holding, fault");
+    assert!(faults >= 20, "{faults} faults");
+    assert!(refusals >= 10, "{refusals} refused commands");
+}

@@ -15,13 +15,29 @@
 //! `b"LFGV"`, version `u16`, then records until the end: `kind u8`, `input_len u32`,
 //! `output_len u32`, input bytes, output bytes.
 //!
-//! # Adding a kind (detector, ramp/planner, console parser…)
-//! 1. a new [`Kind`] variant (never renumber the old ones);
+//! # Kinds
+//! | kind | core call | input | output |
+//! |---|---|---|---|
+//! | [`Kind::EstimatorEstimate`] | `Estimator::estimate` | config, measurements, speed, accel, flags | every field |
+//! | [`Kind::EstimatorSequence`] | `Estimator::step` + `details` | config, 50 ticks of measurements | every field of every tick |
+//! | [`Kind::ProfileSequence`] | `Profile::new`, `set_target`, `stop`, `set_cruise`, `reset`, `step` | a script of operations ([`OP_STEPS`]…) | each reference in full ([`OP_STEPS`]) or folded into a 64-bit hash with the last one ([`OP_RUN`]); the target after every operation |
+//! | [`Kind::ConsoleParse`] | `console::parse` | the line's bytes | the `Debug` text of the result (+ `goto`'s raw bits) |
+//! | [`Kind::DetectorSequence`] | `StickSlipDetector::step` | settings + the parameters of a synthesised trace ([`DetectorTrace`]) | every report, run-length coded (lossless) + a fold |
+//! | [`Kind::ControlTick`] | `Controller::command`, `Controller::step` | config, start, a script of commands and plant changes | every command's answer; outputs and state run-length coded, events as `Debug` text |
+//!
+//! Long runs (detector traces, control runs) synthesise their inputs from a few parameters in
+//! integer arithmetic on both sides (the same source), so the file holds the parameters, not
+//! thousands of ticks. Each kind after the first two draws from its own seed: adding a kind
+//! leaves the records of the others unchanged.
+//!
+//! # Adding a kind
+//! 1. a new [`Kind`] variant (never renumber the old ones) and its entry in [`Kind::ALL`];
 //! 2. its input codec and an arm in [`evaluate`] that calls the core and [`put_*`](Sink) its
 //!    outputs field by field (raw bits, fixed order);
 //! 3. a case generator called from [`generate`].
 //!
-//! The QEMU harness needs no change: it replays whatever kinds the file holds.
+//! The QEMU harness needs no change: it replays whatever kinds the file holds and prints a
+//! `GOLDEN` line per entry of [`Kind::ALL`].
 #![no_std]
 #![forbid(unsafe_code)]
 
@@ -980,7 +996,7 @@ const PROFILE_SCENARIOS: u32 = 8;
 
 const Q32: i64 = 1 << 32;
 
-/// One profile script: scenario `kind` (0..[`PROFILE_SCENARIOS`]) under `shape`.
+/// One profile script: `scenario` (0..[`PROFILE_SCENARIOS`]) under `shape`.
 fn profile_case(rng: &mut SplitMix64, scenario: u32, shape: RampShape) -> InputBuf {
     let pos = rng.range(-1_000_000, 1_000_000);
     let cruise = rng.range(Q32 / 100, 4 * Q32);
@@ -1166,7 +1182,7 @@ impl<S: Sink> core::fmt::Write for Text<'_, S> {
     }
 }
 
-/// Console lines per generator (see [`console_line`]).
+/// Console lines generated (a well-formed command, a damaged one, or noise).
 pub const CONSOLE_LINES: u32 = 2400;
 
 const COMMANDS: [&str; 14] = [

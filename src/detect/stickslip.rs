@@ -612,10 +612,13 @@ impl StickSlipDetector {
             }
         }
         if self.out.active {
+            // Four intervals, at most the window, at least MIN_HOLD_MS: a window under
+            // MIN_HOLD_MS (100…250 ms is valid) leaves the minimum (`clamp` panicked there).
             let hold = self
                 .interval
                 .saturating_mul(4)
-                .clamp(self.min_hold_ticks, self.window_ticks);
+                .min(self.window_ticks)
+                .max(self.min_hold_ticks);
             if self.since_slip > hold {
                 self.out.active = false;
                 self.chain = 0;
@@ -910,7 +913,7 @@ mod tests {
                 }
             }
             if self.active {
-                let hold = (self.interval * 4).clamp(self.min_hold, self.window);
+                let hold = (self.interval * 4).min(self.window).max(self.min_hold);
                 if self.since > hold {
                     self.active = false;
                     self.chain = 0;
@@ -1020,6 +1023,39 @@ mod tests {
         assert!(d.output().active);
         let a = d.output().amplitude.to_f64();
         assert!(a > 30.0 && a <= 50.5, "amplitude {a}");
+    }
+
+    /// The shortest valid chain window (100 ms) is shorter than the minimum hold (250 ms): an
+    /// episode must hold for the minimum, not panic (found by the golden vectors).
+    #[test]
+    fn a_window_shorter_than_the_minimum_hold_holds_the_minimum() {
+        let l = law(FrictionLaw::DRY);
+        let c = StickSlipConfig {
+            window_ms: 100,
+            ..cfg("0.5")
+        };
+        c.validate().unwrap();
+        let mut d = StickSlipDetector::new(&c, 1000);
+        let (mut last_slip, mut onset) = (None, false);
+        for ms in 0..400u32 {
+            let t = NewtonMetres::from_f64(sawtooth(ms, 40, 25.0, 50.0));
+            let o = d.step(&drive(t, "3"), &l);
+            onset |= o.onset;
+            if o.slip {
+                last_slip = Some(ms);
+            }
+        }
+        assert!(onset, "an episode");
+        let last = last_slip.unwrap();
+        let flat = NewtonMetres::from_f64(25.0);
+        let mut fell = None;
+        for ms in 400..1000u32 {
+            if !d.step(&drive(flat, "3"), &l).active && fell.is_none() {
+                fell = Some(ms);
+            }
+        }
+        let held = fell.expect("the flag falls") - last;
+        assert!((250..=260).contains(&held), "held {held} ms");
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! Everything the control tick samples: encoder counter, current sense, supply voltage,
 //! limit switches and buttons. The board hands over raw codes; scaling is the core's job.
 
-use embassy_stm32::adc::{Adc, AdcChannel, AnyAdcChannel, Exten, InjectedAdc, SampleTime};
+use embassy_stm32::adc::{Adc, AdcChannel, Exten, InjectedAdc, SampleTime};
 use embassy_stm32::gpio::{Input, Pull};
 use embassy_stm32::peripherals::{
     ADC1, ADC2, PA0, PA1, PA4, PB10, PB11, PB14, PB15, PB5, PB6, PB7, TIM3, TIM4,
@@ -62,7 +62,11 @@ pub struct Sensors {
     edge_timer: Timer<'static, TIM3>,
     current: InjectedAdc<'static, ADC1, 2>,
     supply_adc: Adc<'static, ADC2>,
-    supply: AnyAdcChannel<'static, ADC2>,
+    /// The supply divider's pin as its own type, not type-erased (`AnyAdcChannel`): the HAL's
+    /// blocking read then works on a compile-time channel number (112 B less flash). Its
+    /// `setup` puts PA4 in analog mode on every read (one idempotent MODER write; the pin
+    /// leaves reset in analog mode).
+    supply: Peri<'static, PA4>,
     switches: SwitchInputs,
 }
 
@@ -121,7 +125,7 @@ impl Sensors {
             edge_timer,
             current,
             supply_adc,
-            supply: p.supply.degrade_adc(),
+            supply: p.supply,
             switches: SwitchInputs {
                 // Pull-ups everywhere: a cut wire reads as "limit reached" / "STOP pressed"
                 // on the normally-closed inputs, and as "not pressed" on UP/DOWN.

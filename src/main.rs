@@ -310,47 +310,34 @@ fn token<S>(spawned: Result<SpawnToken<S>, SpawnError>) -> SpawnToken<S> {
 ///
 /// Built by value in the boot task, every move of the 2 KiB controller (the constructor's
 /// `Result`, the fallback, the `StaticCell`) took its own slot in the boot task's frame. Here
-/// [`construct_at`] and [`construct_unhomed`] each get the static's storage: the constructor
-/// returns into one temporary in that function's frame, copied once into the static.
-/// (LLVM cannot hand the static to the constructor as its return slot: that needs a
-/// destination it knows to be writable, which a `&mut` argument is not marked as.)
+/// [`construct`] gets the static's storage: the constructor returns into one temporary in that
+/// function's frame, copied once into the static. (LLVM cannot hand the static to the
+/// constructor as its return slot: that needs a destination it knows to be writable, which a
+/// `&mut` argument is not marked as.)
 #[inline(never)]
 fn install_controller(config: &ControlConfig, parked: Option<i32>) -> &'static mut Controller {
-    // Opaque to the optimiser, so that the constructors are not specialised to the static's
+    // Opaque to the optimiser, so that the constructor is not specialised to the static's
     // address: 328 B less flash, measured with scripts/fw-build.
     let slot = core::hint::black_box(CONTROLLER.uninit());
-    let refused = match parked {
-        Some(counts) => construct_at(slot, config, counts).is_err(),
-        None => construct_unhomed(slot, config).is_err(),
-    };
     // The running configuration was validated already; the factory one is the fallback.
-    if refused {
-        construct_unhomed(slot, &ControlConfig::DEFAULT);
+    if construct(slot, config, parked).is_err() {
+        construct(slot, &ControlConfig::DEFAULT, None);
     }
-    // Note(unsafe): every path above wrote `slot` (`construct_*` always do).
+    // Note(unsafe): every path above wrote `slot` (`construct` always does).
     match unsafe { slot.assume_init_mut() } {
         Ok(controller) => controller,
         Err(e) => defmt::panic!("factory configuration refused: {}", e),
     }
 }
 
-/// Writes the controller for `config` at `counts` (homed) into `slot`.
+/// Writes the controller for `config` into `slot`: at `parked` counts (homed), or unhomed.
 #[inline(never)]
-fn construct_at<'a>(
+fn construct<'a>(
     slot: &'a mut MaybeUninit<Result<Controller, ConfigError>>,
     config: &ControlConfig,
-    counts: i32,
+    parked: Option<i32>,
 ) -> &'a mut Result<Controller, ConfigError> {
-    slot.write(Controller::new(config, counts))
-}
-
-/// Writes the unhomed controller for `config` into `slot`.
-#[inline(never)]
-fn construct_unhomed<'a>(
-    slot: &'a mut MaybeUninit<Result<Controller, ConfigError>>,
-    config: &ControlConfig,
-) -> &'a mut Result<Controller, ConfigError> {
-    slot.write(Controller::new_unhomed(config))
+    slot.write(Controller::new_at(config, parked))
 }
 
 /// The fixed-rate control loop: sample → `step` → apply. If a tick is late, embassy's

@@ -29,7 +29,9 @@ use super::PWM_FREQUENCY;
 
 /// The motor H-bridge.
 pub struct HBridge {
-    pwm: SimplePwm<'static, TIM1>,
+    /// TIM1 and its two pins, configured here; [`HBridge::apply`] writes the compare registers
+    /// directly ([`set_compare`]).
+    _pwm: SimplePwm<'static, TIM1>,
     enable_right: Output<'static>,
     enable_left: Output<'static>,
     /// Compare value for 100 % duty (ARR + 1).
@@ -59,9 +61,8 @@ impl HBridge {
         );
         let full_scale = pwm.max_duty_cycle();
         for channel in [Channel::Ch1, Channel::Ch2] {
-            let mut ch = pwm.channel(channel);
-            ch.set_duty_cycle_fully_off();
-            ch.enable();
+            set_compare(channel.index(), 0);
+            pwm.channel(channel).enable();
         }
         // CH4 drives no pin. PWM mode 2 makes OC4REF rise at CNT = CCR4, and the CC4 event
         // happens there too, so the ADC trigger lands at CCR4 whichever of the two the
@@ -69,11 +70,11 @@ impl HBridge {
         {
             let mut ch4 = pwm.ch4();
             ch4.set_output_compare_mode(OutputCompareMode::PwmMode2);
-            ch4.set_duty_cycle(full_scale / 2);
+            set_compare(3, full_scale / 2);
             ch4.enable();
         }
         Self {
-            pwm,
+            _pwm: pwm,
             enable_right,
             enable_left,
             full_scale,
@@ -95,14 +96,12 @@ impl HBridge {
                 }
             }
         };
-        self.pwm.ch1().set_duty_cycle(right);
-        self.pwm.ch2().set_duty_cycle(left);
+        set_compare(0, right);
+        set_compare(1, left);
         // Sample the current in the middle of the on-phase, where the chopped IS output
         // equals the mean motor current. With no on-phase (coast, brake) any point will do.
         let on = right.max(left);
-        self.pwm
-            .ch4()
-            .set_duty_cycle(if on == 0 { self.full_scale / 2 } else { on / 2 });
+        set_compare(3, if on == 0 { self.full_scale / 2 } else { on / 2 });
         let level = if enabled { Level::High } else { Level::Low };
         self.enable_right.set_level(level);
         self.enable_left.set_level(level);
@@ -112,6 +111,15 @@ impl HBridge {
     pub fn full_scale(&self) -> u32 {
         self.full_scale
     }
+}
+
+/// Writes TIM1's compare register of channel `index` (0 = CH1): the one register write of
+/// embassy-stm32's `SimplePwmChannel::set_duty_cycle`, without its assertion that the value is
+/// at most the full scale (it read ARR back for each of the three channels every tick; every
+/// value written here is at most `full_scale` by construction). 80 B less flash.
+fn set_compare(index: usize, value: u32) {
+    use embassy_stm32::pac::{timer::regs::Ccr1ch, TIM1};
+    TIM1.ccr(index).write_value(Ccr1ch(value));
 }
 
 /// Q15 duty magnitude → compare value in `0..=full_scale`. `i16::MIN` saturates to 100 %.

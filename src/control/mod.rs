@@ -560,10 +560,16 @@ impl Controller {
     /// lower stop is not enforced on that run (the switch is the stop); stall, over-current and
     /// the other protections are.
     pub fn new_unhomed(cfg: &ControlConfig) -> Result<Controller, ConfigError> {
+        Controller::new_at(cfg, None)
+    }
+
+    /// [`Controller::new`] at `Some(position)`, [`Controller::new_unhomed`] at `None`: one
+    /// construction path for a caller that may have either (the firmware's boot).
+    pub fn new_at(cfg: &ControlConfig, position: Option<i32>) -> Result<Controller, ConfigError> {
         // Adjusted inside the `Result` (`?` would move the 2 KiB controller out of it and back
         // into a new one: two more copies and stack slots).
-        let mut made = Controller::new(cfg, 0);
-        if let Ok(c) = &mut made {
+        let mut made = Controller::new(cfg, position.unwrap_or(0));
+        if let (Ok(c), None) = (&mut made, position) {
             // Until homed, assume the lowest position: the model's load (and feed-forward) is
             // then the largest the lift can see.
             c.set_position(c.switch_counts);

@@ -85,8 +85,11 @@ cross_target_spec() {
     RUSTC_BOOTSTRAP=1 /usr/bin/rustc -Zunstable-options --print target-spec-json \
         --target "$CROSS_TARGET" >"$spec.new"
     if grep -q '"cpu"' "$spec.new" || ! grep -q '"frame-pointer": "always",' "$spec.new"; then
-        cross_log "target spec: not the expected built-in spec (rustc changed?): $spec.new"
-        exit 1
+        # A compiler whose spec already differs: build for its built-in target rather than
+        # guess at an edit (larger flash and stack, same code).
+        cross_log "target spec: not the expected built-in spec (rustc changed?), using the built-in target: $spec.new"
+        printf '%s\n' "$CROSS_TARGET"
+        return
     fi
     sed -i 's/"frame-pointer": "always",/"cpu": "cortex-m4",\n  "frame-pointer": "may-omit",/' "$spec.new"
     if cmp -s "$spec.new" "$spec"; then rm "$spec.new"; else mv "$spec.new" "$spec"; fi

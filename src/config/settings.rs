@@ -173,49 +173,8 @@ pub struct Setting {
     about: &'static str,
     /// Part of the flash record (false only for derived settings such as `friction.law`).
     pub stored: bool,
-    /// The raw bits' integer type: [`Setting::set`] refuses what it cannot hold, so the
-    /// field writes only store.
-    width: Width,
     /// Its position in [`SETTINGS`]: the field [`Setting::get`] and [`Setting::set`] access.
     field: u8,
-}
-
-/// The integer type a setting's raw bits are stored in.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Width {
-    I32,
-    U32,
-    U16,
-    /// Any `i64` (I32F32 fields; choices check their index themselves).
-    I64,
-}
-
-impl Width {
-    fn holds(self, raw: i64) -> bool {
-        match self {
-            Width::I32 => i32::try_from(raw).is_ok(),
-            Width::U32 => u32::try_from(raw).is_ok(),
-            Width::U16 => u16::try_from(raw).is_ok(),
-            Width::I64 => true,
-        }
-    }
-}
-
-/// The [`Width`] of an integer field type.
-trait FieldInt {
-    const WIDTH: Width;
-}
-
-impl FieldInt for i32 {
-    const WIDTH: Width = Width::I32;
-}
-
-impl FieldInt for u32 {
-    const WIDTH: Width = Width::U32;
-}
-
-impl FieldInt for u16 {
-    const WIDTH: Width = Width::U16;
 }
 
 impl core::fmt::Debug for Setting {
@@ -237,15 +196,17 @@ impl Setting {
         None
     }
 
-    /// The field's raw bits in `cfg`.
+    /// The field's raw bits in `cfg`. (Through a copy: the registry reaches its fields by one
+    /// `&mut` access ([`slot`]) for both directions.)
     pub fn get(&self, cfg: &ControlConfig) -> i64 {
-        read_field(self.field, cfg)
+        let mut c = *cfg;
+        slot(self.field, &mut c).read()
     }
 
     /// Write raw bits into the field; false (and `cfg` unchanged) if they do not fit its type.
     /// No range check: see [`apply`].
     pub fn set(&self, cfg: &mut ControlConfig, raw: i64) -> bool {
-        self.width.holds(raw) && write_field(self.field, cfg, raw)
+        slot(self.field, cfg).write(raw)
     }
 }
 
@@ -304,32 +265,6 @@ pub fn apply(
     ValidatedConfig::new(next)
 }
 
-/// Raw-bit access to the fixed-point types the configuration is made of.
-trait Bits32: Sized {
-    fn bits(self) -> i32;
-    fn with_bits(b: i32) -> Self;
-}
-
-macro_rules! bits32 {
-    ($($t:ty),*) => {$(
-        impl Bits32 for $t {
-            fn bits(self) -> i32 { self.to_bits() }
-            fn with_bits(b: i32) -> Self { <$t>::from_bits(b) }
-        }
-    )*};
-}
-bits32!(
-    Metres,
-    Ratio,
-    Amperes,
-    Volts,
-    Kilograms,
-    NewtonMetres,
-    RadiansPerSecond,
-    Newtons,
-    I16F16
-);
-
 const fn num(frac: u8, unit: UnitId) -> Kind {
     Kind::Number {
         frac,
@@ -347,54 +282,138 @@ const LEN: Kind = Kind::Number {
     none_at_max: false,
 };
 
-/// The field accessors of one setting, by its accessor form:
+/// The configuration fields as the registry reaches them, and [`Slot`]'s two directions.
+/// (`q32` names the 32-bit fixed-point types, `choice` the enum and bool fields' types with a
+/// variant name each.)
+macro_rules! slots {
+    (q32: $($q:ident),*; choice: $($c:ident($ct:ty)),* $(,)?) => {
+        /// A configuration field as the registry reaches it: a mutable reference typed by how
+        /// its raw bits read and write (a choice with its values in registry order). [`slot`]
+        /// maps a setting's index to its field once for both directions: on the board each
+        /// setting costs one address and tag in one `match`, instead of a load in a reading
+        /// and a store in a writing one.
+        enum Slot<'a> {
+            $($q(&'a mut $q),)*
+            Q64(&'a mut I32F32),
+            I32(&'a mut i32),
+            U32(&'a mut u32),
+            U16(&'a mut u16),
+            $($c(&'a mut $ct, &'static [$ct]),)*
+        }
+
+        $(impl<'a> From<&'a mut $q> for Slot<'a> {
+            fn from(f: &'a mut $q) -> Self {
+                Slot::$q(f)
+            }
+        })*
+
+        $(impl ChoiceValue for $ct {
+            fn slot<'a>(f: &'a mut Self, values: &'static [Self]) -> Slot<'a> {
+                Slot::$c(f, values)
+            }
+        })*
+
+        impl Slot<'_> {
+            /// The raw bits (a choice whose value is none of its list's: −1).
+            fn read(&self) -> i64 {
+                match self {
+                    $(Slot::$q(f) => i64::from(f.to_bits()),)*
+                    Slot::Q64(f) => f.to_bits(),
+                    Slot::I32(f) => i64::from(**f),
+                    Slot::U32(f) => i64::from(**f),
+                    Slot::U16(f) => i64::from(**f),
+                    $(Slot::$c(f, values) => index_of(&**f, values),)*
+                }
+            }
+
+            /// Store raw bits; false (the field unchanged) if its type or list cannot hold
+            /// them.
+            fn write(self, raw: i64) -> bool {
+                match self {
+                    $(Slot::$q(f) => i32::try_from(raw).map(|b| *f = <$q>::from_bits(b)).is_ok(),)*
+                    Slot::Q64(f) => {
+                        *f = I32F32::from_bits(raw);
+                        true
+                    }
+                    Slot::I32(f) => put(f, raw),
+                    Slot::U32(f) => put(f, raw),
+                    Slot::U16(f) => put(f, raw),
+                    $(Slot::$c(f, values) => choose(f, values, raw),)*
+                }
+            }
+        }
+    };
+}
+
+slots! {
+    q32: Metres, Ratio, Amperes, Volts, Kilograms, NewtonMetres, RadiansPerSecond, Newtons,
+        I16F16;
+    choice: Ramp(RampShape), Buttons(ButtonMode), Screw(ScrewKind), Flag(bool),
+        Law(FrictionLaw), Variable(LawVariable), Reaction(Reaction),
+}
+
+impl<'a> From<&'a mut I32F32> for Slot<'a> {
+    fn from(f: &'a mut I32F32) -> Self {
+        Slot::Q64(f)
+    }
+}
+
+impl<'a> From<&'a mut i32> for Slot<'a> {
+    fn from(f: &'a mut i32) -> Self {
+        Slot::I32(f)
+    }
+}
+
+impl<'a> From<&'a mut u32> for Slot<'a> {
+    fn from(f: &'a mut u32) -> Self {
+        Slot::U32(f)
+    }
+}
+
+impl<'a> From<&'a mut u16> for Slot<'a> {
+    fn from(f: &'a mut u16) -> Self {
+        Slot::U16(f)
+    }
+}
+
+/// An enum (or bool) field's type: its [`Slot`] with the setting's list of values.
+trait ChoiceValue: Sized + 'static {
+    fn slot<'a>(f: &'a mut Self, values: &'static [Self]) -> Slot<'a>;
+}
+
+/// An integer field takes `raw` if its type holds it.
+fn put<T: TryFrom<i64>>(f: &mut T, raw: i64) -> bool {
+    T::try_from(raw).map(|v| *f = v).is_ok()
+}
+
+/// The position of `f`'s value in `values`, −1 if none.
+fn index_of<T: PartialEq>(f: &T, values: &[T]) -> i64 {
+    values.iter().position(|x| x == f).map_or(-1, |i| i as i64)
+}
+
+/// Set `f` to the value at position `raw` of `values`; false if there is none.
+fn choose<T: Copy>(f: &mut T, values: &[T], raw: i64) -> bool {
+    match usize::try_from(raw).ok().and_then(|i| values.get(i)) {
+        Some(x) => {
+            *f = *x;
+            true
+        }
+        None => false,
+    }
+}
+
+/// The [`Slot`] of one setting, by its accessor form:
 /// - `q32 path`: a fixed-point field stored as its 32 raw bits;
 /// - `q64 path`: an I32F32 field stored as its 64 raw bits;
 /// - `int T, path`: an integer field of type `T`;
 /// - `choice path = [V0, V1, …]`: an enum (or bool) field stored as the index of its value;
 /// - `preset path = ARRAY`: like `choice`, but derived (not in the flash record; reads −1 when
 ///   the field matches no preset).
-macro_rules! field_get {
-    ($c:ident, q32 $($f:ident).+) => { i64::from(Bits32::bits($c.$($f).+)) };
-    ($c:ident, q64 $($f:ident).+) => { $c.$($f).+.to_bits() };
-    ($c:ident, int $t:ty, $($f:ident).+) => { i64::from($c.$($f).+) };
-    ($c:ident, choice $($f:ident).+ = $values:expr) => {
-        $values.iter().position(|x| *x == $c.$($f).+).map_or(-1, |i| i as i64)
-    };
-    ($c:ident, preset $($f:ident).+ = $values:expr) => { field_get!($c, choice $($f).+ = $values) };
-}
-
-/// Store raw bits into a field (see [`field_get`]); `Setting::set` has checked that they fit
-/// the field's integer type, choices check their index here.
-macro_rules! field_set {
-    ($c:ident, $v:ident, q32 $($f:ident).+) => {{ $c.$($f).+ = Bits32::with_bits($v as i32); true }};
-    ($c:ident, $v:ident, q64 $($f:ident).+) => {{ $c.$($f).+ = I32F32::from_bits($v); true }};
-    ($c:ident, $v:ident, int $t:ty, $($f:ident).+) => {{ $c.$($f).+ = $v as $t; true }};
-    ($c:ident, $v:ident, choice $($f:ident).+ = $values:expr) => {
-        match usize::try_from($v).ok().and_then(|i| $values.get(i)) {
-            Some(x) => {
-                $c.$($f).+ = *x;
-                true
-            }
-            None => false,
-        }
-    };
-    ($c:ident, $v:ident, preset $($f:ident).+ = $values:expr) => {
-        field_set!($c, $v, choice $($f).+ = $values)
-    };
-}
-
-/// The [`Width`] of an accessor form.
-macro_rules! field_width {
-    (q32 $($rest:tt)*) => {
-        Width::I32
-    };
-    (int $t:ty, $($rest:tt)*) => {
-        <$t as FieldInt>::WIDTH
-    };
-    ($($rest:tt)*) => {
-        Width::I64
-    };
+macro_rules! field_slot {
+    ($c:ident, choice $($f:ident).+ = $values:expr) => { ChoiceValue::slot(&mut $c.$($f).+, &$values) };
+    ($c:ident, preset $($f:ident).+ = $values:expr) => { ChoiceValue::slot(&mut $c.$($f).+, &$values) };
+    ($c:ident, int $t:ty, $($f:ident).+) => { Slot::from(&mut $c.$($f).+) };
+    ($c:ident, $form:ident $($f:ident).+) => { Slot::from(&mut $c.$($f).+) };
 }
 
 /// Whether an accessor form is part of the flash record.
@@ -407,10 +426,10 @@ macro_rules! field_stored {
     };
 }
 
-/// [`SETTINGS`] and the two functions that read and write a setting's field by its index
-/// (`index => key, kind, range, help line, [accessor]`). One `match` per direction instead of
-/// a `get` and a `set` function per setting: on the board the table is 8 bytes per setting
-/// smaller and the field accesses share their code (≈ 1 KiB of flash less).
+/// [`SETTINGS`] and the function that reaches a setting's field by its index (`index => key,
+/// kind, range, help line, [accessor]`). One `match` for both directions instead of a `get`
+/// and a `set` function per setting (or a `match` per direction): on the board the table is 8
+/// bytes per setting smaller and each setting's field access is one address and tag.
 macro_rules! registry {
     ($($n:literal => $key:literal, $kind:expr, $range:literal, $about:literal, [$($acc:tt)+];)*) => {
         /// Every setting. The flash record's layout follows this order (the `stored` ones):
@@ -423,24 +442,17 @@ macro_rules! registry {
                 #[cfg(feature = "help-text")]
                 about: $about,
                 stored: field_stored!($($acc)+),
-                width: field_width!($($acc)+),
                 field: $n,
             },
         )*];
 
-        /// The raw bits of field `field` (a [`Setting::field`]).
-        fn read_field(field: u8, c: &ControlConfig) -> i64 {
+        /// The field of setting `field` (a [`Setting::field`]; out of range: the first's).
+        #[inline(never)]
+        fn slot(field: u8, c: &mut ControlConfig) -> Slot<'_> {
             match field {
-                $($n => field_get!(c, $($acc)+),)*
-                _ => 0,
-            }
-        }
-
-        /// Store raw bits into field `field`; false if the field refuses them.
-        fn write_field(field: u8, c: &mut ControlConfig, v: i64) -> bool {
-            match field {
-                $($n => field_set!(c, v, $($acc)+),)*
-                _ => false,
+                $($n => field_slot!(c, $($acc)+),)*
+                // Not reached: `field` is a registry index (a test checks each).
+                _ => field_slot!(c, q32 limits.lower),
             }
         }
     };

@@ -171,10 +171,9 @@ pub struct Setting {
     /// its `help <key>` gives unit and range). Read it through [`Setting::about`].
     #[cfg(feature = "help-text")]
     about: &'static str,
-    /// Part of the flash record (false only for derived settings such as `friction.law`).
-    pub stored: bool,
-    /// Its position in [`SETTINGS`]: the field [`Setting::get`] and [`Setting::set`] access.
-    field: u8,
+    // No more fields: 20 bytes per setting on the board. Whether it is stored
+    // ([`Setting::stored`]) and its position (the field [`Setting::get`] and [`Setting::set`]
+    // reach) come from where it is in [`SETTINGS`].
 }
 
 impl core::fmt::Debug for Setting {
@@ -196,17 +195,30 @@ impl Setting {
         None
     }
 
+    /// Its position in [`SETTINGS`]. Every `Setting` is one of that table's (it has private
+    /// fields, so no other can be made, and it is not `Clone`): the position is its address's
+    /// distance from the table's start.
+    pub fn index(&self) -> usize {
+        let at = core::ptr::from_ref(self).addr();
+        at.wrapping_sub(SETTINGS.as_ptr().addr()) / core::mem::size_of::<Setting>()
+    }
+
+    /// Part of the flash record (false only for derived settings such as `friction.law`).
+    pub fn stored(&self) -> bool {
+        stored_at(self.index())
+    }
+
     /// The field's raw bits in `cfg`. (Through a copy: the registry reaches its fields by one
     /// `&mut` access ([`slot`]) for both directions.)
     pub fn get(&self, cfg: &ControlConfig) -> i64 {
         let mut c = *cfg;
-        slot(self.field, &mut c).read()
+        slot(self.index(), &mut c).read()
     }
 
     /// Write raw bits into the field; false (and `cfg` unchanged) if they do not fit its type.
     /// No range check: see [`apply`].
     pub fn set(&self, cfg: &mut ControlConfig, raw: i64) -> bool {
-        slot(self.field, cfg).write(raw)
+        slot(self.index(), cfg).write(raw)
     }
 }
 
@@ -441,21 +453,39 @@ macro_rules! registry {
                 range: $range,
                 #[cfg(feature = "help-text")]
                 about: $about,
-                stored: field_stored!($($acc)+),
-                field: $n,
             },
         )*];
 
-        /// The field of setting `field` (a [`Setting::field`]; out of range: the first's).
+        /// Bit `i`: setting `i` is stored in the flash record.
+        const STORED: u128 = 0 $(| ((field_stored!($($acc)+) as u128) << $n))*;
+
+        // The indices written in the registry are the positions (`slot` finds a setting's
+        // field by its position).
+        const _: () = {
+            let mut i = 0;
+            $(
+                assert!($n == i, "registry indices must count 0, 1, 2, …");
+                i += 1;
+            )*
+            assert!(i == SETTINGS.len() && i <= 128);
+        };
+
+        /// The field of the setting at `index` (out of range: the first's).
         #[inline(never)]
-        fn slot(field: u8, c: &mut ControlConfig) -> Slot<'_> {
-            match field {
+        fn slot(index: usize, c: &mut ControlConfig) -> Slot<'_> {
+            match index {
                 $($n => field_slot!(c, $($acc)+),)*
-                // Not reached: `field` is a registry index (a test checks each).
+                // Not reached: `index` is a registry position.
                 _ => field_slot!(c, q32 limits.lower),
             }
         }
     };
+}
+
+/// Whether the setting at `index` of [`SETTINGS`] is stored in the flash record
+/// ([`Setting::stored`]; `const` for the record's compile-time layout tables).
+pub const fn stored_at(index: usize) -> bool {
+    index < SETTINGS.len() && STORED >> index & 1 == 1
 }
 
 /// The friction-law presets `friction.law` selects, in its choice order.
@@ -836,7 +866,7 @@ mod tests {
         } = ControlConfig::DEFAULT;
         // 71 fields above, one key each (the ball screw's law variable is fixed), plus the
         // `friction.law` preset selector.
-        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 71);
+        assert_eq!(SETTINGS.iter().filter(|s| s.stored()).count(), 71);
     }
 
     /// The display unit is accepted without an entry: `accepts` repeats none (the messages'
@@ -853,14 +883,23 @@ mod tests {
 
     #[test]
     fn every_setting_accesses_its_own_field() {
-        // Indices written in the registry are the positions (the field accessors are found
-        // by them).
+        // A setting's position is found from its address (the registry's indices are the
+        // positions: a compile-time check).
         for (i, s) in SETTINGS.iter().enumerate() {
-            assert_eq!(usize::from(s.field), i, "{}", s.key);
+            assert_eq!(s.index(), i, "{}", s.key);
+            assert_eq!(find(s.key).map(|id| id.setting().index()), Some(i));
         }
+        // Only the preset selector is left out of the record.
+        let derived: std::vec::Vec<&str> = SETTINGS
+            .iter()
+            .filter(|s| !s.stored())
+            .map(|s| s.key)
+            .collect();
+        assert_eq!(derived, ["friction.law"]);
+        assert!(!stored_at(SETTINGS.len()) && !stored_at(200));
         // Each stored setting's field is its own: changing one leaves every other reading.
         let c = ControlConfig::DEFAULT;
-        for s in SETTINGS.iter().filter(|s| s.stored) {
+        for s in SETTINGS.iter().filter(|s| s.stored()) {
             let raw = s.get(&c);
             let Some(d) = [raw ^ 1, raw.wrapping_add(2), 0, 1]
                 .into_iter()
@@ -871,7 +910,7 @@ mod tests {
             else {
                 panic!("{} takes no other value", s.key)
             };
-            for t in SETTINGS.iter().filter(|t| t.stored) {
+            for t in SETTINGS.iter().filter(|t| t.stored()) {
                 assert_eq!(
                     t.get(&d) == t.get(&c),
                     !core::ptr::eq(s, t),
@@ -891,6 +930,48 @@ mod tests {
             assert!(s.set(&mut d, s.get(&c)), "{}", s.key);
             assert_eq!(d, c, "{}", s.key);
         }
+    }
+
+    /// Raw bits the field's type cannot hold are refused and change nothing (32-bit fields
+    /// take `i32`, integer fields their own type, choices an index of their list; I32F32
+    /// fields take any `i64`).
+    #[test]
+    fn raw_bits_outside_the_field_type_are_refused() {
+        let c = ControlConfig::DEFAULT;
+        let fits = |s: &Setting, raw: i64| {
+            let mut d = c;
+            let ok = s.set(&mut d, raw);
+            if !ok {
+                assert_eq!(d, c, "{}", s.key);
+            } else {
+                assert_eq!(s.get(&d), raw, "{}", s.key);
+            }
+            ok
+        };
+        let key = |k: &str| find(k).unwrap().setting();
+        for k in [
+            "limits.upper",
+            "motor.kt",
+            "load.rated",
+            "ballscrew.preload",
+        ] {
+            assert!(fits(key(k), i64::from(i32::MIN)) && fits(key(k), i64::from(i32::MAX)));
+            assert!(
+                !fits(key(k), i64::from(i32::MAX) + 1) && !fits(key(k), i64::from(i32::MIN) - 1)
+            );
+        }
+        let ramp = key("motion.ramp_ms");
+        assert!(fits(ramp, i64::from(u32::MAX)) && !fits(ramp, -1) && !fits(ramp, 1 << 32));
+        let zero = key("sense.current_zero");
+        assert!(fits(zero, 65535) && !fits(zero, 65536) && !fits(zero, -1));
+        let inertia = key("mech.inertia");
+        assert!(fits(inertia, -1) && !fits(inertia, 1 << 31));
+        let rate = key("friction.rate");
+        assert!(fits(rate, i64::MAX) && fits(rate, i64::MIN));
+        let shape = key("motion.ramp_shape");
+        assert!(fits(shape, 1) && !fits(shape, 2) && !fits(shape, -1));
+        let law = key("friction.law");
+        assert!(fits(law, 3) && !fits(law, 4));
     }
 
     #[test]

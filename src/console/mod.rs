@@ -407,11 +407,11 @@ fn key_help(out: &mut dyn Write, id: SettingId, about: Option<&str>) -> fmt::Res
     }
 }
 
-/// The reply to `help`.
-pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
-    match topic {
-        HelpTopic::Commands => out.write_str(
-            "commands (case-insensitive):\r\n\
+/// The reply to `help`: each command with a line of description (builds with the `help-text`
+/// feature: liftctl, host-sim); the firmware lists the commands' forms only ([`COMMANDS_BRIEF`],
+/// ≈ 0.5 KiB less flash) and points to docs/console.md.
+#[cfg(feature = "help-text")]
+const COMMANDS: &str = "commands (case-insensitive):\r\n\
              \x20 status              state, height, speed, current, T_r, stick-slip (flag, last drop, episodes), fault, ball screw: f, f_law\r\n\
              \x20 up | down | stop    move (hold-to-run unless motion.buttons = latched)\r\n\
              \x20 goto <height>       drive the head to a height, e.g. goto 300mm\r\n\
@@ -421,8 +421,21 @@ pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
              \x20 save                store the settings in flash\r\n\
              \x20 fault | fault clear show or clear the fault\r\n\
              \x20 version             protocol version (for host tools such as liftctl)\r\n\
-             \x20 help keys | help <key>",
-        ),
+             \x20 help keys | help <key>";
+
+/// The firmware's `help`: every command's form, without the descriptions.
+#[cfg_attr(feature = "help-text", allow(dead_code))]
+const COMMANDS_BRIEF: &str = "commands (case-insensitive; docs/console.md describes them):\r\n\
+     \x20 status | up | down | stop | goto <height> | limits | save | version\r\n\
+     \x20 get <key> | set <key> <value> | fault | fault clear | help keys | help <key>";
+
+#[cfg(not(feature = "help-text"))]
+const COMMANDS: &str = COMMANDS_BRIEF;
+
+/// The reply to `help`.
+pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
+    match topic {
+        HelpTopic::Commands => out.write_str(COMMANDS),
         HelpTopic::Keys => {
             for (i, id) in settings::all().enumerate() {
                 if i > 0 {
@@ -966,6 +979,41 @@ mod tests {
             }
         }
         assert_eq!(n, 7);
+    }
+
+    /// The firmware's `help` (no descriptions) names every command form the described one
+    /// does, in its lines of at most 80 characters.
+    #[test]
+    fn brief_commands_help_names_every_command() {
+        for form in [
+            "status",
+            "up",
+            "down",
+            "stop",
+            "goto <height>",
+            "limits",
+            "get <key>",
+            "set <key> <value>",
+            "save",
+            "fault",
+            "fault clear",
+            "version",
+            "help keys",
+            "help <key>",
+        ] {
+            assert!(COMMANDS_BRIEF.contains(form), "{form}");
+            #[cfg(feature = "help-text")]
+            assert!(COMMANDS.contains(form), "{form}");
+        }
+        assert_eq!(COMMANDS_BRIEF.lines().count(), 3);
+        assert!(COMMANDS_BRIEF.lines().all(|l| l.trim_end().len() <= 80));
+        // Every command word the parser knows is listed.
+        for line in COMMANDS_BRIEF.lines().skip(1) {
+            for form in line.split('|') {
+                let w = form.split_whitespace().next().unwrap();
+                assert!(!matches!(parse(w.as_bytes()), Err(ParseError::UnknownCommand(_))), "{w}");
+            }
+        }
     }
 
     /// Host builds have the help lines (`help-text`, turned on by host-sim and liftctl); the

@@ -217,14 +217,15 @@ fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {
         Kind::Number {
             unit, none_at_max, ..
         } => {
-            out.write_str(unit.what)?;
-            if !unit.display.is_empty() {
+            out.write_str(unit.what())?;
+            let display = unit.display();
+            if !display.is_empty() {
                 out.write_str(" in ")?;
-                out.write_str(unit.display)?;
+                out.write_str(display)?;
             }
             // The other ASCII spellings, once each (`accepts` has no display unit).
             let mut n = 0;
-            for (s, _) in unit.accepts {
+            for (s, _) in unit.accepts() {
                 if !s.is_ascii() || s.bytes().any(|b| b == b'*') {
                     continue;
                 }
@@ -447,11 +448,10 @@ pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
                 out.write_str(" [")?;
                 match &s.kind {
                     Kind::Choice(_) => out.write_str("choice")?,
-                    Kind::Number { unit, .. } => out.write_str(if unit.display.is_empty() {
-                        "-"
-                    } else {
-                        unit.display
-                    })?,
+                    Kind::Number { unit, .. } => {
+                        let display = unit.display();
+                        out.write_str(if display.is_empty() { "-" } else { display })?
+                    }
                 }
                 out.write_str("] ")?;
                 out.write_str(s.range)?;
@@ -1011,7 +1011,10 @@ mod tests {
         for line in COMMANDS_BRIEF.lines().skip(1) {
             for form in line.split('|') {
                 let w = form.split_whitespace().next().unwrap();
-                assert!(!matches!(parse(w.as_bytes()), Err(ParseError::UnknownCommand(_))), "{w}");
+                assert!(
+                    !matches!(parse(w.as_bytes()), Err(ParseError::UnknownCommand(_))),
+                    "{w}"
+                );
             }
         }
     }

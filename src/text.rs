@@ -52,7 +52,8 @@ pub fn hex8(out: &mut dyn Write, v: u32) -> fmt::Result {
     ascii(out, &buf)
 }
 
-fn ascii(out: &mut dyn Write, digits: &[u8]) -> fmt::Result {
+/// ASCII text (digits) as it is.
+pub(crate) fn ascii(out: &mut dyn Write, digits: &[u8]) -> fmt::Result {
     out.write_str(core::str::from_utf8(digits).map_err(|_| fmt::Error)?)
 }
 

@@ -648,10 +648,18 @@ pub(crate) fn fill(out: &mut dyn Write, template: &str, args: &[Arg<'_>]) -> fmt
 
 /// A name as one `key=value` word: spaces become `-` ("encoder lost" → `encoder-lost`).
 fn write_word(out: &mut dyn Write, name: &str) -> fmt::Result {
-    for c in name.chars() {
-        out.write_char(if c.is_ascii_whitespace() { '-' } else { c })?;
+    // Piece by piece between ASCII whitespace bytes (char boundaries; no char decoding).
+    let mut rest = name;
+    while let Some((piece, tail)) = rest
+        .bytes()
+        .position(|b| b.is_ascii_whitespace())
+        .and_then(|i| rest.split_at_checked(i))
+    {
+        out.write_str(piece)?;
+        out.write_char('-')?;
+        rest = tail.get(1..).unwrap_or("");
     }
-    Ok(())
+    out.write_str(rest)
 }
 
 /// The console warning of the stick-slip reactions `warn` and `speed`, one line.
@@ -990,6 +998,16 @@ mod tests {
             let mut out = String::new();
             clip(&mut out, s).unwrap();
             assert_eq!(out, twin(s), "{s}");
+        }
+    }
+
+    /// Names become one word: each ASCII whitespace character a `-` (the `chars` form's twin).
+    #[test]
+    fn words_replace_ascii_whitespace() {
+        for name in ["", "idle", "encoder lost", " a  b\tc\n", "ü ö", "limit switch before x "] {
+            let mut out = String::new();
+            write_word(&mut out, name).unwrap();
+            assert_eq!(out, reference::word(name), "{name:?}");
         }
     }
 

@@ -527,15 +527,7 @@ fn write_decimal(out: &mut dyn Write, q: i64, dec: u32) -> fmt::Result {
     if q < 0 {
         out.write_char('-')?;
     }
-    let m = q.unsigned_abs();
-    // dec ≤ 5 in every reply: fits.
-    let s = value::ten_to(dec).unwrap_or(1);
-    text::uint(out, m / s)?;
-    if dec != 0 {
-        out.write_char('.')?;
-        text::uint_padded(out, m % s, dec as usize)?;
-    }
-    Ok(())
+    text::decimal(out, q.unsigned_abs(), dec as usize)
 }
 
 /// The reply to `status`: one line, `key=value` pairs a person and a script can read (a fault

@@ -996,7 +996,14 @@ mod tests {
     /// Names become one word: each ASCII whitespace character a `-` (the `chars` form's twin).
     #[test]
     fn words_replace_ascii_whitespace() {
-        for name in ["", "idle", "encoder lost", " a  b\tc\n", "ü ö", "limit switch before x "] {
+        for name in [
+            "",
+            "idle",
+            "encoder lost",
+            " a  b\tc\n",
+            "ü ö",
+            "limit switch before x ",
+        ] {
             let mut out = String::new();
             write_word(&mut out, name).unwrap();
             assert_eq!(out, reference::word(name), "{name:?}");

@@ -235,9 +235,11 @@ pub struct Setting {
     /// its `help <key>` gives unit and range). Read it through [`Setting::about`].
     #[cfg(feature = "help-text")]
     about: &'static str,
-    // No more fields: 20 bytes per setting on the board. Whether it is stored
-    // ([`Setting::stored`]) and its position (the field [`Setting::get`] and [`Setting::set`]
-    // reach) come from where it is in [`SETTINGS`].
+    /// No other field: 20 bytes per setting on the board. Whether it is stored
+    /// ([`Setting::stored`]) and its position (the field [`Setting::get`] and [`Setting::set`]
+    /// reach) come from where it is in [`SETTINGS`]; this private (empty) field keeps any
+    /// other `Setting` from being made.
+    sealed: (),
 }
 
 impl core::fmt::Debug for Setting {
@@ -517,6 +519,7 @@ macro_rules! registry {
                 range: $range,
                 #[cfg(feature = "help-text")]
                 about: $about,
+                sealed: (),
             },
         )*];
 

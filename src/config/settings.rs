@@ -239,7 +239,7 @@ pub struct Setting {
     /// ([`Setting::stored`]) and its position (the field [`Setting::get`] and [`Setting::set`]
     /// reach) come from where it is in [`SETTINGS`]; this private (empty) field keeps any
     /// other `Setting` from being made.
-    sealed: (),
+    _sealed: (),
 }
 
 impl core::fmt::Debug for Setting {
@@ -519,7 +519,7 @@ macro_rules! registry {
                 range: $range,
                 #[cfg(feature = "help-text")]
                 about: $about,
-                sealed: (),
+                _sealed: (),
             },
         )*];
 

@@ -524,7 +524,12 @@ macro_rules! registry {
         )*];
 
         /// Bit `i`: setting `i` is stored in the flash record.
-        const STORED: u128 = 0 $(| ((field_stored!($($acc)+) as u128) << $n))*;
+        /// (One statement per setting, so that an entry can carry attributes such as `cfg`.)
+        const STORED: u128 = {
+            let mut mask = 0;
+            $(mask |= (field_stored!($($acc)+) as u128) << $n;)*
+            mask
+        };
 
         // The indices written in the registry are the positions (`slot` finds a setting's
         // field by its position).

@@ -223,6 +223,7 @@ pub enum Kind {
 }
 
 /// One configurable field.
+#[non_exhaustive]
 pub struct Setting {
     /// Console key (lower case, as [`ConfigError`] names it).
     pub key: &'static str,
@@ -235,11 +236,9 @@ pub struct Setting {
     /// its `help <key>` gives unit and range). Read it through [`Setting::about`].
     #[cfg(feature = "help-text")]
     about: &'static str,
-    /// No other field: 20 bytes per setting on the board. Whether it is stored
-    /// ([`Setting::stored`]) and its position (the field [`Setting::get`] and [`Setting::set`]
-    /// reach) come from where it is in [`SETTINGS`]; this private (empty) field keeps any
-    /// other `Setting` from being made.
-    _sealed: (),
+    // No other field: 20 bytes per setting on the board. Whether it is stored
+    // ([`Setting::stored`]) and its position (the field [`Setting::get`] and [`Setting::set`]
+    // reach) come from where it is in [`SETTINGS`].
 }
 
 impl core::fmt::Debug for Setting {
@@ -261,9 +260,9 @@ impl Setting {
         None
     }
 
-    /// Its position in [`SETTINGS`]. Every `Setting` is one of that table's (it has private
-    /// fields, so no other can be made, and it is not `Clone`): the position is its address's
-    /// distance from the table's start.
+    /// Its position in [`SETTINGS`]. Every `Setting` is one of that table's (it is
+    /// `#[non_exhaustive]`, so no other crate can make one, this crate makes them only there,
+    /// and it is not `Clone`): the position is its address's distance from the table's start.
     pub fn index(&self) -> usize {
         let at = core::ptr::from_ref(self).addr();
         at.wrapping_sub(SETTINGS.as_ptr().addr()) / core::mem::size_of::<Setting>()
@@ -519,7 +518,6 @@ macro_rules! registry {
                 range: $range,
                 #[cfg(feature = "help-text")]
                 about: $about,
-                _sealed: (),
             },
         )*];
 

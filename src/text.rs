@@ -30,7 +30,34 @@ pub fn uint_padded(out: &mut dyn Write, mut v: u64, width: usize) -> fmt::Result
 
 /// `v` in decimal (`{v}`).
 pub fn uint(out: &mut dyn Write, v: u64) -> fmt::Result {
-    uint_padded(out, v, 1)
+    decimal(out, v, 0)
+}
+
+/// `v·10^−dec` in decimal: the whole part, and for `dec > 0` a point and `dec` digits
+/// (`{}.{:0dec$}` of `v / 10^dec` and `v % 10^dec`, for `dec ≤ 19`). One digit loop for both
+/// parts: no division by `10^dec`.
+pub fn decimal(out: &mut dyn Write, mut v: u64, dec: usize) -> fmt::Result {
+    let mut buf = [0u8; 20];
+    let mut n = 0;
+    for slot in buf.iter_mut().rev() {
+        // `v % 10 < 10`: the cast is exact.
+        *slot = b'0' + (v % 10) as u8;
+        v /= 10;
+        n += 1;
+        if v == 0 && n > dec {
+            break;
+        }
+    }
+    let digits = buf.get(buf.len() - n..).unwrap_or(&[]);
+    let (whole, frac) = digits
+        .split_at_checked(n.saturating_sub(dec))
+        .unwrap_or((digits, &[]));
+    ascii(out, whole)?;
+    if dec == 0 {
+        return Ok(());
+    }
+    out.write_char('.')?;
+    ascii(out, frac)
 }
 
 /// `v` in decimal with a `-` when negative (`{v}`).
@@ -52,7 +79,8 @@ pub fn hex8(out: &mut dyn Write, v: u32) -> fmt::Result {
     ascii(out, &buf)
 }
 
-fn ascii(out: &mut dyn Write, digits: &[u8]) -> fmt::Result {
+/// ASCII text (digits) as it is.
+pub(crate) fn ascii(out: &mut dyn Write, digits: &[u8]) -> fmt::Result {
     out.write_str(core::str::from_utf8(digits).map_err(|_| fmt::Error)?)
 }
 
@@ -96,6 +124,15 @@ mod tests {
                 text(|o| int(o, s.wrapping_neg())),
                 format!("{}", s.wrapping_neg())
             );
+            for dec in 0..=19usize {
+                let p = 10u64.pow(dec as u32);
+                let want = if dec == 0 {
+                    format!("{v}")
+                } else {
+                    format!("{}.{:0dec$}", v / p, v % p)
+                };
+                assert_eq!(text(|o| decimal(o, v, dec)), want, "{v} {dec}");
+            }
             let h = v as u32;
             assert_eq!(text(|o| hex8(o, h)), format!("{h:08x}"));
         }

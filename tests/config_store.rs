@@ -79,7 +79,7 @@ fn everything_changed() -> ValidatedConfig {
     let mut cfg = ValidatedConfig::factory();
     for id in settings::all() {
         let s = id.setting();
-        if !s.stored {
+        if !s.stored() {
             continue;
         }
         let raw = s.get(cfg.get());
@@ -108,7 +108,7 @@ fn everything_changed() -> ValidatedConfig {
 fn every_setting_round_trips_through_flash() {
     let changed = everything_changed();
     let factory = ControlConfig::DEFAULT;
-    for s in SETTINGS.iter().filter(|s| s.stored) {
+    for s in SETTINGS.iter().filter(|s| s.stored()) {
         assert_ne!(s.get(changed.get()), s.get(&factory), "{}", s.key);
     }
     let mut st = store(Flash::new());

@@ -54,7 +54,7 @@ impl Mirror {
         for id in settings::all() {
             let s = id.setting();
             let text = board.get(s.key)?;
-            if s.stored {
+            if s.stored() {
                 let c = parse_change(s.key, &text).map_err(|_| Error::Garbled {
                     sent: format!("get {}", s.key),
                     got: text.clone(),
@@ -208,7 +208,7 @@ pub fn export_toml(mirror: &Mirror, header: &str) -> String {
     let mut group = "";
     for (key, text) in &mirror.texts {
         let (g, k) = key.split_once('.').unwrap_or(("", key));
-        let stored = settings::find(key).is_some_and(|id| id.setting().stored);
+        let stored = settings::find(key).is_some_and(|id| id.setting().stored());
         if g != group {
             let _ = writeln!(s, "\n[{g}]");
             group = g;
@@ -246,7 +246,7 @@ pub fn import_toml(text: &str) -> Result<Vec<Change>, Error> {
                     "error: unknown key '{key}'; `liftctl config get` lists them"
                 )));
             };
-            if !id.setting().stored {
+            if !id.setting().stored() {
                 continue;
             }
             let value = match v {
@@ -330,7 +330,7 @@ mod tests {
         let m = Mirror { config: run, texts };
         let t = export_toml(&m, "test");
         let changes = import_toml(&t).unwrap();
-        let stored = settings::all().filter(|id| id.setting().stored).count();
+        let stored = settings::all().filter(|id| id.setting().stored()).count();
         assert_eq!(changes.len(), stored);
         let mut cfg = *run.get();
         for c in &changes {

@@ -40,7 +40,7 @@ impl PartialEq for ValidatedConfig {
     fn eq(&self, other: &Self) -> bool {
         settings::SETTINGS
             .iter()
-            .filter(|s| s.stored)
+            .filter(|s| s.stored())
             .all(|s| s.get(&self.0) == s.get(&other.0))
     }
 }

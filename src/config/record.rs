@@ -31,7 +31,7 @@ pub const HEADER_LEN: usize = 16;
 
 /// Number of settings in the record.
 pub fn stored_count() -> usize {
-    SETTINGS.iter().filter(|s| s.stored).count()
+    SETTINGS.iter().filter(|s| s.stored()).count()
 }
 
 /// Record length for this firmware.
@@ -105,7 +105,7 @@ const ADDED_IN: [u8; SETTINGS.len()] = {
     let mut t = [u8::MAX; SETTINGS.len()];
     let mut i = 0;
     while i < SETTINGS.len() {
-        if SETTINGS[i].stored {
+        if crate::config::settings::stored_at(i) {
             t[i] = added_in(SETTINGS[i].key) as u8;
         }
         i += 1;
@@ -307,7 +307,7 @@ mod tests {
         for version in 1..=VERSION {
             let keys: std::vec::Vec<&str> = SETTINGS
                 .iter()
-                .filter(|s| s.stored && in_version(s.key, version))
+                .filter(|s| s.stored() && in_version(s.key, version))
                 .map(|s| s.key)
                 .collect();
             let mut text = std::string::String::new();
@@ -347,7 +347,7 @@ mod tests {
     fn old_record(cfg: &ControlConfig, version: u16, b: &mut [u8; MAX_RECORD_LEN]) -> usize {
         let keys: usize = SETTINGS
             .iter()
-            .filter(|s| s.stored && in_version(s.key, version))
+            .filter(|s| s.stored() && in_version(s.key, version))
             .count();
         b[0..4].copy_from_slice(&MAGIC);
         b[4..6].copy_from_slice(&version.to_le_bytes());
@@ -356,7 +356,7 @@ mod tests {
         b[12..16].copy_from_slice(&3u32.to_le_bytes());
         for (i, s) in SETTINGS
             .iter()
-            .filter(|s| s.stored && in_version(s.key, version))
+            .filter(|s| s.stored() && in_version(s.key, version))
             .enumerate()
         {
             let at = HEADER_LEN + 8 * i;

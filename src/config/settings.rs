@@ -18,17 +18,70 @@ use crate::units::{
 use crate::ConfigError;
 use fixed::types::{I16F16, I32F32};
 
-/// A unit a value is typed and shown in.
+/// A unit a value is typed and shown in: its display unit, what it measures and the other
+/// suffixes it accepts, packed in one text (`display|what|suffix=power|…`; one reference per
+/// unit instead of three, and no table of (suffix, power) pairs: ≈ 0.4 KiB less flash).
 #[derive(Debug, PartialEq, Eq)]
 pub struct Unit {
+    spec: &'static str,
+}
+
+impl Unit {
+    /// The spec's `|`-separated parts.
+    fn parts(&self) -> Parts {
+        Parts(Some(self.spec))
+    }
+
     /// The unit values are shown in (empty: a plain number).
-    pub display: &'static str,
+    pub fn display(&self) -> &'static str {
+        self.parts().next().unwrap_or("")
+    }
+
+    /// What the value is, for messages ("a length").
+    pub fn what(&self) -> &'static str {
+        self.parts().nth(1).unwrap_or("")
+    }
+
     /// Accepted suffixes other than `display` (lower case) with their power of ten relative
     /// to `display`; `display` itself (any case) and a bare number are always read in
     /// `display`.
-    pub accepts: &'static [(&'static str, i32)],
-    /// What the value is, for messages ("a length").
-    pub what: &'static str,
+    pub fn accepts(&self) -> impl Iterator<Item = (&'static str, i32)> {
+        self.parts().skip(2).map(|a| {
+            // `suffix=power`, the power one digit with an optional `-` (`units!` checks that
+            // at compile time; a test reads every unit back).
+            let b = a.as_bytes();
+            let digit = b.last().map_or(0, |d| i32::from(d.wrapping_sub(b'0')));
+            let neg = b.get(b.len().wrapping_sub(2)) == Some(&b'-');
+            let cut = b.len().saturating_sub(if neg { 3 } else { 2 });
+            (a.get(..cut).unwrap_or(""), if neg { -digit } else { digit })
+        })
+    }
+}
+
+/// The `|`-separated parts of a [`Unit`]'s spec (an empty part included).
+struct Parts(Option<&'static str>);
+
+impl Iterator for Parts {
+    type Item = &'static str;
+
+    fn next(&mut self) -> Option<&'static str> {
+        let rest = self.0?;
+        // `|` is ASCII: the split is at a char boundary (checked: no panic linked).
+        match rest
+            .bytes()
+            .position(|b| b == b'|')
+            .and_then(|i| rest.split_at_checked(i))
+        {
+            Some((part, tail)) => {
+                self.0 = tail.get(1..);
+                Some(part)
+            }
+            None => {
+                self.0 = None;
+                Some(rest)
+            }
+        }
+    }
 }
 
 /// The units ([`UNITS`]) and a [`UnitId`] constant for each (`NAME, display, what,
@@ -47,7 +100,18 @@ macro_rules! units {
 
         /// Every unit, in [`UnitId`] order.
         pub static UNITS: [Unit; [$(UnitIndex::$name),*].len()] = [$(
-            Unit { display: $display, accepts: &[$(($s, $p)),*], what: $what },
+            Unit { spec: concat!($display, "|", $what $(, "|", $s, "=", $p)*) },
+        )*];
+
+        // `Unit::accepts` reads a power of one digit.
+        const _: () = {
+            $($(assert!($p >= -9 && $p <= 9, "a suffix's power of ten must be one digit");)*)*
+        };
+
+        /// The units as the macro was given them, for the test that reads the specs back.
+        #[cfg(test)]
+        static UNITS_GIVEN: [(&str, &str, &[(&str, i32)]); UNITS.len()] = [$(
+            ($display, $what, &[$(($s, $p)),*]),
         )*];
     };
 }
@@ -159,6 +223,7 @@ pub enum Kind {
 }
 
 /// One configurable field.
+#[non_exhaustive]
 pub struct Setting {
     /// Console key (lower case, as [`ConfigError`] names it).
     pub key: &'static str,
@@ -171,51 +236,9 @@ pub struct Setting {
     /// its `help <key>` gives unit and range). Read it through [`Setting::about`].
     #[cfg(feature = "help-text")]
     about: &'static str,
-    /// Part of the flash record (false only for derived settings such as `friction.law`).
-    pub stored: bool,
-    /// The raw bits' integer type: [`Setting::set`] refuses what it cannot hold, so the
-    /// field writes only store.
-    width: Width,
-    /// Its position in [`SETTINGS`]: the field [`Setting::get`] and [`Setting::set`] access.
-    field: u8,
-}
-
-/// The integer type a setting's raw bits are stored in.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Width {
-    I32,
-    U32,
-    U16,
-    /// Any `i64` (I32F32 fields; choices check their index themselves).
-    I64,
-}
-
-impl Width {
-    fn holds(self, raw: i64) -> bool {
-        match self {
-            Width::I32 => i32::try_from(raw).is_ok(),
-            Width::U32 => u32::try_from(raw).is_ok(),
-            Width::U16 => u16::try_from(raw).is_ok(),
-            Width::I64 => true,
-        }
-    }
-}
-
-/// The [`Width`] of an integer field type.
-trait FieldInt {
-    const WIDTH: Width;
-}
-
-impl FieldInt for i32 {
-    const WIDTH: Width = Width::I32;
-}
-
-impl FieldInt for u32 {
-    const WIDTH: Width = Width::U32;
-}
-
-impl FieldInt for u16 {
-    const WIDTH: Width = Width::U16;
+    // No other field: 20 bytes per setting on the board. Whether it is stored
+    // ([`Setting::stored`]) and its position (the field [`Setting::get`] and [`Setting::set`]
+    // reach) come from where it is in [`SETTINGS`].
 }
 
 impl core::fmt::Debug for Setting {
@@ -237,15 +260,30 @@ impl Setting {
         None
     }
 
-    /// The field's raw bits in `cfg`.
+    /// Its position in [`SETTINGS`]. Every `Setting` is one of that table's (it is
+    /// `#[non_exhaustive]`, so no other crate can make one, this crate makes them only there,
+    /// and it is not `Clone`): the position is its address's distance from the table's start.
+    pub fn index(&self) -> usize {
+        let at = core::ptr::from_ref(self).addr();
+        at.wrapping_sub(SETTINGS.as_ptr().addr()) / core::mem::size_of::<Setting>()
+    }
+
+    /// Part of the flash record (false only for derived settings such as `friction.law`).
+    pub fn stored(&self) -> bool {
+        stored_at(self.index())
+    }
+
+    /// The field's raw bits in `cfg`. (Through a copy: the registry reaches its fields by one
+    /// `&mut` access ([`slot`]) for both directions.)
     pub fn get(&self, cfg: &ControlConfig) -> i64 {
-        read_field(self.field, cfg)
+        let mut c = *cfg;
+        slot(self.index(), &mut c).read()
     }
 
     /// Write raw bits into the field; false (and `cfg` unchanged) if they do not fit its type.
     /// No range check: see [`apply`].
     pub fn set(&self, cfg: &mut ControlConfig, raw: i64) -> bool {
-        self.width.holds(raw) && write_field(self.field, cfg, raw)
+        slot(self.index(), cfg).write(raw)
     }
 }
 
@@ -304,32 +342,6 @@ pub fn apply(
     ValidatedConfig::new(next)
 }
 
-/// Raw-bit access to the fixed-point types the configuration is made of.
-trait Bits32: Sized {
-    fn bits(self) -> i32;
-    fn with_bits(b: i32) -> Self;
-}
-
-macro_rules! bits32 {
-    ($($t:ty),*) => {$(
-        impl Bits32 for $t {
-            fn bits(self) -> i32 { self.to_bits() }
-            fn with_bits(b: i32) -> Self { <$t>::from_bits(b) }
-        }
-    )*};
-}
-bits32!(
-    Metres,
-    Ratio,
-    Amperes,
-    Volts,
-    Kilograms,
-    NewtonMetres,
-    RadiansPerSecond,
-    Newtons,
-    I16F16
-);
-
 const fn num(frac: u8, unit: UnitId) -> Kind {
     Kind::Number {
         frac,
@@ -347,54 +359,138 @@ const LEN: Kind = Kind::Number {
     none_at_max: false,
 };
 
-/// The field accessors of one setting, by its accessor form:
+/// The configuration fields as the registry reaches them, and [`Slot`]'s two directions.
+/// (`q32` names the 32-bit fixed-point types, `choice` the enum and bool fields' types with a
+/// variant name each.)
+macro_rules! slots {
+    (q32: $($q:ident),*; choice: $($c:ident($ct:ty)),* $(,)?) => {
+        /// A configuration field as the registry reaches it: a mutable reference typed by how
+        /// its raw bits read and write (a choice with its values in registry order). [`slot`]
+        /// maps a setting's index to its field once for both directions: on the board each
+        /// setting costs one address and tag in one `match`, instead of a load in a reading
+        /// and a store in a writing one.
+        enum Slot<'a> {
+            $($q(&'a mut $q),)*
+            Q64(&'a mut I32F32),
+            I32(&'a mut i32),
+            U32(&'a mut u32),
+            U16(&'a mut u16),
+            $($c(&'a mut $ct, &'static [$ct]),)*
+        }
+
+        $(impl<'a> From<&'a mut $q> for Slot<'a> {
+            fn from(f: &'a mut $q) -> Self {
+                Slot::$q(f)
+            }
+        })*
+
+        $(impl ChoiceValue for $ct {
+            fn slot<'a>(f: &'a mut Self, values: &'static [Self]) -> Slot<'a> {
+                Slot::$c(f, values)
+            }
+        })*
+
+        impl Slot<'_> {
+            /// The raw bits (a choice whose value is none of its list's: −1).
+            fn read(&self) -> i64 {
+                match self {
+                    $(Slot::$q(f) => i64::from(f.to_bits()),)*
+                    Slot::Q64(f) => f.to_bits(),
+                    Slot::I32(f) => i64::from(**f),
+                    Slot::U32(f) => i64::from(**f),
+                    Slot::U16(f) => i64::from(**f),
+                    $(Slot::$c(f, values) => index_of(&**f, values),)*
+                }
+            }
+
+            /// Store raw bits; false (the field unchanged) if its type or list cannot hold
+            /// them.
+            fn write(self, raw: i64) -> bool {
+                match self {
+                    $(Slot::$q(f) => i32::try_from(raw).map(|b| *f = <$q>::from_bits(b)).is_ok(),)*
+                    Slot::Q64(f) => {
+                        *f = I32F32::from_bits(raw);
+                        true
+                    }
+                    Slot::I32(f) => put(f, raw),
+                    Slot::U32(f) => put(f, raw),
+                    Slot::U16(f) => put(f, raw),
+                    $(Slot::$c(f, values) => choose(f, values, raw),)*
+                }
+            }
+        }
+    };
+}
+
+slots! {
+    q32: Metres, Ratio, Amperes, Volts, Kilograms, NewtonMetres, RadiansPerSecond, Newtons,
+        I16F16;
+    choice: Ramp(RampShape), Buttons(ButtonMode), Screw(ScrewKind), Flag(bool),
+        Law(FrictionLaw), Variable(LawVariable), Reaction(Reaction),
+}
+
+impl<'a> From<&'a mut I32F32> for Slot<'a> {
+    fn from(f: &'a mut I32F32) -> Self {
+        Slot::Q64(f)
+    }
+}
+
+impl<'a> From<&'a mut i32> for Slot<'a> {
+    fn from(f: &'a mut i32) -> Self {
+        Slot::I32(f)
+    }
+}
+
+impl<'a> From<&'a mut u32> for Slot<'a> {
+    fn from(f: &'a mut u32) -> Self {
+        Slot::U32(f)
+    }
+}
+
+impl<'a> From<&'a mut u16> for Slot<'a> {
+    fn from(f: &'a mut u16) -> Self {
+        Slot::U16(f)
+    }
+}
+
+/// An enum (or bool) field's type: its [`Slot`] with the setting's list of values.
+trait ChoiceValue: Sized + 'static {
+    fn slot<'a>(f: &'a mut Self, values: &'static [Self]) -> Slot<'a>;
+}
+
+/// An integer field takes `raw` if its type holds it.
+fn put<T: TryFrom<i64>>(f: &mut T, raw: i64) -> bool {
+    T::try_from(raw).map(|v| *f = v).is_ok()
+}
+
+/// The position of `f`'s value in `values`, −1 if none.
+fn index_of<T: PartialEq>(f: &T, values: &[T]) -> i64 {
+    values.iter().position(|x| x == f).map_or(-1, |i| i as i64)
+}
+
+/// Set `f` to the value at position `raw` of `values`; false if there is none.
+fn choose<T: Copy>(f: &mut T, values: &[T], raw: i64) -> bool {
+    match usize::try_from(raw).ok().and_then(|i| values.get(i)) {
+        Some(x) => {
+            *f = *x;
+            true
+        }
+        None => false,
+    }
+}
+
+/// The [`Slot`] of one setting, by its accessor form:
 /// - `q32 path`: a fixed-point field stored as its 32 raw bits;
 /// - `q64 path`: an I32F32 field stored as its 64 raw bits;
 /// - `int T, path`: an integer field of type `T`;
 /// - `choice path = [V0, V1, …]`: an enum (or bool) field stored as the index of its value;
 /// - `preset path = ARRAY`: like `choice`, but derived (not in the flash record; reads −1 when
 ///   the field matches no preset).
-macro_rules! field_get {
-    ($c:ident, q32 $($f:ident).+) => { i64::from(Bits32::bits($c.$($f).+)) };
-    ($c:ident, q64 $($f:ident).+) => { $c.$($f).+.to_bits() };
-    ($c:ident, int $t:ty, $($f:ident).+) => { i64::from($c.$($f).+) };
-    ($c:ident, choice $($f:ident).+ = $values:expr) => {
-        $values.iter().position(|x| *x == $c.$($f).+).map_or(-1, |i| i as i64)
-    };
-    ($c:ident, preset $($f:ident).+ = $values:expr) => { field_get!($c, choice $($f).+ = $values) };
-}
-
-/// Store raw bits into a field (see [`field_get`]); `Setting::set` has checked that they fit
-/// the field's integer type, choices check their index here.
-macro_rules! field_set {
-    ($c:ident, $v:ident, q32 $($f:ident).+) => {{ $c.$($f).+ = Bits32::with_bits($v as i32); true }};
-    ($c:ident, $v:ident, q64 $($f:ident).+) => {{ $c.$($f).+ = I32F32::from_bits($v); true }};
-    ($c:ident, $v:ident, int $t:ty, $($f:ident).+) => {{ $c.$($f).+ = $v as $t; true }};
-    ($c:ident, $v:ident, choice $($f:ident).+ = $values:expr) => {
-        match usize::try_from($v).ok().and_then(|i| $values.get(i)) {
-            Some(x) => {
-                $c.$($f).+ = *x;
-                true
-            }
-            None => false,
-        }
-    };
-    ($c:ident, $v:ident, preset $($f:ident).+ = $values:expr) => {
-        field_set!($c, $v, choice $($f).+ = $values)
-    };
-}
-
-/// The [`Width`] of an accessor form.
-macro_rules! field_width {
-    (q32 $($rest:tt)*) => {
-        Width::I32
-    };
-    (int $t:ty, $($rest:tt)*) => {
-        <$t as FieldInt>::WIDTH
-    };
-    ($($rest:tt)*) => {
-        Width::I64
-    };
+macro_rules! field_slot {
+    ($c:ident, choice $($f:ident).+ = $values:expr) => { ChoiceValue::slot(&mut $c.$($f).+, &$values) };
+    ($c:ident, preset $($f:ident).+ = $values:expr) => { ChoiceValue::slot(&mut $c.$($f).+, &$values) };
+    ($c:ident, int $t:ty, $($f:ident).+) => { Slot::from(&mut $c.$($f).+) };
+    ($c:ident, $form:ident $($f:ident).+) => { Slot::from(&mut $c.$($f).+) };
 }
 
 /// Whether an accessor form is part of the flash record.
@@ -407,10 +503,10 @@ macro_rules! field_stored {
     };
 }
 
-/// [`SETTINGS`] and the two functions that read and write a setting's field by its index
-/// (`index => key, kind, range, help line, [accessor]`). One `match` per direction instead of
-/// a `get` and a `set` function per setting: on the board the table is 8 bytes per setting
-/// smaller and the field accesses share their code (≈ 1 KiB of flash less).
+/// [`SETTINGS`] and the function that reaches a setting's field by its index (`index => key,
+/// kind, range, help line, [accessor]`). One `match` for both directions instead of a `get`
+/// and a `set` function per setting (or a `match` per direction): on the board the table is 8
+/// bytes per setting smaller and each setting's field access is one address and tag.
 macro_rules! registry {
     ($($n:literal => $key:literal, $kind:expr, $range:literal, $about:literal, [$($acc:tt)+];)*) => {
         /// Every setting. The flash record's layout follows this order (the `stored` ones):
@@ -422,28 +518,44 @@ macro_rules! registry {
                 range: $range,
                 #[cfg(feature = "help-text")]
                 about: $about,
-                stored: field_stored!($($acc)+),
-                width: field_width!($($acc)+),
-                field: $n,
             },
         )*];
 
-        /// The raw bits of field `field` (a [`Setting::field`]).
-        fn read_field(field: u8, c: &ControlConfig) -> i64 {
-            match field {
-                $($n => field_get!(c, $($acc)+),)*
-                _ => 0,
-            }
-        }
+        /// Bit `i`: setting `i` is stored in the flash record.
+        /// (One statement per setting, so that an entry can carry attributes such as `cfg`.)
+        const STORED: u128 = {
+            let mut mask = 0;
+            $(mask |= (field_stored!($($acc)+) as u128) << $n;)*
+            mask
+        };
 
-        /// Store raw bits into field `field`; false if the field refuses them.
-        fn write_field(field: u8, c: &mut ControlConfig, v: i64) -> bool {
-            match field {
-                $($n => field_set!(c, v, $($acc)+),)*
-                _ => false,
+        // The indices written in the registry are the positions (`slot` finds a setting's
+        // field by its position).
+        const _: () = {
+            let mut i = 0;
+            $(
+                assert!($n == i, "registry indices must count 0, 1, 2, …");
+                i += 1;
+            )*
+            assert!(i == SETTINGS.len() && i <= 128);
+        };
+
+        /// The field of the setting at `index` (out of range: the first's).
+        #[inline(never)]
+        fn slot(index: usize, c: &mut ControlConfig) -> Slot<'_> {
+            match index {
+                $($n => field_slot!(c, $($acc)+),)*
+                // Not reached: `index` is a registry position.
+                _ => field_slot!(c, q32 limits.lower),
             }
         }
     };
+}
+
+/// Whether the setting at `index` of [`SETTINGS`] is stored in the flash record
+/// ([`Setting::stored`]; `const` for the record's compile-time layout tables).
+pub const fn stored_at(index: usize) -> bool {
+    index < SETTINGS.len() && STORED >> index & 1 == 1
 }
 
 /// The friction-law presets `friction.law` selects, in its choice order.
@@ -824,7 +936,7 @@ mod tests {
         } = ControlConfig::DEFAULT;
         // 71 fields above, one key each (the ball screw's law variable is fixed), plus the
         // `friction.law` preset selector.
-        assert_eq!(SETTINGS.iter().filter(|s| s.stored).count(), 71);
+        assert_eq!(SETTINGS.iter().filter(|s| s.stored()).count(), 71);
     }
 
     /// The display unit is accepted without an entry: `accepts` repeats none (the messages'
@@ -832,23 +944,51 @@ mod tests {
     #[test]
     fn accepted_suffixes_do_not_repeat_the_display_unit() {
         for u in UNITS.iter() {
-            for (s, _) in u.accepts {
-                assert!(!s.eq_ignore_ascii_case(u.display), "{}", u.display);
-                assert_eq!(*s, s.to_ascii_lowercase());
+            for (s, _) in u.accepts() {
+                assert!(!s.eq_ignore_ascii_case(u.display()), "{}", u.display());
+                assert_eq!(s, s.to_ascii_lowercase());
             }
         }
     }
 
+    /// Each unit's packed spec reads back as the display unit, description and suffixes the
+    /// `units!` list gives.
+    #[test]
+    fn unit_specs_read_back_as_given() {
+        for (u, (display, what, accepts)) in UNITS.iter().zip(UNITS_GIVEN.iter()) {
+            assert_eq!(u.display(), *display);
+            assert_eq!(u.what(), *what);
+            assert!(!display.contains(['|', '=']) && !what.contains('|'));
+            let read: std::vec::Vec<(&str, i32)> = u.accepts().collect();
+            assert_eq!(read, *accepts, "{display}");
+        }
+        assert_eq!(RATIO.display(), "");
+        assert_eq!(
+            MICROS.accepts().collect::<std::vec::Vec<_>>(),
+            [("ms", 3), ("s", 6)]
+        );
+        assert_eq!(MILLIMETRES.accepts().last(), Some(("um", -3)));
+    }
+
     #[test]
     fn every_setting_accesses_its_own_field() {
-        // Indices written in the registry are the positions (the field accessors are found
-        // by them).
+        // A setting's position is found from its address (the registry's indices are the
+        // positions: a compile-time check).
         for (i, s) in SETTINGS.iter().enumerate() {
-            assert_eq!(usize::from(s.field), i, "{}", s.key);
+            assert_eq!(s.index(), i, "{}", s.key);
+            assert_eq!(find(s.key).map(|id| id.setting().index()), Some(i));
         }
+        // Only the preset selector is left out of the record.
+        let derived: std::vec::Vec<&str> = SETTINGS
+            .iter()
+            .filter(|s| !s.stored())
+            .map(|s| s.key)
+            .collect();
+        assert_eq!(derived, ["friction.law"]);
+        assert!(!stored_at(SETTINGS.len()) && !stored_at(200));
         // Each stored setting's field is its own: changing one leaves every other reading.
         let c = ControlConfig::DEFAULT;
-        for s in SETTINGS.iter().filter(|s| s.stored) {
+        for s in SETTINGS.iter().filter(|s| s.stored()) {
             let raw = s.get(&c);
             let Some(d) = [raw ^ 1, raw.wrapping_add(2), 0, 1]
                 .into_iter()
@@ -859,7 +999,7 @@ mod tests {
             else {
                 panic!("{} takes no other value", s.key)
             };
-            for t in SETTINGS.iter().filter(|t| t.stored) {
+            for t in SETTINGS.iter().filter(|t| t.stored()) {
                 assert_eq!(
                     t.get(&d) == t.get(&c),
                     !core::ptr::eq(s, t),
@@ -879,6 +1019,48 @@ mod tests {
             assert!(s.set(&mut d, s.get(&c)), "{}", s.key);
             assert_eq!(d, c, "{}", s.key);
         }
+    }
+
+    /// Raw bits the field's type cannot hold are refused and change nothing (32-bit fields
+    /// take `i32`, integer fields their own type, choices an index of their list; I32F32
+    /// fields take any `i64`).
+    #[test]
+    fn raw_bits_outside_the_field_type_are_refused() {
+        let c = ControlConfig::DEFAULT;
+        let fits = |s: &Setting, raw: i64| {
+            let mut d = c;
+            let ok = s.set(&mut d, raw);
+            if !ok {
+                assert_eq!(d, c, "{}", s.key);
+            } else {
+                assert_eq!(s.get(&d), raw, "{}", s.key);
+            }
+            ok
+        };
+        let key = |k: &str| find(k).unwrap().setting();
+        for k in [
+            "limits.upper",
+            "motor.kt",
+            "load.rated",
+            "ballscrew.preload",
+        ] {
+            assert!(fits(key(k), i64::from(i32::MIN)) && fits(key(k), i64::from(i32::MAX)));
+            assert!(
+                !fits(key(k), i64::from(i32::MAX) + 1) && !fits(key(k), i64::from(i32::MIN) - 1)
+            );
+        }
+        let ramp = key("motion.ramp_ms");
+        assert!(fits(ramp, i64::from(u32::MAX)) && !fits(ramp, -1) && !fits(ramp, 1 << 32));
+        let zero = key("sense.current_zero");
+        assert!(fits(zero, 65535) && !fits(zero, 65536) && !fits(zero, -1));
+        let inertia = key("mech.inertia");
+        assert!(fits(inertia, -1) && !fits(inertia, 1 << 31));
+        let rate = key("friction.rate");
+        assert!(fits(rate, i64::MAX) && fits(rate, i64::MIN));
+        let shape = key("motion.ramp_shape");
+        assert!(fits(shape, 1) && !fits(shape, 2) && !fits(shape, -1));
+        let law = key("friction.law");
+        assert!(fits(law, 3) && !fits(law, 4));
     }
 
     #[test]

@@ -148,59 +148,71 @@ pub fn parse(line: &[u8]) -> Result<Option<Request>, ParseError<'_>> {
         return Ok(None);
     }
     let (cmd, rest) = word(line);
-    let is = |name: &str| cmd.eq_ignore_ascii_case(name);
-    if is("status") {
-        no_more(rest, Request::Status)
-    } else if is("get") {
-        let (id, rest) = key("get", rest)?;
-        no_more(rest, Request::Get(id))
-    } else if is("set") {
-        let (id, rest) = key("set", rest)?;
-        if rest.is_empty() {
-            return Err(ParseError::MissingValue(id));
+    // One search of a table instead of a compare per command (≈ 0.1 KiB less flash).
+    let Some(i) = COMMAND_WORDS
+        .iter()
+        .position(|name| cmd.eq_ignore_ascii_case(name))
+    else {
+        return Err(ParseError::UnknownCommand(cmd));
+    };
+    let simple = match i {
+        0 => Request::Status,
+        1 => Request::Save,
+        2 => Request::Limits,
+        3 => Request::Up,
+        4 => Request::Down,
+        5 => Request::Stop,
+        6 => Request::Version,
+        7 => {
+            let (id, rest) = key("get", rest)?;
+            return no_more(rest, Request::Get(id));
         }
-        let raw =
-            value::parse(&id.setting().kind, rest).map_err(|e| ParseError::BadValue(id, e))?;
-        Ok(Some(Request::Set(id, raw)))
-    } else if is("save") {
-        no_more(rest, Request::Save)
-    } else if is("limits") {
-        no_more(rest, Request::Limits)
-    } else if is("up") {
-        no_more(rest, Request::Up)
-    } else if is("down") {
-        no_more(rest, Request::Down)
-    } else if is("stop") {
-        no_more(rest, Request::Stop)
-    } else if is("goto") {
-        let raw = value::parse(&HEIGHT, rest).map_err(ParseError::BadHeight)?;
-        let bits = i32::try_from(raw).map_err(|_| ParseError::BadHeight(ValueError::TooLarge))?;
-        Ok(Some(Request::Goto(Metres::from_bits(bits))))
-    } else if is("fault") {
-        let (sub, rest) = word(rest);
-        if sub.is_empty() {
-            Ok(Some(Request::Fault))
-        } else if sub.eq_ignore_ascii_case("clear") {
-            no_more(rest, Request::FaultClear)
-        } else {
-            Err(ParseError::Trailing(sub))
+        8 => {
+            let (id, rest) = key("set", rest)?;
+            if rest.is_empty() {
+                return Err(ParseError::MissingValue(id));
+            }
+            let raw =
+                value::parse(&id.setting().kind, rest).map_err(|e| ParseError::BadValue(id, e))?;
+            return Ok(Some(Request::Set(id, raw)));
         }
-    } else if is("version") {
-        no_more(rest, Request::Version)
-    } else if is("help") || cmd == "?" {
-        let (topic, rest) = word(rest);
-        if topic.is_empty() {
-            Ok(Some(Request::Help(HelpTopic::Commands)))
-        } else if topic.eq_ignore_ascii_case("keys") {
-            no_more(rest, Request::Help(HelpTopic::Keys))
-        } else {
-            let id = settings::find(topic).ok_or(ParseError::UnknownKey(topic))?;
-            no_more(rest, Request::Help(HelpTopic::Key(id)))
+        9 => {
+            let raw = value::parse(&HEIGHT, rest).map_err(ParseError::BadHeight)?;
+            let bits =
+                i32::try_from(raw).map_err(|_| ParseError::BadHeight(ValueError::TooLarge))?;
+            return Ok(Some(Request::Goto(Metres::from_bits(bits))));
         }
-    } else {
-        Err(ParseError::UnknownCommand(cmd))
-    }
+        10 => {
+            let (sub, rest) = word(rest);
+            return if sub.is_empty() {
+                Ok(Some(Request::Fault))
+            } else if sub.eq_ignore_ascii_case("clear") {
+                no_more(rest, Request::FaultClear)
+            } else {
+                Err(ParseError::Trailing(sub))
+            };
+        }
+        // `help` and `?`.
+        _ => {
+            let (topic, rest) = word(rest);
+            return if topic.is_empty() {
+                Ok(Some(Request::Help(HelpTopic::Commands)))
+            } else if topic.eq_ignore_ascii_case("keys") {
+                no_more(rest, Request::Help(HelpTopic::Keys))
+            } else {
+                let id = settings::find(topic).ok_or(ParseError::UnknownKey(topic))?;
+                no_more(rest, Request::Help(HelpTopic::Key(id)))
+            };
+        }
+    };
+    no_more(rest, simple)
 }
+
+/// The command words [`parse`] knows, by the position it dispatches on.
+const COMMAND_WORDS: [&str; 13] = [
+    "status", "save", "limits", "up", "down", "stop", "version", "get", "set", "goto", "fault",
+    "help", "?",
+];
 
 /// `unit` and the alternatives a key takes, for messages: "mm (or m, cm, um)".
 fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {
@@ -217,15 +229,17 @@ fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {
         Kind::Number {
             unit, none_at_max, ..
         } => {
-            out.write_str(unit.what)?;
-            if !unit.display.is_empty() {
+            out.write_str(unit.what())?;
+            let display = unit.display();
+            if !display.is_empty() {
                 out.write_str(" in ")?;
-                out.write_str(unit.display)?;
+                out.write_str(display)?;
             }
             // The other ASCII spellings, once each (`accepts` has no display unit).
             let mut n = 0;
-            for (s, _) in unit.accepts {
-                if !s.is_ascii() || s.bytes().any(|b| b == b'*') {
+            for (s, _) in unit.accepts() {
+                // (One byte test for both: `is_ascii`'s word-wise loop is ≈ 60 B of its own.)
+                if s.bytes().any(|b| !b.is_ascii() || b == b'*') {
                     continue;
                 }
                 out.write_str(if n == 0 { " (or " } else { ", " })?;
@@ -296,9 +310,16 @@ fn write_expected(out: &mut dyn Write, id: SettingId) -> fmt::Result {
 
 /// At most 24 characters of user text in a message (the rest as `...`).
 fn clip(out: &mut dyn Write, s: &str) -> fmt::Result {
-    match s.char_indices().nth(24) {
+    // The 25th character starts at the 25th byte that is not a UTF-8 continuation byte (no
+    // char decoding: ≈ 0.1 KiB less flash than `char_indices`).
+    match s
+        .bytes()
+        .enumerate()
+        .filter(|&(_, b)| b & 0xC0 != 0x80)
+        .nth(24)
+    {
         Some((i, _)) => {
-            // A char boundary from `char_indices` (checked, so that no panic is linked).
+            // A char boundary (checked, so that no panic is linked).
             out.write_str(s.get(..i).unwrap_or(s))?;
             out.write_str("...")
         }
@@ -407,11 +428,11 @@ fn key_help(out: &mut dyn Write, id: SettingId, about: Option<&str>) -> fmt::Res
     }
 }
 
-/// The reply to `help`.
-pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
-    match topic {
-        HelpTopic::Commands => out.write_str(
-            "commands (case-insensitive):\r\n\
+/// The reply to `help`: each command with a line of description (builds with the `help-text`
+/// feature: liftctl, host-sim); the firmware lists the commands' forms only ([`COMMANDS_BRIEF`],
+/// ≈ 0.5 KiB less flash) and points to docs/console.md.
+#[cfg(feature = "help-text")]
+const COMMANDS: &str = "commands (case-insensitive):\r\n\
              \x20 status              state, height, speed, current, T_r, stick-slip (flag, last drop, episodes), fault, ball screw: f, f_law\r\n\
              \x20 up | down | stop    move (hold-to-run unless motion.buttons = latched)\r\n\
              \x20 goto <height>       drive the head to a height, e.g. goto 300mm\r\n\
@@ -421,8 +442,21 @@ pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
              \x20 save                store the settings in flash\r\n\
              \x20 fault | fault clear show or clear the fault\r\n\
              \x20 version             protocol version (for host tools such as liftctl)\r\n\
-             \x20 help keys | help <key>",
-        ),
+             \x20 help keys | help <key>";
+
+/// The firmware's `help`: every command's form, without the descriptions.
+#[cfg_attr(feature = "help-text", allow(dead_code))]
+const COMMANDS_BRIEF: &str = "commands (case-insensitive; docs/console.md describes them):\r\n\
+     \x20 status | up | down | stop | goto <height> | limits | save | version\r\n\
+     \x20 get <key> | set <key> <value> | fault | fault clear | help keys | help <key>";
+
+#[cfg(not(feature = "help-text"))]
+const COMMANDS: &str = COMMANDS_BRIEF;
+
+/// The reply to `help`.
+pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
+    match topic {
+        HelpTopic::Commands => out.write_str(COMMANDS),
         HelpTopic::Keys => {
             for (i, id) in settings::all().enumerate() {
                 if i > 0 {
@@ -434,11 +468,10 @@ pub fn write_help(out: &mut dyn Write, topic: HelpTopic) -> fmt::Result {
                 out.write_str(" [")?;
                 match &s.kind {
                     Kind::Choice(_) => out.write_str("choice")?,
-                    Kind::Number { unit, .. } => out.write_str(if unit.display.is_empty() {
-                        "-"
-                    } else {
-                        unit.display
-                    })?,
+                    Kind::Number { unit, .. } => {
+                        let display = unit.display();
+                        out.write_str(if display.is_empty() { "-" } else { display })?
+                    }
                 }
                 out.write_str("] ")?;
                 out.write_str(s.range)?;
@@ -494,15 +527,7 @@ fn write_decimal(out: &mut dyn Write, q: i64, dec: u32) -> fmt::Result {
     if q < 0 {
         out.write_char('-')?;
     }
-    let m = q.unsigned_abs();
-    // dec ≤ 5 in every reply: fits.
-    let s = value::ten_to(dec).unwrap_or(1);
-    text::uint(out, m / s)?;
-    if dec != 0 {
-        out.write_char('.')?;
-        text::uint_padded(out, m % s, dec as usize)?;
-    }
-    Ok(())
+    text::decimal(out, q.unsigned_abs(), dec as usize)
 }
 
 /// The reply to `status`: one line, `key=value` pairs a person and a script can read (a fault
@@ -615,10 +640,18 @@ pub(crate) fn fill(out: &mut dyn Write, template: &str, args: &[Arg<'_>]) -> fmt
 
 /// A name as one `key=value` word: spaces become `-` ("encoder lost" → `encoder-lost`).
 fn write_word(out: &mut dyn Write, name: &str) -> fmt::Result {
-    for c in name.chars() {
-        out.write_char(if c.is_ascii_whitespace() { '-' } else { c })?;
+    // Piece by piece between ASCII whitespace bytes (char boundaries; no char decoding).
+    let mut rest = name;
+    while let Some((piece, tail)) = rest
+        .bytes()
+        .position(|b| b.is_ascii_whitespace())
+        .and_then(|i| rest.split_at_checked(i))
+    {
+        out.write_str(piece)?;
+        out.write_char('-')?;
+        rest = tail.get(1..).unwrap_or("");
     }
-    Ok(())
+    out.write_str(rest)
 }
 
 /// The console warning of the stick-slip reactions `warn` and `speed`, one line.
@@ -937,6 +970,46 @@ mod tests {
         }
     }
 
+    /// User text in messages is cut after 24 characters (not bytes), as `char_indices` cut it.
+    #[test]
+    fn clip_cuts_after_24_characters() {
+        let twin = |s: &str| match s.char_indices().nth(24) {
+            Some((i, _)) => format!("{}...", &s[..i]),
+            None => String::from(s),
+        };
+        for s in [
+            "",
+            "short",
+            "exactly-twenty-four-char",
+            "exactly-twenty-five-chars",
+            "äöüäöüäöüäöüäöüäöüäöüäöüäöü",
+            "°°°°°°°°°°°°°°°°°°°°°°°°",
+            "°°°°°°°°°°°°°°°°°°°°°°°°x",
+            "a𝄞b𝄞c𝄞d𝄞e𝄞f𝄞g𝄞h𝄞i𝄞j𝄞k𝄞l𝄞m𝄞",
+        ] {
+            let mut out = String::new();
+            clip(&mut out, s).unwrap();
+            assert_eq!(out, twin(s), "{s}");
+        }
+    }
+
+    /// Names become one word: each ASCII whitespace character a `-` (the `chars` form's twin).
+    #[test]
+    fn words_replace_ascii_whitespace() {
+        for name in [
+            "",
+            "idle",
+            "encoder lost",
+            " a  b\tc\n",
+            "ü ö",
+            "limit switch before x ",
+        ] {
+            let mut out = String::new();
+            write_word(&mut out, name).unwrap();
+            assert_eq!(out, reference::word(name), "{name:?}");
+        }
+    }
+
     /// Heights keep their sign below one millimetre (they lost it before `write_decimal`).
     #[test]
     fn small_negative_heights_keep_their_sign() {
@@ -966,6 +1039,44 @@ mod tests {
             }
         }
         assert_eq!(n, 7);
+    }
+
+    /// The firmware's `help` (no descriptions) names every command form the described one
+    /// does, in its lines of at most 80 characters.
+    #[test]
+    fn brief_commands_help_names_every_command() {
+        for form in [
+            "status",
+            "up",
+            "down",
+            "stop",
+            "goto <height>",
+            "limits",
+            "get <key>",
+            "set <key> <value>",
+            "save",
+            "fault",
+            "fault clear",
+            "version",
+            "help keys",
+            "help <key>",
+        ] {
+            assert!(COMMANDS_BRIEF.contains(form), "{form}");
+            #[cfg(feature = "help-text")]
+            assert!(COMMANDS.contains(form), "{form}");
+        }
+        assert_eq!(COMMANDS_BRIEF.lines().count(), 3);
+        assert!(COMMANDS_BRIEF.lines().all(|l| l.trim_end().len() <= 80));
+        // Every command word the parser knows is listed.
+        for line in COMMANDS_BRIEF.lines().skip(1) {
+            for form in line.split('|') {
+                let w = form.split_whitespace().next().unwrap();
+                assert!(
+                    !matches!(parse(w.as_bytes()), Err(ParseError::UnknownCommand(_))),
+                    "{w}"
+                );
+            }
+        }
     }
 
     /// Host builds have the help lines (`help-text`, turned on by host-sim and liftctl); the

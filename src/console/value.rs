@@ -207,13 +207,12 @@ fn to_raw(m: u64, k: i32, frac: u32) -> Option<(u64, bool)> {
 }
 
 fn unit_pow(unit: &Unit, text: &str) -> Option<i32> {
-    if text.is_empty() || text.eq_ignore_ascii_case(unit.display) {
+    if text.is_empty() || text.eq_ignore_ascii_case(unit.display()) {
         return Some(0);
     }
-    unit.accepts
-        .iter()
+    unit.accepts()
         .find(|(s, _)| s.eq_ignore_ascii_case(text))
-        .map(|&(_, p)| p)
+        .map(|(_, p)| p)
 }
 
 fn is_none_word(text: &str) -> bool {
@@ -279,9 +278,10 @@ pub fn format(out: &mut dyn Write, kind: &Kind, raw: i64) -> fmt::Result {
                 return out.write_str("none");
             }
             write_shortest(out, raw, u32::from(*frac), i32::from(*pow10))?;
-            if !unit.display.is_empty() {
+            let display = unit.display();
+            if !display.is_empty() {
                 out.write_char(' ')?;
-                out.write_str(unit.display)?;
+                out.write_str(display)?;
             }
             Ok(())
         }
@@ -309,45 +309,54 @@ fn write_shortest(out: &mut dyn Write, raw: i64, frac: u32, pow10: i32) -> fmt::
     let one = 1u64 << frac;
     let mut ip = s >> frac;
     let mut rem = s & (one - 1);
-    let mut digits = 0u64;
-    let mut n = 0u32;
+    // The fraction digits as text (no 64-bit digit arithmetic, no division to strip zeros).
+    let mut digits = [b'0'; 12];
+    let mut n = 0usize;
     let mut up;
     loop {
         up = 2 * rem >= one;
         // n ≤ 12 and pow10 ≤ 3 here: fits.
-        let tol = ten_to(n + pow10 as u32).unwrap_or(u64::MAX);
+        let tol = ten_to(n as u32 + pow10 as u32).unwrap_or(u64::MAX);
         let fits = if up {
             2 * (one - rem) < tol
         } else {
             2 * rem <= tol
         };
-        if fits || n == 12 {
+        let Some(d) = digits.get_mut(n).filter(|_| !fits) else {
             break;
-        }
-        // rem < 2^frac ≤ 2^40: rem·10 fits.
+        };
+        // rem < 2^frac ≤ 2^40: rem·10 fits, and the digit is below 10.
         let t = rem * 10;
-        digits = digits * 10 + (t >> frac);
+        *d = b'0' + (t >> frac) as u8;
         rem = t & (one - 1);
         n += 1;
     }
     if up {
-        digits += 1;
-        if Some(digits) == ten_to(n) {
-            digits = 0;
+        // Round the last digit up, carrying through nines into the integer part.
+        let mut carry = true;
+        for d in digits.iter_mut().take(n).rev() {
+            if *d == b'9' {
+                *d = b'0';
+            } else {
+                *d += 1;
+                carry = false;
+                break;
+            }
+        }
+        if carry {
             ip += 1;
         }
     }
-    if raw < 0 && (ip != 0 || digits != 0) {
+    while n > 0 && digits.get(n - 1) == Some(&b'0') {
+        n -= 1;
+    }
+    if raw < 0 && (ip != 0 || n != 0) {
         out.write_char('-')?;
     }
     crate::text::uint(out, ip)?;
-    while n > 0 && digits.is_multiple_of(10) {
-        digits /= 10;
-        n -= 1;
-    }
     if n > 0 {
         out.write_char('.')?;
-        crate::text::uint_padded(out, digits, n as usize)?;
+        crate::text::ascii(out, digits.get(..n).unwrap_or(&[]))?;
     }
     Ok(())
 }
@@ -690,7 +699,7 @@ mod tests {
             }
             // The display unit (empty: none) or one of the other accepted suffixes.
             let suffixes: Vec<&str> =
-                core::iter::once(u.display).chain(u.accepts.iter().map(|a| a.0)).collect();
+                core::iter::once(u.display()).chain(u.accepts().map(|a| a.0)).collect();
             t.push_str(suffixes[unit.index(suffixes.len())]);
             // Zero is zero at any exponent (the twin overflowed on 0e40).
             let want = if digits.bytes().all(|b| b == b'0') {

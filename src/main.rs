@@ -424,6 +424,7 @@ fn report_event(e: Event) {
             info!("{}", e);
             true
         }
+        #[cfg(feature = "ball-screw")]
         Event::Lubrication(_) => {
             warn!("{}", e);
             true
@@ -485,6 +486,7 @@ fn write_notice(out: &mut dyn core::fmt::Write, e: &Event) -> core::fmt::Result 
             amplitude,
             reaction == Reaction::ChangeSpeed,
         ),
+        #[cfg(feature = "ball-screw")]
         Event::Lubrication(r) => liftfw::console::write_lube_warning(out, r.f_last, r.law),
         Event::State { .. } => Ok(()),
     }

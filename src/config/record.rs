@@ -17,7 +17,7 @@
 //! this registry's, and the schema word catches changes to it), and decoding is 60 lines with
 //! no error path that is not tested byte by byte.
 
-use crate::config::settings::{Setting, SETTINGS};
+use crate::config::settings::{self, Setting, BALL_KEYS, OPAQUE_COUNT, SETTINGS};
 use crate::control::config::ControlConfig;
 
 /// Record magic, "LFCF".
@@ -29,9 +29,10 @@ pub const VERSION: u16 = 4;
 /// Bytes before the settings.
 pub const HEADER_LEN: usize = 16;
 
-/// Number of settings in the record.
+/// Number of settings in the record (with the ball-screw values a build without the
+/// `ball-screw` feature carries as opaque words: the record is the same in both builds).
 pub fn stored_count() -> usize {
-    SETTINGS.iter().filter(|s| s.stored()).count()
+    SETTINGS.iter().filter(|s| s.stored()).count() + OPAQUE_COUNT
 }
 
 /// Record length for this firmware.
@@ -40,7 +41,7 @@ pub fn record_len() -> usize {
 }
 
 /// Largest record this firmware writes (every setting stored): the size of the store's buffers.
-pub const MAX_RECORD_LEN: usize = HEADER_LEN + 8 * SETTINGS.len() + 4;
+pub const MAX_RECORD_LEN: usize = HEADER_LEN + 8 * (SETTINGS.len() + OPAQUE_COUNT) + 4;
 
 /// CRC-32/ISO-HDLC (the zlib/Ethernet CRC), bitwise: no table in flash; a record costs ~3k
 /// shift-xor steps, once per load or save.
@@ -93,6 +94,18 @@ const fn added_in(key: &str) -> u16 {
     }
 }
 
+/// The format version that added the ball screw's values.
+const BALL_ADDED_IN: u16 = added_in("ballscrew.");
+
+/// How many opaque ball-screw words records of `version` hold, in this build.
+fn opaque_in(version: u16) -> usize {
+    if BALL_ADDED_IN <= version {
+        OPAQUE_COUNT
+    } else {
+        0
+    }
+}
+
 /// Whether a stored setting is in records of `version`.
 #[cfg(test)]
 fn in_version(key: &str, version: u16) -> bool {
@@ -128,6 +141,16 @@ const LAYOUTS: [(usize, u32); VERSION as usize] = {
                 n += 1;
             }
             i += 1;
+        }
+        // The opaque ball-screw words follow (in the ball-screw build they are in SETTINGS).
+        if OPAQUE_COUNT > 0 && BALL_ADDED_IN <= v {
+            let mut j = 0;
+            while j < BALL_KEYS.len() {
+                crc = crc32_update(crc, BALL_KEYS[j].as_bytes());
+                crc = crc32_update(crc, b"\n");
+                n += 1;
+                j += 1;
+            }
         }
         t[(v - 1) as usize] = (n, crc ^ 0xFFFF_FFFF);
         v += 1;
@@ -233,6 +256,11 @@ pub fn encode(cfg: &ControlConfig, seq: u32, out: &mut [u8]) -> Option<usize> {
         let at = HEADER_LEN + 8 * i;
         out[at..at + 8].copy_from_slice(&s.get(cfg).to_le_bytes());
     }
+    let settings = n - opaque_in(VERSION);
+    for j in 0..opaque_in(VERSION) {
+        let at = HEADER_LEN + 8 * (settings + j);
+        out[at..at + 8].copy_from_slice(&settings::opaque_get(j, cfg).to_le_bytes());
+    }
     let crc = crc32(&out[..len - 4]);
     out[len - 4..].copy_from_slice(&crc.to_le_bytes());
     Some(len)
@@ -285,6 +313,18 @@ pub fn decode(bytes: &[u8]) -> Result<(ControlConfig, u32), DecodeError> {
         w.copy_from_slice(&bytes[at..at + 8]);
         if !s.set(&mut cfg, i64::from_le_bytes(w)) {
             return Err(DecodeError::BadField { field: s.key });
+        }
+    }
+    let settings = n - opaque_in(version);
+    for j in 0..opaque_in(version) {
+        let at = HEADER_LEN + 8 * (settings + j);
+        let mut w = [0; 8];
+        w.copy_from_slice(&bytes[at..at + 8]);
+        if !settings::opaque_set(j, &mut cfg, i64::from_le_bytes(w)) {
+            // (Not the key: `BALL_KEYS` stays out of this build's flash.)
+            return Err(DecodeError::BadField {
+                field: "ballscrew.*",
+            });
         }
     }
     Ok((cfg, seq))
@@ -391,6 +431,7 @@ mod tests {
 
     /// A version-2 record (no `ballscrew.*`) of a ball-screw lift: every setting it holds is
     /// kept (the screw kind too), the ball screw's parameters take their factory values.
+    #[cfg(feature = "ball-screw")]
     #[test]
     fn version_2_record_keeps_its_settings_and_gets_the_factory_ball_screw() {
         let mut cfg = ControlConfig::ball_screw_4008().unwrap();
@@ -404,6 +445,7 @@ mod tests {
 
     /// A version-3 record (no `drive.brake*`) keeps its changed ball screw and gets no brake;
     /// a version-4 record keeps a brake; a future version is refused.
+    #[cfg(feature = "ball-screw")]
     #[test]
     fn version_3_record_decodes_without_a_brake() {
         let mut cfg = ControlConfig::ball_screw_4008().unwrap();

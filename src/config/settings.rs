@@ -342,6 +342,49 @@ pub fn apply(
     ValidatedConfig::new(next)
 }
 
+/// The refusal's reason, in a build without the `ball-screw` feature, of a value only the
+/// ball-screw variant runs.
+pub const NEEDS_BALL_SCREW: &str = "needs the ball-screw firmware (this is the lead-screw image)";
+
+/// Whether this build can run `cfg`: without the `ball-screw` feature, `drive.screw = ball` and
+/// the `tau` law variable (the `ball` friction preset's) are refused with [`NEEDS_BALL_SCREW`]
+/// (part of [`ControlConfig::validate`]; the store checks it before anything else, see
+/// [`crate::config::store::Source::NeedsBallScrew`]). Always `Ok` with the feature.
+pub fn check_variant(cfg: &ControlConfig) -> Result<(), ConfigError> {
+    if cfg!(feature = "ball-screw") {
+        return Ok(());
+    }
+    let field = if cfg.screw == ScrewKind::Ball {
+        "drive.screw"
+    } else if cfg.estimator.law.variable == LawVariable::Lubrication {
+        "friction.variable"
+    } else {
+        return Ok(());
+    };
+    Err(ConfigError::Conflict {
+        field,
+        reason: NEEDS_BALL_SCREW,
+    })
+}
+
+/// The console's message template for a key [`find`] does not know (`\x01`: the key, then the
+/// pointer to `help keys`): without the `ball-screw` feature a `ballscrew.*` key is not unknown
+/// but needs the other image.
+pub fn unknown_key_template(key: &str) -> &'static str {
+    let ball = key
+        .as_bytes()
+        .get(..BALL_PREFIX.len())
+        .is_some_and(|p| p.eq_ignore_ascii_case(BALL_PREFIX.as_bytes()));
+    if ball && !cfg!(feature = "ball-screw") {
+        "'\x01' needs the ball-screw firmware (this is the lead-screw image)\x01"
+    } else {
+        "unknown key '\x01'\x01"
+    }
+}
+
+/// The ball-screw variant's keys' common prefix.
+const BALL_PREFIX: &str = "ballscrew.";
+
 const fn num(frac: u8, unit: UnitId) -> Kind {
     Kind::Number {
         frac,
@@ -507,11 +550,18 @@ macro_rules! field_stored {
 /// kind, range, help line, [accessor]`). One `match` for both directions instead of a `get`
 /// and a `set` function per setting (or a `match` per direction): on the board the table is 8
 /// bytes per setting smaller and each setting's field access is one address and tag.
+///
+/// The `ball_screw:` group is the ball-screw variant's (cargo feature `ball-screw`). Its entries
+/// come last, so the flash record holds their values last in either build: without the
+/// feature they are no settings (no keys, no console access), but [`slot`] still reaches their
+/// fields at the same positions and the record carries their raw words through
+/// ([`BALL_KEYS`], [`opaque_get`]).
 macro_rules! registry {
-    ($($n:literal => $key:literal, $kind:expr, $range:literal, $about:literal, [$($acc:tt)+];)*) => {
+    ($($n:literal => $key:literal, $kind:expr, $range:literal, $about:literal, [$($acc:tt)+];)*
+     ball_screw: $($bn:literal => $bkey:literal, $bkind:expr, $brange:literal, $babout:literal, [$($bacc:tt)+];)*) => {
         /// Every setting. The flash record's layout follows this order (the `stored` ones):
         /// changing it changes the record's schema fingerprint (see [`crate::config::record`]).
-        pub static SETTINGS: [Setting; 72] = [$(
+        pub static SETTINGS: [Setting; SETTINGS_LEN] = [$(
             Setting {
                 key: $key,
                 kind: $kind,
@@ -519,32 +569,71 @@ macro_rules! registry {
                 #[cfg(feature = "help-text")]
                 about: $about,
             },
+        )* $(
+            #[cfg(feature = "ball-screw")]
+            Setting {
+                key: $bkey,
+                kind: $bkind,
+                range: $brange,
+                #[cfg(feature = "help-text")]
+                about: $babout,
+            },
         )*];
+
+        /// Number of [`SETTINGS`].
+        const SETTINGS_LEN: usize = BALL_FIRST + if cfg!(feature = "ball-screw") {
+            BALL_KEYS.len()
+        } else {
+            0
+        };
+
+        /// Position of the first ball-screw setting: in the ball-screw build its place in
+        /// [`SETTINGS`], in the other the first opaque word's [`slot`].
+        const BALL_FIRST: usize = [$($n),*].len();
+
+        /// The ball-screw variant's settings' keys, in registry order (all stored). Without the
+        /// feature only the record's schema word uses them (at compile time: no flash).
+        pub const BALL_KEYS: [&str; [$($bn),*].len()] = [$($bkey),*];
 
         /// Bit `i`: setting `i` is stored in the flash record.
         /// (One statement per setting, so that an entry can carry attributes such as `cfg`.)
         const STORED: u128 = {
             let mut mask = 0;
             $(mask |= (field_stored!($($acc)+) as u128) << $n;)*
+            $(
+                #[cfg(feature = "ball-screw")]
+                {
+                    mask |= (field_stored!($($bacc)+) as u128) << $bn;
+                }
+            )*
             mask
         };
 
         // The indices written in the registry are the positions (`slot` finds a setting's
-        // field by its position).
+        // field by its position), the ball screw's following the others'; all of the ball
+        // screw's are stored (the record's opaque words).
         const _: () = {
             let mut i = 0;
             $(
                 assert!($n == i, "registry indices must count 0, 1, 2, …");
                 i += 1;
             )*
-            assert!(i == SETTINGS.len() && i <= 128);
+            $(
+                assert!($bn == i, "registry indices must count 0, 1, 2, …");
+                assert!(field_stored!($($bacc)+), "the ball screw's settings are all stored");
+                i += 1;
+            )*
+            assert!(SETTINGS.len() <= i && i <= 128);
         };
 
-        /// The field of the setting at `index` (out of range: the first's).
+        /// The field of the setting at `index` (out of range: the first's). Without the
+        /// `ball-screw` feature the ball screw's fields are still reached here, past
+        /// [`SETTINGS`]' end ([`opaque_get`], [`opaque_set`]).
         #[inline(never)]
         fn slot(index: usize, c: &mut ControlConfig) -> Slot<'_> {
             match index {
                 $($n => field_slot!(c, $($acc)+),)*
+                $($bn => field_slot!(c, $($bacc)+),)*
                 // Not reached: `index` is a registry position.
                 _ => field_slot!(c, q32 limits.lower),
             }
@@ -556,6 +645,34 @@ macro_rules! registry {
 /// ([`Setting::stored`]; `const` for the record's compile-time layout tables).
 pub const fn stored_at(index: usize) -> bool {
     index < SETTINGS.len() && STORED >> index & 1 == 1
+}
+
+/// Number of the ball-screw variant's values the record holds after [`SETTINGS`]' own: the
+/// opaque words a build without the `ball-screw` feature carries through (0 with it).
+pub const OPAQUE_COUNT: usize = if cfg!(feature = "ball-screw") {
+    0
+} else {
+    BALL_KEYS.len()
+};
+
+/// The raw bits of the `i`-th ball-screw value (`i < BALL_KEYS.len()`; 0 otherwise): the
+/// record's word for it. The same bits as the setting's in the ball-screw build.
+#[cfg_attr(feature = "ball-screw", allow(dead_code))]
+pub(crate) fn opaque_get(i: usize, cfg: &ControlConfig) -> i64 {
+    if i < BALL_KEYS.len() {
+        let mut c = *cfg;
+        slot(BALL_FIRST + i, &mut c).read()
+    } else {
+        0
+    }
+}
+
+/// Store a record's raw word into the `i`-th ball-screw value, unvalidated (this build never
+/// uses it; the ball-screw build validates it). False (`cfg` unchanged) if it does not fit the
+/// field's type.
+#[cfg_attr(feature = "ball-screw", allow(dead_code))]
+pub(crate) fn opaque_set(i: usize, cfg: &mut ControlConfig, raw: i64) -> bool {
+    i < BALL_KEYS.len() && slot(BALL_FIRST + i, cfg).write(raw)
 }
 
 /// The friction-law presets `friction.law` selects, in its choice order.
@@ -738,6 +855,7 @@ registry! {
     56 => "stickslip.escape_speed", num(16, RAD_PER_S), "0.2..20 rad/s",
         "cruise speed for the rest of a motion after stick-slip (reaction speed)",
         [q32 stick_slip.escape_speed];
+    ball_screw:
     57 => "ballscrew.r_m", LEN, "2..100 mm",
         "ball screw: ball-centre circle radius r_m",
         [q32 ball_screw.r_m];

@@ -33,6 +33,7 @@ pub mod speed;
 use crate::detect::stickslip::{DetectorInputs, Reaction, StickSlipDetector};
 use crate::estimator::{Estimator, Measurements, TickEstimate};
 use crate::math::div128;
+#[cfg(feature = "ball-screw")]
 use crate::model::ballscrew::BallScrew;
 use crate::model::Scale;
 use crate::units::{
@@ -276,6 +277,7 @@ pub enum Event {
     },
     /// A ball screw's lift/lowering pair put the identified friction coefficient outside
     /// `ballscrew.lube_band` around the law (`lube`): lubrication or wear to check.
+    #[cfg(feature = "ball-screw")]
     Lubrication(lube::LubeReport),
 }
 
@@ -309,6 +311,7 @@ pub struct Status {
     pub homed: bool,
     /// Ball screw: the friction coefficient identified from the current and the law's, once a
     /// lift/lowering pair has been solved (`lube`).
+    #[cfg(feature = "ball-screw")]
     pub lube: Option<lube::LubeReport>,
 }
 
@@ -430,9 +433,12 @@ pub struct Controller {
     cruise_q32: i64,
     escape_q32: i64,
     /// The ball screw (`cfg.ball_screw`, compiled) and the identification of its friction.
+    #[cfg(feature = "ball-screw")]
     ball_screw: BallScrew,
+    #[cfg(feature = "ball-screw")]
     lube: lube::LubeMonitor,
     /// A lubrication warning (of `lube`'s latest report) waits for a tick without another event.
+    #[cfg(feature = "ball-screw")]
     lube_notice: bool,
     /// The holding brake (`hold.rs`).
     brake: hold::BrakeState,
@@ -443,6 +449,7 @@ impl Controller {
     /// survives power loss with the configuration: the lead screw is self-locking).
     pub fn new(cfg: &ControlConfig, position: i32) -> Result<Controller, ConfigError> {
         let est = Estimator::new(&cfg.estimator)?;
+        #[cfg(feature = "ball-screw")]
         let ball_screw = cfg.ball_screw.compile()?;
         let geometry = est.geometry();
         let (lower_counts, upper_counts, switch_counts) = cfg.validate_limit_counts(geometry)?;
@@ -546,8 +553,11 @@ impl Controller {
             stick_slip: StickSlipDetector::new(&cfg.stick_slip, tick_us),
             cruise_q32,
             escape_q32,
+            #[cfg(feature = "ball-screw")]
             ball_screw,
+            #[cfg(feature = "ball-screw")]
             lube: lube::LubeMonitor::new(cfg),
+            #[cfg(feature = "ball-screw")]
             lube_notice: false,
             brake: hold::BrakeState::new(&cfg.brake, tick_us),
         })
@@ -659,6 +669,7 @@ impl Controller {
             fault: self.fault.map(|f| f.kind),
             position: self.enc.position(),
             homed: self.homed,
+            #[cfg(feature = "ball-screw")]
             lube: if self.holds_actively() {
                 self.lube.report()
             } else {
@@ -668,6 +679,7 @@ impl Controller {
     }
 
     /// The ball screw's friction identification (`lube`).
+    #[cfg(feature = "ball-screw")]
     pub fn lube(&self) -> &lube::LubeMonitor {
         &self.lube
     }
@@ -713,6 +725,7 @@ impl Controller {
         next.prev_buttons = self.prev_buttons;
         next.pending_event = self.pending_event;
         next.brake.keep_timing(&self.brake);
+        #[cfg(feature = "ball-screw")]
         if cfg.ball_screw == self.cfg.ball_screw
             && cfg.lube == self.cfg.lube
             && cfg.estimator == self.cfg.estimator
@@ -1039,6 +1052,7 @@ impl Controller {
             }
         };
         self.detect_stick_slip();
+        #[cfg(feature = "ball-screw")]
         if self.holds_actively() {
             self.identify_friction();
         }
@@ -1083,6 +1097,7 @@ impl Controller {
 
     /// Ball screw: a sample of the friction identification while moving, the pair solve and
     /// the lubrication warning once at rest (`lube`).
+    #[cfg(feature = "ball-screw")]
     fn identify_friction(&mut self) {
         let moving = matches!(self.state, State::Lifting | State::Lowering);
         if moving {

@@ -342,14 +342,38 @@ mod tests {
 
     /// The compile-time tables are what walking the registry's keys gives (the form the
     /// records in the field were written with), for every version; unknown versions have none.
+    /// The keys of `version`'s records in order: the stored settings, then (in a build without
+    /// the `ball-screw` feature) the ball screw's opaque words.
+    fn record_keys(version: u16) -> std::vec::Vec<&'static str> {
+        let opaque = BALL_KEYS
+            .iter()
+            .take(OPAQUE_COUNT)
+            .filter(|k| in_version(k, version));
+        SETTINGS
+            .iter()
+            .filter(|s| s.stored() && in_version(s.key, version))
+            .map(|s| s.key)
+            .chain(opaque.copied())
+            .collect()
+    }
+
+    /// `cfg`'s raw words in `version`'s record, in [`record_keys`] order.
+    fn record_words(cfg: &ControlConfig, version: u16) -> std::vec::Vec<i64> {
+        let opaque = (0..OPAQUE_COUNT)
+            .filter(|_| in_version("ballscrew.", version))
+            .map(|j| settings::opaque_get(j, cfg));
+        SETTINGS
+            .iter()
+            .filter(|s| s.stored() && in_version(s.key, version))
+            .map(|s| s.get(cfg))
+            .chain(opaque)
+            .collect()
+    }
+
     #[test]
     fn compile_time_layouts_match_the_registry() {
         for version in 1..=VERSION {
-            let keys: std::vec::Vec<&str> = SETTINGS
-                .iter()
-                .filter(|s| s.stored() && in_version(s.key, version))
-                .map(|s| s.key)
-                .collect();
+            let keys = record_keys(version);
             let mut text = std::string::String::new();
             for k in &keys {
                 text.push_str(k);
@@ -361,7 +385,11 @@ mod tests {
                 "version {version}"
             );
             let listed: std::vec::Vec<&str> = stored_in(version).map(|s| s.key).collect();
-            assert_eq!(listed, keys, "version {version}");
+            assert_eq!(
+                listed,
+                keys[..keys.len() - opaque_in(version)],
+                "version {version}"
+            );
         }
         assert_eq!(layout(0), None);
         assert_eq!(layout(VERSION + 1), None);
@@ -375,6 +403,17 @@ mod tests {
         assert_eq!(added_in("limits.upper"), 1);
     }
 
+    /// The format both builds write: version 4 with 71 values and the schema word of main
+    /// 3062e48's registry (computed from its key list), whether the ball screw's 15 values are
+    /// settings (`ball-screw`) or opaque words (without it).
+    #[test]
+    fn both_builds_write_the_same_format() {
+        assert_eq!(VERSION, 4);
+        assert_eq!(layout(VERSION), Some((71, 0x2AD0_4F24)));
+        assert_eq!(record_len(), HEADER_LEN + 8 * 71 + 4);
+        assert_eq!(record_keys(VERSION)[56..], BALL_KEYS);
+    }
+
     #[test]
     fn record_round_trips_and_fits_the_buffer() {
         let mut buf = [0u8; MAX_RECORD_LEN];
@@ -385,22 +424,16 @@ mod tests {
 
     /// A record of an older `version`, built by hand with its own key list.
     fn old_record(cfg: &ControlConfig, version: u16, b: &mut [u8; MAX_RECORD_LEN]) -> usize {
-        let keys: usize = SETTINGS
-            .iter()
-            .filter(|s| s.stored() && in_version(s.key, version))
-            .count();
+        let words = record_words(cfg, version);
+        let keys = words.len();
         b[0..4].copy_from_slice(&MAGIC);
         b[4..6].copy_from_slice(&version.to_le_bytes());
         b[6..8].copy_from_slice(&(keys as u16).to_le_bytes());
         b[8..12].copy_from_slice(&schema_of(version).to_le_bytes());
         b[12..16].copy_from_slice(&3u32.to_le_bytes());
-        for (i, s) in SETTINGS
-            .iter()
-            .filter(|s| s.stored() && in_version(s.key, version))
-            .enumerate()
-        {
+        for (i, w) in words.iter().enumerate() {
             let at = HEADER_LEN + 8 * i;
-            b[at..at + 8].copy_from_slice(&s.get(cfg).to_le_bytes());
+            b[at..at + 8].copy_from_slice(&w.to_le_bytes());
         }
         let body = HEADER_LEN + 8 * keys;
         let crc = crc32(&b[..body]);

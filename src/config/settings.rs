@@ -1054,7 +1054,52 @@ mod tests {
         } = ControlConfig::DEFAULT;
         // 71 fields above, one key each (the ball screw's law variable is fixed), plus the
         // `friction.law` preset selector.
-        assert_eq!(SETTINGS.iter().filter(|s| s.stored()).count(), 71);
+        // (Without the `ball-screw` feature the ball screw's 15 are opaque record words.)
+        assert_eq!(
+            SETTINGS.iter().filter(|s| s.stored()).count() + OPAQUE_COUNT,
+            71
+        );
+    }
+
+    /// The ball screw's values are the registry's last stored settings (so a build without the
+    /// feature appends them to the record in the same place), and the opaque accessors read and
+    /// write the very bits the settings do.
+    #[cfg(feature = "ball-screw")]
+    #[test]
+    fn opaque_words_are_the_ball_screw_settings_bits() {
+        let stored: std::vec::Vec<&Setting> = SETTINGS.iter().filter(|s| s.stored()).collect();
+        let tail = &stored[stored.len() - BALL_KEYS.len()..];
+        let mut cfg = ControlConfig::ball_screw_4008().unwrap();
+        cfg.ball_screw.preload = Newtons::lit("1234.5");
+        cfg.lube.band = Ratio::lit("0.7");
+        for (j, s) in tail.iter().enumerate() {
+            assert_eq!(s.key, BALL_KEYS[j]);
+            assert!(s.key.starts_with(BALL_PREFIX));
+            assert_eq!(opaque_get(j, &cfg), s.get(&cfg), "{}", s.key);
+            for raw in [s.get(&cfg) ^ 1, 0, 1, i64::from(i32::MAX) + 1, -1, i64::MIN] {
+                let (mut a, mut b) = (cfg, cfg);
+                assert_eq!(
+                    opaque_set(j, &mut a, raw),
+                    s.set(&mut b, raw),
+                    "{} {raw}",
+                    s.key
+                );
+                assert_eq!(a, b, "{} {raw}", s.key);
+            }
+        }
+        assert_eq!(opaque_get(BALL_KEYS.len(), &cfg), 0);
+        assert!(!opaque_set(BALL_KEYS.len(), &mut cfg, 0));
+        // Nothing else of the registry is the ball screw's.
+        assert!(stored[..stored.len() - BALL_KEYS.len()]
+            .iter()
+            .all(|s| !s.key.starts_with(BALL_PREFIX)));
+        assert_eq!(OPAQUE_COUNT, 0);
+        // The feature's checks are off.
+        assert_eq!(check_variant(&cfg), Ok(()));
+        assert_eq!(
+            unknown_key_template("ballscrew.x"),
+            "unknown key '\x01'\x01"
+        );
     }
 
     /// The display unit is accepted without an entry: `accepts` repeats none (the messages'

@@ -188,6 +188,8 @@ pub enum Refusal {
     InMotion,
     /// A configuration the controller cannot run with (pass it through validation first).
     BadConfig,
+    /// `fault clear` of [`FaultKind::NeedsBallScrew`]: only the ball-screw firmware clears it.
+    NeedsBallScrew,
 }
 
 impl Refusal {
@@ -207,6 +209,10 @@ impl Refusal {
                 "refused: the lift is moving; `stop` and let it come to rest first"
             }
             Refusal::BadConfig => "refused: configuration not valid for the controller",
+            Refusal::NeedsBallScrew => {
+                "refused: the stored configuration needs the ball-screw firmware; flash that \
+                 image (`cargo fw-ball`), the record is kept"
+            }
         }
     }
 }
@@ -753,12 +759,23 @@ impl Controller {
         self.latch(now, FaultKind::WatchdogReset);
     }
 
+    /// Report that the stored configuration needs the ball-screw firmware (an image without the
+    /// `ball-screw` feature booted on a ball-screw record, [`crate::config::store::Source::NeedsBallScrew`]):
+    /// latches [`FaultKind::NeedsBallScrew`], which no command clears. The fault state brakes
+    /// the bridge and keeps the holding brake engaged (`hold.rs`).
+    pub fn report_needs_ball_screw(&mut self, now: Instant) {
+        self.latch(now, FaultKind::NeedsBallScrew);
+    }
+
     /// Apply a command now (the next tick acts on it).
     pub fn command(&mut self, cmd: Command) -> Result<(), Refusal> {
         match cmd {
             Command::ClearFault => {
-                if self.fault.is_none() {
+                let Some(f) = self.fault else {
                     return Err(Refusal::NoFault);
+                };
+                if f.kind == FaultKind::NeedsBallScrew {
+                    return Err(Refusal::NeedsBallScrew);
                 }
                 self.fault = None;
                 self.monitors.reset();

@@ -30,7 +30,7 @@ type Flash = SimFlash<SIZE>;
 /// the feature.
 #[test]
 fn this_build_is_the_lead_screw_variant() {
-    assert!(!cfg!(feature = "ball-screw"));
+    const { assert!(!cfg!(feature = "ball-screw")) };
     assert_eq!(OPAQUE_COUNT, 15);
     assert_eq!(SETTINGS.len(), 57);
     for k in BALL_KEYS {
@@ -156,15 +156,14 @@ fn ball_screw_values_round_trip_as_opaque_words() {
     let mut buf = [0u8; record::MAX_RECORD_LEN];
     let len = record::encode(again.config.get(), 6, &mut buf).unwrap();
     let words = HEADER_LEN + 8 * (SETTINGS.iter().filter(|s| s.stored()).count());
-    for j in 0..OPAQUE_COUNT {
+    for (j, key) in BALL_KEYS.iter().enumerate() {
         let at = words + 8 * j;
         let mut w = [0; 8];
         w.copy_from_slice(&buf[at..at + 8]);
         assert_eq!(
             i64::from_le_bytes(w),
             settings::opaque_get(j, &cfg),
-            "{}",
-            BALL_KEYS[j]
+            "{key}"
         );
     }
     assert_eq!(len, words + 8 * OPAQUE_COUNT + 4);

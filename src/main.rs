@@ -129,6 +129,7 @@ async fn main(spawner: Spawner) {
     let boot = load_store(flash);
     let parked = trusted_position(&boot);
     let controller = install_controller(boot.config.get(), parked);
+    #[cfg(not(feature = "ball-screw"))]
     if boot.source.needs_ball_screw() {
         // A lead-screw image on a ball screw's record: braked and locked, the record kept.
         error!("the stored configuration needs the ball-screw firmware (cargo fw-ball): lift locked, motor braked, record kept");

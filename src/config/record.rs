@@ -143,7 +143,7 @@ const LAYOUTS: [(usize, u32); VERSION as usize] = {
             i += 1;
         }
         // The opaque ball-screw words follow (in the ball-screw build they are in SETTINGS).
-        if OPAQUE_COUNT > 0 && BALL_ADDED_IN <= v {
+        if OPAQUE_COUNT != 0 && BALL_ADDED_IN <= v {
             let mut j = 0;
             while j < BALL_KEYS.len() {
                 crc = crc32_update(crc, BALL_KEYS[j].as_bytes());

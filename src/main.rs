@@ -129,6 +129,12 @@ async fn main(spawner: Spawner) {
     let boot = load_store(flash);
     let parked = trusted_position(&boot);
     let controller = install_controller(boot.config.get(), parked);
+    #[cfg(not(feature = "ball-screw"))]
+    if boot.source.needs_ball_screw() {
+        // A lead-screw image on a ball screw's record: braked and locked, the record kept.
+        error!("the stored configuration needs the ball-screw firmware (cargo fw-ball): lift locked, motor braked, record kept");
+        controller.report_needs_ball_screw(Instant(Clock::now().as_micros() as u32));
+    }
     if watchdog_reset {
         error!("the last reset came from the watchdog: fault latched");
         controller.report_watchdog_reset(Instant(Clock::now().as_micros() as u32));
@@ -424,6 +430,7 @@ fn report_event(e: Event) {
             info!("{}", e);
             true
         }
+        #[cfg(feature = "ball-screw")]
         Event::Lubrication(_) => {
             warn!("{}", e);
             true
@@ -485,6 +492,7 @@ fn write_notice(out: &mut dyn core::fmt::Write, e: &Event) -> core::fmt::Result 
             amplitude,
             reaction == Reaction::ChangeSpeed,
         ),
+        #[cfg(feature = "ball-screw")]
         Event::Lubrication(r) => liftfw::console::write_lube_warning(out, r.f_last, r.law),
         Event::State { .. } => Ok(()),
     }

@@ -4,6 +4,8 @@
 //! Budgets: τ 10⁻⁶ relative or 10⁻⁸; f 10⁻⁷; friction torque 0.01 % or 0.5 mN·m; Eq 2 1 % of
 //! 10⁻⁵ … (see each test); the lift/lowering pair solve (`control::lube::solve_pair`) against a
 //! float64 bisection. Arbitrary bit patterns must not panic.
+// The ball-screw variant only (cargo feature `ball-screw`; `cargo test --workspace` has it).
+#![cfg(feature = "ball-screw")]
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use host_sim::physics::ballscrew::BallScrewFriction;

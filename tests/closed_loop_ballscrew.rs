@@ -2,6 +2,8 @@
 //! (seed 002's friction, not self-locking) and the core configured with `drive.screw = ball`
 //! (`ControlConfig::ball_screw_4008`). At rated load it must hold when stopped, lift and lower
 //! to a set height without running away, and catch a back-driven screw.
+// The ball-screw variant only (cargo feature `ball-screw`; `cargo test --workspace` has it).
+#![cfg(feature = "ball-screw")]
 #![allow(clippy::expect_used, clippy::unwrap_used)]
 
 mod support;

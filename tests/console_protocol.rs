@@ -248,6 +248,7 @@ fn status_line_is_readable() {
         stick_slip_amplitude: NewtonMetres::ZERO,
         stick_slip_episodes: 0,
         fault: None,
+        #[cfg(feature = "ball-screw")]
         ball_f: None,
     };
     assert_eq!(
@@ -261,6 +262,7 @@ fn status_line_is_readable() {
         stick_slip_amplitude: NewtonMetres::lit("31.256"),
         stick_slip_episodes: 3,
         fault: Some("overcurrent"),
+        #[cfg(feature = "ball-screw")]
         ball_f: None,
         ..v
     };

@@ -415,6 +415,7 @@ fn status_fault_names_are_one_word() {
         stick_slip_amplitude: Default::default(),
         stick_slip_episodes: 0,
         fault: Some(FaultKind::LimitSwitch.name()),
+        #[cfg(feature = "ball-screw")]
         ball_f: None,
     };
     let mut s = String::new();

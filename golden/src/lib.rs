@@ -1738,6 +1738,7 @@ fn refusal_code(r: Result<(), Refusal>) -> u8 {
         Err(Refusal::NotHomed) => 7,
         Err(Refusal::InMotion) => 8,
         Err(Refusal::BadConfig) => 9,
+        Err(Refusal::NeedsBallScrew) => 10,
     }
 }
 

@@ -19,6 +19,9 @@ pub mod settings;
 pub mod sim_flash;
 pub mod store;
 
+#[cfg(all(test, not(feature = "ball-screw")))]
+mod lead_only_tests;
+
 use crate::control::config::ControlConfig;
 use crate::estimator::Estimator;
 use crate::ConfigError;
@@ -42,6 +45,8 @@ impl PartialEq for ValidatedConfig {
             .iter()
             .filter(|s| s.stored())
             .all(|s| s.get(&self.0) == s.get(&other.0))
+            && (0..settings::OPAQUE_COUNT)
+                .all(|j| settings::opaque_get(j, &self.0) == settings::opaque_get(j, &other.0))
     }
 }
 

@@ -17,7 +17,7 @@
 //! this registry's, and the schema word catches changes to it), and decoding is 60 lines with
 //! no error path that is not tested byte by byte.
 
-use crate::config::settings::{Setting, SETTINGS};
+use crate::config::settings::{self, Setting, BALL_KEYS, OPAQUE_COUNT, SETTINGS};
 use crate::control::config::ControlConfig;
 
 /// Record magic, "LFCF".
@@ -29,9 +29,10 @@ pub const VERSION: u16 = 4;
 /// Bytes before the settings.
 pub const HEADER_LEN: usize = 16;
 
-/// Number of settings in the record.
+/// Number of settings in the record (with the ball-screw values a build without the
+/// `ball-screw` feature carries as opaque words: the record is the same in both builds).
 pub fn stored_count() -> usize {
-    SETTINGS.iter().filter(|s| s.stored()).count()
+    SETTINGS.iter().filter(|s| s.stored()).count() + OPAQUE_COUNT
 }
 
 /// Record length for this firmware.
@@ -40,7 +41,7 @@ pub fn record_len() -> usize {
 }
 
 /// Largest record this firmware writes (every setting stored): the size of the store's buffers.
-pub const MAX_RECORD_LEN: usize = HEADER_LEN + 8 * SETTINGS.len() + 4;
+pub const MAX_RECORD_LEN: usize = HEADER_LEN + 8 * (SETTINGS.len() + OPAQUE_COUNT) + 4;
 
 /// CRC-32/ISO-HDLC (the zlib/Ethernet CRC), bitwise: no table in flash; a record costs ~3k
 /// shift-xor steps, once per load or save.
@@ -93,6 +94,18 @@ const fn added_in(key: &str) -> u16 {
     }
 }
 
+/// The format version that added the ball screw's values.
+const BALL_ADDED_IN: u16 = added_in("ballscrew.");
+
+/// How many opaque ball-screw words records of `version` hold, in this build.
+fn opaque_in(version: u16) -> usize {
+    if BALL_ADDED_IN <= version {
+        OPAQUE_COUNT
+    } else {
+        0
+    }
+}
+
 /// Whether a stored setting is in records of `version`.
 #[cfg(test)]
 fn in_version(key: &str, version: u16) -> bool {
@@ -128,6 +141,16 @@ const LAYOUTS: [(usize, u32); VERSION as usize] = {
                 n += 1;
             }
             i += 1;
+        }
+        // The opaque ball-screw words follow (in the ball-screw build they are in SETTINGS).
+        if OPAQUE_COUNT != 0 && BALL_ADDED_IN <= v {
+            let mut j = 0;
+            while j < BALL_KEYS.len() {
+                crc = crc32_update(crc, BALL_KEYS[j].as_bytes());
+                crc = crc32_update(crc, b"\n");
+                n += 1;
+                j += 1;
+            }
         }
         t[(v - 1) as usize] = (n, crc ^ 0xFFFF_FFFF);
         v += 1;
@@ -233,6 +256,11 @@ pub fn encode(cfg: &ControlConfig, seq: u32, out: &mut [u8]) -> Option<usize> {
         let at = HEADER_LEN + 8 * i;
         out[at..at + 8].copy_from_slice(&s.get(cfg).to_le_bytes());
     }
+    let settings = n - opaque_in(VERSION);
+    for j in 0..opaque_in(VERSION) {
+        let at = HEADER_LEN + 8 * (settings + j);
+        out[at..at + 8].copy_from_slice(&settings::opaque_get(j, cfg).to_le_bytes());
+    }
     let crc = crc32(&out[..len - 4]);
     out[len - 4..].copy_from_slice(&crc.to_le_bytes());
     Some(len)
@@ -287,6 +315,18 @@ pub fn decode(bytes: &[u8]) -> Result<(ControlConfig, u32), DecodeError> {
             return Err(DecodeError::BadField { field: s.key });
         }
     }
+    let settings = n - opaque_in(version);
+    for j in 0..opaque_in(version) {
+        let at = HEADER_LEN + 8 * (settings + j);
+        let mut w = [0; 8];
+        w.copy_from_slice(&bytes[at..at + 8]);
+        if !settings::opaque_set(j, &mut cfg, i64::from_le_bytes(w)) {
+            // (Not the key: `BALL_KEYS` stays out of this build's flash.)
+            return Err(DecodeError::BadField {
+                field: "ballscrew.*",
+            });
+        }
+    }
     Ok((cfg, seq))
 }
 
@@ -302,14 +342,38 @@ mod tests {
 
     /// The compile-time tables are what walking the registry's keys gives (the form the
     /// records in the field were written with), for every version; unknown versions have none.
+    /// The keys of `version`'s records in order: the stored settings, then (in a build without
+    /// the `ball-screw` feature) the ball screw's opaque words.
+    fn record_keys(version: u16) -> std::vec::Vec<&'static str> {
+        let opaque = BALL_KEYS
+            .iter()
+            .take(OPAQUE_COUNT)
+            .filter(|k| in_version(k, version));
+        SETTINGS
+            .iter()
+            .filter(|s| s.stored() && in_version(s.key, version))
+            .map(|s| s.key)
+            .chain(opaque.copied())
+            .collect()
+    }
+
+    /// `cfg`'s raw words in `version`'s record, in [`record_keys`] order.
+    fn record_words(cfg: &ControlConfig, version: u16) -> std::vec::Vec<i64> {
+        let opaque = (0..OPAQUE_COUNT)
+            .filter(|_| in_version("ballscrew.", version))
+            .map(|j| settings::opaque_get(j, cfg));
+        SETTINGS
+            .iter()
+            .filter(|s| s.stored() && in_version(s.key, version))
+            .map(|s| s.get(cfg))
+            .chain(opaque)
+            .collect()
+    }
+
     #[test]
     fn compile_time_layouts_match_the_registry() {
         for version in 1..=VERSION {
-            let keys: std::vec::Vec<&str> = SETTINGS
-                .iter()
-                .filter(|s| s.stored() && in_version(s.key, version))
-                .map(|s| s.key)
-                .collect();
+            let keys = record_keys(version);
             let mut text = std::string::String::new();
             for k in &keys {
                 text.push_str(k);
@@ -321,7 +385,11 @@ mod tests {
                 "version {version}"
             );
             let listed: std::vec::Vec<&str> = stored_in(version).map(|s| s.key).collect();
-            assert_eq!(listed, keys, "version {version}");
+            assert_eq!(
+                listed,
+                keys[..keys.len() - opaque_in(version)],
+                "version {version}"
+            );
         }
         assert_eq!(layout(0), None);
         assert_eq!(layout(VERSION + 1), None);
@@ -335,6 +403,17 @@ mod tests {
         assert_eq!(added_in("limits.upper"), 1);
     }
 
+    /// The format both builds write: version 4 with 71 values and the schema word of main
+    /// 3062e48's registry (computed from its key list), whether the ball screw's 15 values are
+    /// settings (`ball-screw`) or opaque words (without it).
+    #[test]
+    fn both_builds_write_the_same_format() {
+        assert_eq!(VERSION, 4);
+        assert_eq!(layout(VERSION), Some((71, 0x2AD0_4F24)));
+        assert_eq!(record_len(), HEADER_LEN + 8 * 71 + 4);
+        assert_eq!(record_keys(VERSION)[56..], BALL_KEYS);
+    }
+
     #[test]
     fn record_round_trips_and_fits_the_buffer() {
         let mut buf = [0u8; MAX_RECORD_LEN];
@@ -345,22 +424,16 @@ mod tests {
 
     /// A record of an older `version`, built by hand with its own key list.
     fn old_record(cfg: &ControlConfig, version: u16, b: &mut [u8; MAX_RECORD_LEN]) -> usize {
-        let keys: usize = SETTINGS
-            .iter()
-            .filter(|s| s.stored() && in_version(s.key, version))
-            .count();
+        let words = record_words(cfg, version);
+        let keys = words.len();
         b[0..4].copy_from_slice(&MAGIC);
         b[4..6].copy_from_slice(&version.to_le_bytes());
         b[6..8].copy_from_slice(&(keys as u16).to_le_bytes());
         b[8..12].copy_from_slice(&schema_of(version).to_le_bytes());
         b[12..16].copy_from_slice(&3u32.to_le_bytes());
-        for (i, s) in SETTINGS
-            .iter()
-            .filter(|s| s.stored() && in_version(s.key, version))
-            .enumerate()
-        {
+        for (i, w) in words.iter().enumerate() {
             let at = HEADER_LEN + 8 * i;
-            b[at..at + 8].copy_from_slice(&s.get(cfg).to_le_bytes());
+            b[at..at + 8].copy_from_slice(&w.to_le_bytes());
         }
         let body = HEADER_LEN + 8 * keys;
         let crc = crc32(&b[..body]);
@@ -391,6 +464,7 @@ mod tests {
 
     /// A version-2 record (no `ballscrew.*`) of a ball-screw lift: every setting it holds is
     /// kept (the screw kind too), the ball screw's parameters take their factory values.
+    #[cfg(feature = "ball-screw")]
     #[test]
     fn version_2_record_keeps_its_settings_and_gets_the_factory_ball_screw() {
         let mut cfg = ControlConfig::ball_screw_4008().unwrap();
@@ -404,6 +478,7 @@ mod tests {
 
     /// A version-3 record (no `drive.brake*`) keeps its changed ball screw and gets no brake;
     /// a version-4 record keeps a brake; a future version is refused.
+    #[cfg(feature = "ball-screw")]
     #[test]
     fn version_3_record_decodes_without_a_brake() {
         let mut cfg = ControlConfig::ball_screw_4008().unwrap();

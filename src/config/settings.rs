@@ -342,6 +342,49 @@ pub fn apply(
     ValidatedConfig::new(next)
 }
 
+/// The refusal's reason, in a build without the `ball-screw` feature, of a value only the
+/// ball-screw variant runs.
+pub const NEEDS_BALL_SCREW: &str = "needs the ball-screw firmware (this is the lead-screw image)";
+
+/// Whether this build can run `cfg`: without the `ball-screw` feature, `drive.screw = ball` and
+/// the `tau` law variable (the `ball` friction preset's) are refused with [`NEEDS_BALL_SCREW`]
+/// (part of [`ControlConfig::validate`]; the store checks it before anything else, see
+/// [`crate::config::store::Source::NeedsBallScrew`]). Always `Ok` with the feature.
+pub fn check_variant(cfg: &ControlConfig) -> Result<(), ConfigError> {
+    if cfg!(feature = "ball-screw") {
+        return Ok(());
+    }
+    let field = if cfg.screw == ScrewKind::Ball {
+        "drive.screw"
+    } else if cfg.estimator.law.variable == LawVariable::Lubrication {
+        "friction.variable"
+    } else {
+        return Ok(());
+    };
+    Err(ConfigError::Conflict {
+        field,
+        reason: NEEDS_BALL_SCREW,
+    })
+}
+
+/// The console's message template for a key [`find`] does not know (`\x01`: the key, then the
+/// pointer to `help keys`): without the `ball-screw` feature a `ballscrew.*` key is not unknown
+/// but needs the other image.
+pub fn unknown_key_template(key: &str) -> &'static str {
+    let ball = key
+        .as_bytes()
+        .get(..BALL_PREFIX.len())
+        .is_some_and(|p| p.eq_ignore_ascii_case(BALL_PREFIX.as_bytes()));
+    if ball && !cfg!(feature = "ball-screw") {
+        "'\x01' needs the ball-screw firmware (this is the lead-screw image)\x01"
+    } else {
+        "unknown key '\x01'\x01"
+    }
+}
+
+/// The ball-screw variant's keys' common prefix.
+const BALL_PREFIX: &str = "ballscrew.";
+
 const fn num(frac: u8, unit: UnitId) -> Kind {
     Kind::Number {
         frac,
@@ -507,11 +550,18 @@ macro_rules! field_stored {
 /// kind, range, help line, [accessor]`). One `match` for both directions instead of a `get`
 /// and a `set` function per setting (or a `match` per direction): on the board the table is 8
 /// bytes per setting smaller and each setting's field access is one address and tag.
+///
+/// The `ball_screw:` group is the ball-screw variant's (cargo feature `ball-screw`). Its entries
+/// come last, so the flash record holds their values last in either build: without the
+/// feature they are no settings (no keys, no console access), but [`slot`] still reaches their
+/// fields at the same positions and the record carries their raw words through
+/// ([`BALL_KEYS`], [`opaque_get`]).
 macro_rules! registry {
-    ($($n:literal => $key:literal, $kind:expr, $range:literal, $about:literal, [$($acc:tt)+];)*) => {
+    ($($n:literal => $key:literal, $kind:expr, $range:literal, $about:literal, [$($acc:tt)+];)*
+     ball_screw: $($bn:literal => $bkey:literal, $bkind:expr, $brange:literal, $babout:literal, [$($bacc:tt)+];)*) => {
         /// Every setting. The flash record's layout follows this order (the `stored` ones):
         /// changing it changes the record's schema fingerprint (see [`crate::config::record`]).
-        pub static SETTINGS: [Setting; 72] = [$(
+        pub static SETTINGS: [Setting; SETTINGS_LEN] = [$(
             Setting {
                 key: $key,
                 kind: $kind,
@@ -519,32 +569,71 @@ macro_rules! registry {
                 #[cfg(feature = "help-text")]
                 about: $about,
             },
+        )* $(
+            #[cfg(feature = "ball-screw")]
+            Setting {
+                key: $bkey,
+                kind: $bkind,
+                range: $brange,
+                #[cfg(feature = "help-text")]
+                about: $babout,
+            },
         )*];
+
+        /// Number of [`SETTINGS`].
+        const SETTINGS_LEN: usize = BALL_FIRST + if cfg!(feature = "ball-screw") {
+            BALL_KEYS.len()
+        } else {
+            0
+        };
+
+        /// Position of the first ball-screw setting: in the ball-screw build its place in
+        /// [`SETTINGS`], in the other the first opaque word's [`slot`].
+        const BALL_FIRST: usize = [$($n),*].len();
+
+        /// The ball-screw variant's settings' keys, in registry order (all stored). Without the
+        /// feature only the record's schema word uses them (at compile time: no flash).
+        pub const BALL_KEYS: [&str; [$($bn),*].len()] = [$($bkey),*];
 
         /// Bit `i`: setting `i` is stored in the flash record.
         /// (One statement per setting, so that an entry can carry attributes such as `cfg`.)
         const STORED: u128 = {
             let mut mask = 0;
             $(mask |= (field_stored!($($acc)+) as u128) << $n;)*
+            $(
+                #[cfg(feature = "ball-screw")]
+                {
+                    mask |= (field_stored!($($bacc)+) as u128) << $bn;
+                }
+            )*
             mask
         };
 
         // The indices written in the registry are the positions (`slot` finds a setting's
-        // field by its position).
+        // field by its position), the ball screw's following the others'; all of the ball
+        // screw's are stored (the record's opaque words).
         const _: () = {
             let mut i = 0;
             $(
                 assert!($n == i, "registry indices must count 0, 1, 2, …");
                 i += 1;
             )*
-            assert!(i == SETTINGS.len() && i <= 128);
+            $(
+                assert!($bn == i, "registry indices must count 0, 1, 2, …");
+                assert!(field_stored!($($bacc)+), "the ball screw's settings are all stored");
+                i += 1;
+            )*
+            assert!(SETTINGS.len() <= i && i <= 128);
         };
 
-        /// The field of the setting at `index` (out of range: the first's).
+        /// The field of the setting at `index` (out of range: the first's). Without the
+        /// `ball-screw` feature the ball screw's fields are still reached here, past
+        /// [`SETTINGS`]' end ([`opaque_get`], [`opaque_set`]).
         #[inline(never)]
         fn slot(index: usize, c: &mut ControlConfig) -> Slot<'_> {
             match index {
                 $($n => field_slot!(c, $($acc)+),)*
+                $($bn => field_slot!(c, $($bacc)+),)*
                 // Not reached: `index` is a registry position.
                 _ => field_slot!(c, q32 limits.lower),
             }
@@ -556,6 +645,34 @@ macro_rules! registry {
 /// ([`Setting::stored`]; `const` for the record's compile-time layout tables).
 pub const fn stored_at(index: usize) -> bool {
     index < SETTINGS.len() && STORED >> index & 1 == 1
+}
+
+/// Number of the ball-screw variant's values the record holds after [`SETTINGS`]' own: the
+/// opaque words a build without the `ball-screw` feature carries through (0 with it).
+pub const OPAQUE_COUNT: usize = if cfg!(feature = "ball-screw") {
+    0
+} else {
+    BALL_KEYS.len()
+};
+
+/// The raw bits of the `i`-th ball-screw value (`i < BALL_KEYS.len()`; 0 otherwise): the
+/// record's word for it. The same bits as the setting's in the ball-screw build.
+#[cfg_attr(feature = "ball-screw", allow(dead_code))]
+pub(crate) fn opaque_get(i: usize, cfg: &ControlConfig) -> i64 {
+    if i < BALL_KEYS.len() {
+        let mut c = *cfg;
+        slot(BALL_FIRST + i, &mut c).read()
+    } else {
+        0
+    }
+}
+
+/// Store a record's raw word into the `i`-th ball-screw value, unvalidated (this build never
+/// uses it; the ball-screw build validates it). False (`cfg` unchanged) if it does not fit the
+/// field's type.
+#[cfg_attr(feature = "ball-screw", allow(dead_code))]
+pub(crate) fn opaque_set(i: usize, cfg: &mut ControlConfig, raw: i64) -> bool {
+    i < BALL_KEYS.len() && slot(BALL_FIRST + i, cfg).write(raw)
 }
 
 /// The friction-law presets `friction.law` selects, in its choice order.
@@ -738,6 +855,7 @@ registry! {
     56 => "stickslip.escape_speed", num(16, RAD_PER_S), "0.2..20 rad/s",
         "cruise speed for the rest of a motion after stick-slip (reaction speed)",
         [q32 stick_slip.escape_speed];
+    ball_screw:
     57 => "ballscrew.r_m", LEN, "2..100 mm",
         "ball screw: ball-centre circle radius r_m",
         [q32 ball_screw.r_m];
@@ -936,7 +1054,52 @@ mod tests {
         } = ControlConfig::DEFAULT;
         // 71 fields above, one key each (the ball screw's law variable is fixed), plus the
         // `friction.law` preset selector.
-        assert_eq!(SETTINGS.iter().filter(|s| s.stored()).count(), 71);
+        // (Without the `ball-screw` feature the ball screw's 15 are opaque record words.)
+        assert_eq!(
+            SETTINGS.iter().filter(|s| s.stored()).count() + OPAQUE_COUNT,
+            71
+        );
+    }
+
+    /// The ball screw's values are the registry's last stored settings (so a build without the
+    /// feature appends them to the record in the same place), and the opaque accessors read and
+    /// write the very bits the settings do.
+    #[cfg(feature = "ball-screw")]
+    #[test]
+    fn opaque_words_are_the_ball_screw_settings_bits() {
+        let stored: std::vec::Vec<&Setting> = SETTINGS.iter().filter(|s| s.stored()).collect();
+        let tail = &stored[stored.len() - BALL_KEYS.len()..];
+        let mut cfg = ControlConfig::ball_screw_4008().unwrap();
+        cfg.ball_screw.preload = Newtons::lit("1234.5");
+        cfg.lube.band = Ratio::lit("0.7");
+        for (j, s) in tail.iter().enumerate() {
+            assert_eq!(s.key, BALL_KEYS[j]);
+            assert!(s.key.starts_with(BALL_PREFIX));
+            assert_eq!(opaque_get(j, &cfg), s.get(&cfg), "{}", s.key);
+            for raw in [s.get(&cfg) ^ 1, 0, 1, i64::from(i32::MAX) + 1, -1, i64::MIN] {
+                let (mut a, mut b) = (cfg, cfg);
+                assert_eq!(
+                    opaque_set(j, &mut a, raw),
+                    s.set(&mut b, raw),
+                    "{} {raw}",
+                    s.key
+                );
+                assert_eq!(a, b, "{} {raw}", s.key);
+            }
+        }
+        assert_eq!(opaque_get(BALL_KEYS.len(), &cfg), 0);
+        assert!(!opaque_set(BALL_KEYS.len(), &mut cfg, 0));
+        // Nothing else of the registry is the ball screw's.
+        assert!(stored[..stored.len() - BALL_KEYS.len()]
+            .iter()
+            .all(|s| !s.key.starts_with(BALL_PREFIX)));
+        assert_eq!(OPAQUE_COUNT, 0);
+        // The feature's checks are off.
+        assert_eq!(check_variant(&cfg), Ok(()));
+        assert_eq!(
+            unknown_key_template("ballscrew.x"),
+            "unknown key '\x01'\x01"
+        );
     }
 
     /// The display unit is accepted without an entry: `accepts` repeats none (the messages'
@@ -1042,7 +1205,13 @@ mod tests {
             "limits.upper",
             "motor.kt",
             "load.rated",
-            "ballscrew.preload",
+            // (The lead-screw build has no ball-screw keys; `opaque_set` is checked against
+            // `Setting::set` in the ball-screw build.)
+            if cfg!(feature = "ball-screw") {
+                "ballscrew.preload"
+            } else {
+                "motion.cruise_speed"
+            },
         ] {
             assert!(fits(key(k), i64::from(i32::MIN)) && fits(key(k), i64::from(i32::MAX)));
             assert!(

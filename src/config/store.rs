@@ -203,6 +203,9 @@ pub enum StoreError {
     Flash(FlashErrorKind),
     /// No room even after `sequential-storage` reclaimed old pages.
     Full,
+    /// The stored record needs the ball-screw firmware ([`Source::NeedsBallScrew`]): this
+    /// image writes nothing, so that the record survives until that firmware runs.
+    Locked,
     /// `sequential-storage` found its structures damaged beyond its own repair.
     Corrupted,
     /// The record read back after a save differs from what was written.
@@ -234,6 +237,7 @@ impl StoreError {
                 FlashErrorKind::Other => "flash driver error",
             },
             StoreError::Full => "store is full",
+            StoreError::Locked => "the stored record needs the ball-screw firmware; not written",
             StoreError::Corrupted => "store structure is corrupted",
             StoreError::Verify => "read-back after save differs",
             StoreError::Internal => "storage library error",
@@ -286,6 +290,12 @@ pub enum Source {
     Rejected(ConfigError),
     /// The flash could not be read. Factory defaults.
     Unreadable(StoreError),
+    /// An intact record of a ball-screw lift (the error names the value), read by an image
+    /// built without the `ball-screw` feature. Not a fallback to run on: the store refuses to
+    /// write (the record stays as it is) and the firmware latches
+    /// [`crate::control::FaultKind::NeedsBallScrew`] with the motor braked. Never in the
+    /// ball-screw build.
+    NeedsBallScrew(ConfigError),
 }
 
 /// What exactly was corrupt.
@@ -306,9 +316,15 @@ impl Source {
         !matches!(self, Source::Stored { .. })
     }
 
+    /// The stored configuration needs the ball-screw firmware: lock the lift out.
+    pub fn needs_ball_screw(&self) -> bool {
+        matches!(self, Source::NeedsBallScrew(_))
+    }
+
     /// How much a failed copy says about the store: the more specific wins the message.
     fn weight(&self) -> u8 {
         match self {
+            Source::NeedsBallScrew(_) => 7,
             Source::Stored { .. } => 6,
             Source::Rejected(_) => 5,
             Source::Incompatible(_) => 4,
@@ -358,6 +374,14 @@ impl Source {
             ),
             Source::Rejected(e) => ("stored configuration refused (", Cause::Config(e)),
             Source::Unreadable(e) => ("configuration store unreadable (", Cause::Text(e.message())),
+            Source::NeedsBallScrew(e) => {
+                out.write_str("stored configuration needs the ball-screw firmware (")?;
+                e.write_to(out)?;
+                return out.write_str(
+                    "): lift locked, fault latched with the motor braked; the record is kept \
+                     unchanged; flash the ball-screw image (`cargo fw-ball`)",
+                );
+            }
         };
         out.write_str(head)?;
         match cause {
@@ -440,6 +464,8 @@ pub struct ConfigStore<F: NorFlash> {
     first: usize,
     /// Sequence number of the newest position record (0: none).
     pos_seq: u32,
+    /// The stored record needs the ball-screw firmware: refuse every write.
+    locked: bool,
 }
 
 /// An uncached map over one copy's range: rebuilt per operation at no cost.
@@ -481,6 +507,7 @@ where
             seq: 0,
             first: 0,
             pos_seq: 0,
+            locked: false,
         })
     }
 
@@ -492,6 +519,14 @@ where
         let a = self.load_copy(0);
         let b = self.load_copy(1);
         let a_ok = a.is_ok();
+        // Either copy a ball screw's (the newest, or a save the ball-screw firmware did not
+        // finish): never run this image's fallback on that lift.
+        let ball = match (&a, &b) {
+            (Err(e @ Source::NeedsBallScrew(_)), _) | (_, Err(e @ Source::NeedsBallScrew(_))) => {
+                Some(*e)
+            }
+            _ => None,
+        };
         let (config, source) = match (a, b) {
             (Ok((ca, sa)), Ok((cb, sb))) => {
                 // Next save writes the older copy first; equal copies: either.
@@ -518,6 +553,11 @@ where
                 (ValidatedConfig::factory(), worst)
             }
         };
+        let (config, source) = match ball {
+            Some(e) => (ValidatedConfig::factory(), e),
+            None => (config, source),
+        };
+        self.locked = source.needs_ball_screw();
         Loaded { config, source }
     }
 
@@ -549,6 +589,7 @@ where
             DecodeError::Version { .. } | DecodeError::Schema => Source::Incompatible(e),
             _ => Source::Corrupt(Corruption::Record(e)),
         })?;
+        crate::config::settings::check_variant(&cfg).map_err(Source::NeedsBallScrew)?;
         let cfg = ValidatedConfig::new(cfg).map_err(Source::Rejected)?;
         Ok((cfg, seq))
     }
@@ -563,6 +604,9 @@ where
     /// that does not hold the newest record first. Returns the save's sequence number. An
     /// interrupted save leaves the previous or the new record in force, never a mix.
     pub fn save(&mut self, cfg: &ValidatedConfig) -> Result<u32, StoreError> {
+        if self.locked {
+            return Err(StoreError::Locked);
+        }
         let seq = self.seq.wrapping_add(1);
         let order = [self.first, 1 - self.first];
         for copy in order {
@@ -626,6 +670,9 @@ where
     /// previous or the new record). Write [`Parked::Moving`] as a motion starts and
     /// [`Parked::At`] once the lift has settled.
     pub fn save_position(&mut self, parked: Parked, stamp: u32) -> Result<(), StoreError> {
+        if self.locked {
+            return Err(StoreError::Locked);
+        }
         let rec = PositionRecord {
             parked,
             seq: self.pos_seq.wrapping_add(1),
@@ -641,11 +688,26 @@ where
 
     /// Erase both copies (factory reset: the next load reports [`Source::Missing`]).
     pub fn erase(&mut self) -> Result<(), StoreError> {
+        if self.locked {
+            return Err(StoreError::Locked);
+        }
         self.erase_copy(0)?;
         self.erase_copy(1)?;
         self.seq = 0;
         self.first = 0;
         Ok(())
+    }
+
+    /// Append `cfg` as record `seq` to `copy`, unvalidated and even when locked: a record
+    /// another firmware wrote.
+    #[cfg(all(test, not(feature = "ball-screw")))]
+    pub(crate) fn put_record_for_tests(
+        &mut self,
+        copy: usize,
+        cfg: &ControlConfig,
+        seq: u32,
+    ) -> Result<(), StoreError> {
+        self.put(copy, CONFIG_KEY, &Outgoing(cfg, seq))
     }
 
     /// Sequence number of the last record loaded or saved (0: none).

@@ -277,7 +277,10 @@ pub fn write_parse_error(out: &mut dyn Write, e: &ParseError<'_>) -> fmt::Result
             "`\x01` needs a key, e.g. `\x01 limits.upper`\x01",
             &[Arg::Str(cmd), Arg::Str(cmd), Arg::Str(KEYS)],
         ),
-        ParseError::UnknownKey(k) => ("unknown key '\x01'\x01", &[Arg::Clip(k), Arg::Str(KEYS)]),
+        ParseError::UnknownKey(k) => (
+            settings::unknown_key_template(k),
+            &[Arg::Clip(k), Arg::Str(KEYS)],
+        ),
         ParseError::MissingValue(id) => {
             fill(out, "`set \x01` needs a value: ", &[Arg::Str(id.key())])?;
             return write_expected(out, *id);
@@ -504,6 +507,7 @@ pub struct StatusView {
     /// The active fault's name, if any.
     pub fault: Option<&'static str>,
     /// Ball screw: identified friction coefficient and the law's f(τ), once identified.
+    #[cfg(feature = "ball-screw")]
     pub ball_f: Option<(Ratio, Ratio)>,
 }
 
@@ -549,6 +553,9 @@ pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
             Arg::Word(s.fault.unwrap_or("none")),
         ],
     )?;
+    #[cfg(not(feature = "ball-screw"))]
+    return Ok(());
+    #[cfg(feature = "ball-screw")]
     match s.ball_f {
         Some((f, law)) => fill(
             out,
@@ -785,6 +792,9 @@ mod tests {
         }
 
         pub fn status(s: &StatusView) -> String {
+            #[cfg(not(feature = "ball-screw"))]
+            let ball = "";
+            #[cfg(feature = "ball-screw")]
             let ball = match s.ball_f {
                 Some((f, law)) => format!(
                     " f={} f_law={}",
@@ -933,6 +943,7 @@ mod tests {
                 stick_slip_amplitude: NewtonMetres::from_bits(b(29)),
                 stick_slip_episodes: b(37) as u32,
                 fault: [None, Some("encoder lost"), Some("over-current")][i % 3],
+                #[cfg(feature = "ball-screw")]
                 ball_f: (i % 4 == 1).then(|| (Ratio::from_bits(b(47)), Ratio::from_bits(b(53)))),
             };
             let mut out = String::new();

@@ -114,6 +114,7 @@ pub fn status_view(s: &Status) -> StatusView {
         stick_slip_amplitude: s.stick_slip_amplitude,
         stick_slip_episodes: s.stick_slip_episodes,
         fault: s.fault.map(|f| f.name()),
+        #[cfg(feature = "ball-screw")]
         ball_f: s.lube.map(|r| (r.f, r.law)),
     }
 }

@@ -10,6 +10,7 @@ use crate::detect::stickslip::StickSlipConfig;
 use crate::estimator::EstimatorConfig;
 use crate::model::ballscrew::BallScrewConfig;
 use crate::model::geometry::Geometry;
+#[cfg_attr(not(feature = "ball-screw"), allow(unused_imports))]
 use crate::units::{Amperes, Kilograms, Metres, Newtons, RadiansPerSecond, Ratio, Volts};
 use crate::ConfigError;
 
@@ -306,6 +307,7 @@ impl ControlConfig {
     /// halved (the 8 mm lead moves the nut 4.9× farther per turn than the S12x2's 2 mm).
     ///
     /// [`BallScrewConfig::equivalent_thread_law`]: crate::model::ballscrew::BallScrewConfig::equivalent_thread_law
+    #[cfg(feature = "ball-screw")]
     pub fn ball_screw_4008() -> Result<ControlConfig, ConfigError> {
         let bs = BallScrewConfig::SEED_001_4008.compile()?;
         let mut c = ControlConfig::DEFAULT;
@@ -463,8 +465,12 @@ impl ControlConfig {
             "1..100000 uV",
         )?;
         self.stick_slip.validate()?;
-        self.ball_screw.compile()?;
-        self.lube.validate()?;
+        #[cfg(feature = "ball-screw")]
+        {
+            self.ball_screw.compile()?;
+            self.lube.validate()?;
+        }
+        crate::config::settings::check_variant(self)?;
         self.brake.validate()?;
         self.limits.counts(geometry)
     }

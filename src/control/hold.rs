@@ -87,7 +87,7 @@ impl BrakeState {
 impl Controller {
     /// Whether this lift must be held at rest (ball screw).
     pub(super) fn holds_actively(&self) -> bool {
-        self.cfg.screw == ScrewKind::Ball
+        cfg!(feature = "ball-screw") && self.cfg.screw == ScrewKind::Ball
     }
 
     /// The bridge at rest for either screw kind: the lead screw's [`Controller::rest_bridge`],

@@ -30,7 +30,10 @@
 //! identified axial force; outside `law·(1 ± ballscrew.lube_band)` the controller reports
 //! [`crate::control::Event::Lubrication`] (the console prints a `warning:` line).
 
+// The ball-screw build uses every import; the lead-screw build only the configuration's.
+#![cfg_attr(not(feature = "ball-screw"), allow(unused_imports))]
 use crate::control::config::ControlConfig;
+#[cfg(feature = "ball-screw")]
 use crate::model::ballscrew::{BallScrew, FrictionIdentifier};
 use crate::units::{
     qmul, sat32, Amperes, Kilograms, NewtonMetres, Newtons, RadiansPerSecond, Ratio, Q,
@@ -90,11 +93,14 @@ impl LubeConfig {
 }
 
 /// Time a constant reference must have lasted before the current is used, ms.
+#[cfg(feature = "ball-screw")]
 pub const SETTLE_MS: u32 = 200;
 /// Fewest samples that make a motion's means usable (0.2 s at 1 kHz).
+#[cfg(feature = "ball-screw")]
 pub const MIN_SAMPLES: u32 = 200;
 
 /// One motion's sums.
+#[cfg(feature = "ball-screw")]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 struct Sums {
     torque: i64,
@@ -103,6 +109,7 @@ struct Sums {
     n: u32,
 }
 
+#[cfg(feature = "ball-screw")]
 impl Sums {
     fn add(&mut self, torque: NewtonMetres, axial: Newtons, speed: RadiansPerSecond) {
         self.torque = self.torque.saturating_add(i64::from(torque.bits()));
@@ -131,6 +138,7 @@ impl Sums {
 }
 
 /// What a solved lift/lowering pair says.
+#[cfg(feature = "ball-screw")]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LubeReport {
@@ -151,6 +159,7 @@ pub struct LubeReport {
 /// Solve a lift's and a lowering's means for the load fraction x and f (see the module doc).
 /// `None` when no x in 0.02…4 makes them agree (not a pair of the same load, or a model that
 /// does not fit: no warning is drawn from it).
+#[cfg(feature = "ball-screw")]
 fn solve(bs: &BallScrew, up: &Sums, down: &Sums) -> Option<(Ratio, Ratio, Ratio)> {
     solve_pair(bs, (up.torque(), up.axial()), (down.torque(), down.axial()))
 }
@@ -160,6 +169,7 @@ fn solve(bs: &BallScrew, up: &Sums, down: &Sums) -> Option<(Ratio, Ratio, Ratio)
 /// 0.02…4) and Eq 2's f of each direction there. `None` when no x in that range makes them
 /// agree, when either demand is not positive, or when the f it needs is negative. Error
 /// against the float64 twin: `tests/ballscrew_vs_float_twin.rs`.
+#[cfg(feature = "ball-screw")]
 pub fn solve_pair(
     bs: &BallScrew,
     up: (NewtonMetres, Newtons),
@@ -210,6 +220,7 @@ pub fn solve_pair(
 }
 
 /// The identification's state (kept by the controller in ball-screw mode).
+#[cfg(feature = "ball-screw")]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LubeMonitor {
     run: Sums,
@@ -230,6 +241,7 @@ pub struct LubeMonitor {
 }
 
 /// What the controller hands the monitor each tick.
+#[cfg(feature = "ball-screw")]
 #[derive(Clone, Copy, Debug)]
 pub struct LubeInputs {
     /// Lifting or lowering, driven by the bridge on the previous tick.
@@ -246,6 +258,7 @@ pub struct LubeInputs {
     pub axial_rated: Newtons,
 }
 
+#[cfg(feature = "ball-screw")]
 impl LubeMonitor {
     /// A monitor for a (validated) configuration.
     pub fn new(cfg: &ControlConfig) -> LubeMonitor {
@@ -402,7 +415,7 @@ impl LubeMonitor {
     }
 }
 
-#[cfg(test)]
+#[cfg(all(test, feature = "ball-screw"))]
 mod tests {
     use super::*;
     use crate::model::ballscrew::BallScrewConfig;

@@ -33,6 +33,7 @@ pub mod speed;
 use crate::detect::stickslip::{DetectorInputs, Reaction, StickSlipDetector};
 use crate::estimator::{Estimator, Measurements, TickEstimate};
 use crate::math::div128;
+#[cfg(feature = "ball-screw")]
 use crate::model::ballscrew::BallScrew;
 use crate::model::Scale;
 use crate::units::{
@@ -187,6 +188,8 @@ pub enum Refusal {
     InMotion,
     /// A configuration the controller cannot run with (pass it through validation first).
     BadConfig,
+    /// `fault clear` of [`FaultKind::NeedsBallScrew`]: only the ball-screw firmware clears it.
+    NeedsBallScrew,
 }
 
 impl Refusal {
@@ -206,6 +209,10 @@ impl Refusal {
                 "refused: the lift is moving; `stop` and let it come to rest first"
             }
             Refusal::BadConfig => "refused: configuration not valid for the controller",
+            Refusal::NeedsBallScrew => {
+                "refused: the stored configuration needs the ball-screw firmware; flash that \
+                 image (`cargo fw-ball`), the record is kept"
+            }
         }
     }
 }
@@ -276,6 +283,7 @@ pub enum Event {
     },
     /// A ball screw's lift/lowering pair put the identified friction coefficient outside
     /// `ballscrew.lube_band` around the law (`lube`): lubrication or wear to check.
+    #[cfg(feature = "ball-screw")]
     Lubrication(lube::LubeReport),
 }
 
@@ -309,6 +317,7 @@ pub struct Status {
     pub homed: bool,
     /// Ball screw: the friction coefficient identified from the current and the law's, once a
     /// lift/lowering pair has been solved (`lube`).
+    #[cfg(feature = "ball-screw")]
     pub lube: Option<lube::LubeReport>,
 }
 
@@ -430,9 +439,12 @@ pub struct Controller {
     cruise_q32: i64,
     escape_q32: i64,
     /// The ball screw (`cfg.ball_screw`, compiled) and the identification of its friction.
+    #[cfg(feature = "ball-screw")]
     ball_screw: BallScrew,
+    #[cfg(feature = "ball-screw")]
     lube: lube::LubeMonitor,
     /// A lubrication warning (of `lube`'s latest report) waits for a tick without another event.
+    #[cfg(feature = "ball-screw")]
     lube_notice: bool,
     /// The holding brake (`hold.rs`).
     brake: hold::BrakeState,
@@ -443,6 +455,7 @@ impl Controller {
     /// survives power loss with the configuration: the lead screw is self-locking).
     pub fn new(cfg: &ControlConfig, position: i32) -> Result<Controller, ConfigError> {
         let est = Estimator::new(&cfg.estimator)?;
+        #[cfg(feature = "ball-screw")]
         let ball_screw = cfg.ball_screw.compile()?;
         let geometry = est.geometry();
         let (lower_counts, upper_counts, switch_counts) = cfg.validate_limit_counts(geometry)?;
@@ -546,8 +559,11 @@ impl Controller {
             stick_slip: StickSlipDetector::new(&cfg.stick_slip, tick_us),
             cruise_q32,
             escape_q32,
+            #[cfg(feature = "ball-screw")]
             ball_screw,
+            #[cfg(feature = "ball-screw")]
             lube: lube::LubeMonitor::new(cfg),
+            #[cfg(feature = "ball-screw")]
             lube_notice: false,
             brake: hold::BrakeState::new(&cfg.brake, tick_us),
         })
@@ -659,6 +675,7 @@ impl Controller {
             fault: self.fault.map(|f| f.kind),
             position: self.enc.position(),
             homed: self.homed,
+            #[cfg(feature = "ball-screw")]
             lube: if self.holds_actively() {
                 self.lube.report()
             } else {
@@ -668,6 +685,7 @@ impl Controller {
     }
 
     /// The ball screw's friction identification (`lube`).
+    #[cfg(feature = "ball-screw")]
     pub fn lube(&self) -> &lube::LubeMonitor {
         &self.lube
     }
@@ -713,6 +731,7 @@ impl Controller {
         next.prev_buttons = self.prev_buttons;
         next.pending_event = self.pending_event;
         next.brake.keep_timing(&self.brake);
+        #[cfg(feature = "ball-screw")]
         if cfg.ball_screw == self.cfg.ball_screw
             && cfg.lube == self.cfg.lube
             && cfg.estimator == self.cfg.estimator
@@ -740,12 +759,23 @@ impl Controller {
         self.latch(now, FaultKind::WatchdogReset);
     }
 
+    /// Report that the stored configuration needs the ball-screw firmware (an image without the
+    /// `ball-screw` feature booted on a ball-screw record, [`crate::config::store::Source::NeedsBallScrew`]):
+    /// latches [`FaultKind::NeedsBallScrew`], which no command clears. The fault state brakes
+    /// the bridge and keeps the holding brake engaged (`hold.rs`).
+    pub fn report_needs_ball_screw(&mut self, now: Instant) {
+        self.latch(now, FaultKind::NeedsBallScrew);
+    }
+
     /// Apply a command now (the next tick acts on it).
     pub fn command(&mut self, cmd: Command) -> Result<(), Refusal> {
         match cmd {
             Command::ClearFault => {
-                if self.fault.is_none() {
+                let Some(f) = self.fault else {
                     return Err(Refusal::NoFault);
+                };
+                if f.kind == FaultKind::NeedsBallScrew {
+                    return Err(Refusal::NeedsBallScrew);
                 }
                 self.fault = None;
                 self.monitors.reset();
@@ -1039,6 +1069,7 @@ impl Controller {
             }
         };
         self.detect_stick_slip();
+        #[cfg(feature = "ball-screw")]
         if self.holds_actively() {
             self.identify_friction();
         }
@@ -1083,6 +1114,7 @@ impl Controller {
 
     /// Ball screw: a sample of the friction identification while moving, the pair solve and
     /// the lubrication warning once at rest (`lube`).
+    #[cfg(feature = "ball-screw")]
     fn identify_friction(&mut self) {
         let moving = matches!(self.state, State::Lifting | State::Lowering);
         if moving {

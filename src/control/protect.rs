@@ -42,6 +42,10 @@ pub enum FaultKind {
     SwitchesImplausible,
     /// The watchdog reset the controller (reported at the next boot).
     WatchdogReset,
+    /// The stored configuration is a ball screw's (`drive.screw = ball` or the `ball` law) and
+    /// this image is built without the `ball-screw` feature: the lift stays braked and the
+    /// record untouched until the ball-screw firmware is flashed (`fault clear` refuses).
+    NeedsBallScrew,
 }
 
 impl FaultKind {
@@ -59,6 +63,7 @@ impl FaultKind {
             FaultKind::LimitSwitch => "limit switch before soft limit missed",
             FaultKind::SwitchesImplausible => "both limit switches closed",
             FaultKind::WatchdogReset => "watchdog reset",
+            FaultKind::NeedsBallScrew => "stored configuration needs the ball-screw firmware",
         }
     }
 }

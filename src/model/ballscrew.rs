@@ -19,6 +19,8 @@
 //! Every function has a float64 twin in `host_sim::physics::ballscrew` and a property test in
 //! `tests/ballscrew_vs_float_twin.rs`.
 
+// The ball-screw build uses every import; the lead-screw build only the configuration's.
+#![cfg_attr(not(feature = "ball-screw"), allow(unused_imports))]
 use crate::model::friction::{CompiledLaw, FrictionLaw, LawVariable};
 use crate::model::Scale;
 use crate::units::{qmul, Angle, Metres, NewtonMetres, Newtons, RadiansPerSecond, Ratio, Q};
@@ -62,6 +64,7 @@ impl BallScrewConfig {
     };
 
     /// Validate and quantise once.
+    #[cfg(feature = "ball-screw")]
     pub fn compile(&self) -> Result<BallScrew, ConfigError> {
         use crate::check_range as range;
         range(
@@ -221,6 +224,7 @@ impl BallScrewConfig {
 }
 
 /// 2π in Q60.
+#[cfg(feature = "ball-screw")]
 const TWO_PI_Q60: i128 = 7_244_019_458_077_122_842;
 
 /// √x for configuration time without libm (`core` has no `f64::sqrt`): Newton from above,
@@ -238,6 +242,7 @@ fn sqrt_f64(x: f64) -> f64 {
 }
 
 /// A compiled ball screw: every per-tick operation is a few integer multiplies.
+#[cfg(feature = "ball-screw")]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BallScrew {
     /// F_p (the rest of the configuration is compiled into the constants below; the
@@ -251,6 +256,7 @@ pub struct BallScrew {
     lever: Metres,
 }
 
+#[cfg(feature = "ball-screw")]
 impl BallScrew {
     /// The preload F_p it was compiled with.
     pub fn preload(&self) -> Newtons {
@@ -400,6 +406,7 @@ impl BallScrew {
 /// Online estimate of the ball screw's friction coefficient from motor current (Eq 2): an
 /// exponential average of [`BallScrew::identify`] over the samples taken at steady speed under
 /// load, `f ← f + (f_sample − f)/2^shift`.
+#[cfg(feature = "ball-screw")]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FrictionIdentifier {
     estimate: Ratio,
@@ -408,6 +415,7 @@ pub struct FrictionIdentifier {
     min_force: Newtons,
 }
 
+#[cfg(feature = "ball-screw")]
 impl FrictionIdentifier {
     /// Start from `initial` (e.g. the law's value), average over about 2^`shift` samples
     /// (`shift` ≤ 16), and ignore samples below `min_force` of axial force.

@@ -86,6 +86,7 @@ impl Scenario {
 
     /// The ball-screw lift: plant with the 4008 ball screw (seed 002's law as a thread law at
     /// the rated load's axial force at 45°), core with `ControlConfig::ball_screw_4008()`.
+    #[cfg(feature = "ball-screw")]
     pub fn ball_screw(load: f64, start_deg: f64, duration: f64) -> Self {
         let mut s = Self::new(Lubricant::Dry, load, start_deg, duration);
         s.control = ControlConfig::ball_screw_4008().expect("valid preset");

@@ -218,6 +218,11 @@ pub struct Estimator {
     accel_scale: Scale,
     /// A tick later than this (1.5 periods, µs) is flagged late.
     late_us: u32,
+    /// The pose between exact nodes every 2^`pose_shift` counts ([`PoseSegment`]); 0: the
+    /// exact pose at every count (the configuration's encoder is too coarse for it).
+    pose_shift: u32,
+    /// The segment of the last step's count (state: refilled when the count leaves it).
+    segment: PoseSegment,
     // Filter state: the last count; position relative to it, speed and acceleration in Q16
     // counts, counts/tick, counts/tick².
     last_counts: i32,
@@ -331,7 +336,7 @@ impl Estimator {
         // Screw rad/s² (Q8) from counts/tick² (Q16): × rad/count × ticks²/s² / 2^8.
         let accel_scale = rpc.times(i128::from(tick_hz) * i128::from(tick_hz), 1 << 24);
         let mu_table = MuTable::build(&law);
-        Ok(Estimator {
+        let mut est = Estimator {
             geometry,
             screw,
             law,
@@ -356,12 +361,16 @@ impl Estimator {
             speed_scale,
             accel_scale,
             late_us: cfg.tick_us * 3 / 2,
+            pose_shift: 0,
+            segment: PoseSegment::EMPTY,
             last_counts: 0,
             q: 0,
             v: 0,
             a: 0,
             last: None,
-        })
+        };
+        est.pose_shift = est.choose_pose_shift();
+        Ok(est)
     }
 
     /// The validated geometry.
@@ -382,6 +391,12 @@ impl Estimator {
     /// Whether the model reads μ from the law's table ([`MuTable`]) rather than the exact law.
     pub fn mu_tabulated(&self) -> bool {
         self.mu_table.is_some()
+    }
+
+    /// log2 of the pose's node spacing in counts ([`PoseSegment`]); 0: the exact pose at every
+    /// count.
+    pub fn pose_shift(&self) -> u32 {
+        self.pose_shift
     }
 
     /// Restart the speed filter at a position, at rest (after a fault or a re-home).
@@ -409,9 +424,14 @@ impl Estimator {
     #[inline]
     pub fn step_at(&mut self, now: Instant, m: &Measurements, fraction: u16) -> TickEstimate {
         let (speed, accel, flags) = self.filter(now, m.position_counts, fraction);
-        let x = self.model(m, speed, accel, flags);
+        let index = m.position_counts >> self.pose_shift;
+        if index != self.segment.index || !self.segment.filled {
+            self.segment = self.segment_after(index, &self.segment);
+        }
+        let pose = self.pose_on(&self.segment, m.position_counts);
+        let x = self.model(m, &pose, speed, accel, flags);
         TickEstimate {
-            height: x.pose.height,
+            height: x.height,
             screw_speed: x.speed,
             screw_accel: x.accel,
             friction_torque: x.core.friction_torque,
@@ -491,21 +511,33 @@ impl Estimator {
         accel: RadiansPerSecond2,
         flags: u8,
     ) -> Estimate {
-        let x = self.model(m, speed, accel, flags);
+        let index = m.position_counts >> self.pose_shift;
+        let segment = self.segment_after(index, &PoseSegment::EMPTY);
+        let fast = self.pose_on(&segment, m.position_counts);
+        let x = self.model(m, &fast, speed, accel, flags);
+        // The pose's diagnostics (α, sin α, travel) exact; height, cos α and 1/sin α the
+        // model's (interpolated between exact nodes, as in the step).
+        let exact = self.geometry.pose(m.position_counts);
+        let pose = Pose {
+            height: fast.height,
+            cos_alpha: fast.cos_alpha,
+            inv_sin_alpha: fast.inv_sin_alpha,
+            ..exact
+        };
         // Diagnostics, off the tick path: they saturate freely.
         let axial_load = Newtons::from_raw(sat32(
-            (i64::from(x.ws) * i64::from(x.pose.cos_alpha.bits())) >> 28,
+            (i64::from(x.ws) * i64::from(pose.cos_alpha.bits())) >> 28,
         ));
         let pin_friction = Newtons::from_raw(sat32(
             (i64::from(x.ws) * i64::from(self.two_mu_pin.bits())) >> 28,
         ));
         Estimate {
-            pose: x.pose,
+            pose,
             screw_speed: x.speed,
             screw_accel: x.accel,
             axial_load,
             pin_friction,
-            structure_damping: self.geometry.structure_damping(x.pose.cos_alpha),
+            structure_damping: self.geometry.structure_damping(pose.cos_alpha),
             mu: x.mu,
             contact: self.screw.contact_from(x.mu_s, x.w, &x.core),
             model_screw_torque: x.model_screw_torque,
@@ -530,6 +562,7 @@ impl Estimator {
     fn model(
         &self,
         m: &Measurements,
+        pose: &FastPose,
         speed: RadiansPerSecond,
         accel: RadiansPerSecond2,
         mut flags: u8,
@@ -539,7 +572,6 @@ impl Estimator {
         let load = m.load.clamp(Kilograms::ZERO, LOAD_MAX);
         let mut clamped = (speed_c != speed) | (accel_c != accel) | (load != m.load);
         let (speed, accel) = (speed_c, accel_c);
-        let pose = self.geometry.pose(m.position_counts);
         if pose.clamped {
             flags |= EstimateFlags::POSE_CLAMPED;
         }
@@ -619,7 +651,7 @@ impl Estimator {
             flags |= EstimateFlags::SATURATED;
         }
         Model {
-            pose,
+            height: pose.height,
             speed,
             accel,
             ws,
@@ -635,7 +667,202 @@ impl Estimator {
     }
 }
 
+/// The pose values the per-tick model reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct FastPose {
+    height: Metres,
+    cos_alpha: Ratio,
+    inv_sin_alpha: Ratio,
+    clamped: bool,
+}
+
+/// The pose between two exact nodes, at counts `index·2^k` and `(index + 1)·2^k`
+/// (k = [`Estimator`]'s `pose_shift`): height, cos α and 1/sin α interpolated linearly in the
+/// count (docs/model.md "Pose between nodes"). cos α is linear in the count (Eq 1), so only the
+/// curvature of h and 1/sin α in cos α costs accuracy; k is chosen per configuration so that
+/// it stays within a tenth of the budgets ([`Estimator::choose_pose_shift`]). A segment that
+/// touches the clamp band's edges or 1/sin α's saturation (below ≈ 7.2°) is `exact`: the exact
+/// pose at the count.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct PoseSegment {
+    index: i32,
+    filled: bool,
+    exact: bool,
+    /// Whether the node at the segment's start / end is unusable (clamped, saturated, or
+    /// beyond i32 counts).
+    bad0: bool,
+    bad1: bool,
+    /// Node values at the start (raw bits: height Q24 m, cos α and 1/sin α Q28) and their rise
+    /// to the end node.
+    v0: [i32; 3],
+    dv: [i32; 3],
+}
+
+impl PoseSegment {
+    const EMPTY: PoseSegment = PoseSegment {
+        index: 0,
+        filled: false,
+        exact: true,
+        bad0: true,
+        bad1: true,
+        v0: [0; 3],
+        dv: [0; 3],
+    };
+}
+
+/// Interpolation error allowed between nodes, a tenth of the budgets (docs/model.md): height
+/// 5 µm (Q24 m), 1/sin α 2·10⁻⁴ relative (T_r's 0.2 %: W is proportional to it).
+const POSE_HEIGHT_TOL: i32 = 84; // 5·10⁻⁶·2^24
+const POSE_INV_SIN_TOL_SHIFT: u32 = 12; // 2.4·10⁻⁴
+/// Largest node spacing tried, 2^16 counts.
+const POSE_SHIFT_MAX: u32 = 16;
+
 impl Estimator {
+    /// The exact node at `counts`: its values and whether it is unusable.
+    fn pose_node(&self, counts: Option<i32>) -> ([i32; 3], bool) {
+        match counts {
+            Some(c) => {
+                let p = self.geometry.pose(c);
+                (
+                    [p.height.bits(), p.cos_alpha.bits(), p.inv_sin_alpha.bits()],
+                    p.clamped || p.inv_sin_alpha.bits() == i32::MAX,
+                )
+            }
+            None => ([0; 3], true),
+        }
+    }
+
+    /// The segment `index`, reusing a node of `prev` when it is a neighbour (a count that
+    /// crosses into the next segment costs one exact pose, not two). A function of `index`
+    /// alone: the nodes are exact poses at fixed counts.
+    #[inline(never)]
+    fn segment_after(&self, index: i32, prev: &PoseSegment) -> PoseSegment {
+        let k = self.pose_shift;
+        if k == 0 {
+            return PoseSegment {
+                index,
+                filled: true,
+                ..PoseSegment::EMPTY
+            };
+        }
+        let start = |i: i32| i.checked_mul(1 << k);
+        let end = |i: i32| i.checked_add(1).and_then(start);
+        let ((v0, bad0), (v1, bad1)) = if prev.filled && prev.index.checked_add(1) == Some(index) {
+            let old_end = core::array::from_fn(|j| prev.v0[j].wrapping_add(prev.dv[j]));
+            ((old_end, prev.bad1), self.pose_node(end(index)))
+        } else if prev.filled && prev.index.checked_sub(1) == Some(index) {
+            (self.pose_node(start(index)), (prev.v0, prev.bad0))
+        } else {
+            (self.pose_node(start(index)), self.pose_node(end(index)))
+        };
+        PoseSegment {
+            index,
+            filled: true,
+            exact: bad0 || bad1,
+            bad0,
+            bad1,
+            v0,
+            // Nodes within the band: heights ≤ 3 m, cos α and 1/sin α within 0…8 (Q28): the
+            // differences fit.
+            dv: core::array::from_fn(|j| v1[j].wrapping_sub(v0[j])),
+        }
+    }
+
+    /// The model's pose at `counts` on `seg` (the segment holding it).
+    #[inline(always)]
+    fn pose_on(&self, seg: &PoseSegment, counts: i32) -> FastPose {
+        if seg.exact {
+            return self.exact_pose(counts);
+        }
+        // The position within the segment as a Q31 fraction: the count's low k bits on top.
+        let f = ((counts as u32) << ((32 - self.pose_shift) & 31)) >> 1;
+        // v0 + dv·f: the high word of dv·f (Q31) is half the rise.
+        let at = |j: usize| {
+            seg.v0[j] + ((((i64::from(seg.dv[j]) * i64::from(f as i32)) >> 32) as i32) << 1)
+        };
+        FastPose {
+            height: Metres::from_raw(at(0)),
+            cos_alpha: Ratio::from_raw(at(1)),
+            inv_sin_alpha: Ratio::from_raw(at(2)),
+            clamped: false,
+        }
+    }
+
+    /// The exact pose's values, out of line (segments at the band's edges, coarse encoders).
+    #[inline(never)]
+    fn exact_pose(&self, counts: i32) -> FastPose {
+        let p = self.geometry.pose(counts);
+        FastPose {
+            height: p.height,
+            cos_alpha: p.cos_alpha,
+            inv_sin_alpha: p.inv_sin_alpha,
+            clamped: p.clamped,
+        }
+    }
+
+    /// The largest node spacing 2^k (k ≤ [`POSE_SHIFT_MAX`]) whose interpolation stays within
+    /// [`POSE_HEIGHT_TOL`] and 1/sin α's relative tolerance at three points of each of the four
+    /// lowest usable segments of the band (just above α₀ − 5°), where the curvature of h and
+    /// 1/sin α in cos α (1/sin³ α; 1/sin³ α + 3 cos² α/sin⁵ α) is largest: both fall as α grows,
+    /// and cos α is linear in the count, so every segment above is closer. 0 if none passes.
+    /// Configuration time: ≈ 30 poses to find the band's edge, ≤ 20 per spacing tried.
+    fn choose_pose_shift(&mut self) -> u32 {
+        // The band's lowest count (the pose clamps below it), by bisection on [i32::MIN, 0].
+        let (mut below, mut inside) = (i64::from(i32::MIN), 0i64);
+        while inside - below > 1 {
+            let mid = (below + inside) / 2;
+            if self.geometry.pose(mid as i32).clamped {
+                below = mid;
+            } else {
+                inside = mid;
+            }
+        }
+        let lowest = inside as i32;
+        'k: for k in (1..=POSE_SHIFT_MAX).rev() {
+            self.pose_shift = k;
+            // The first segment wholly inside the band and past 1/sin α's saturation.
+            let mut index = (lowest >> k).saturating_add(1);
+            let mut seg = self.segment_after(index, &PoseSegment::EMPTY);
+            let mut steps = 0;
+            while seg.exact {
+                steps += 1;
+                if steps > 64 || index == i32::MAX {
+                    continue 'k;
+                }
+                index += 1;
+                seg = self.segment_after(index, &seg);
+            }
+            for _ in 0..4 {
+                for q in 1..=3i32 {
+                    let Some(c) = index
+                        .checked_mul(1 << k)
+                        .and_then(|s| s.checked_add((q << k) >> 2))
+                    else {
+                        continue 'k;
+                    };
+                    let got = self.pose_on(&seg, c);
+                    let want = self.geometry.pose(c);
+                    if (got.height.bits() - want.height.bits()).abs() > POSE_HEIGHT_TOL
+                        || (got.inv_sin_alpha.bits() - want.inv_sin_alpha.bits()).abs()
+                            > want.inv_sin_alpha.bits() >> POSE_INV_SIN_TOL_SHIFT
+                    {
+                        continue 'k;
+                    }
+                }
+                if index == i32::MAX {
+                    break;
+                }
+                index += 1;
+                seg = self.segment_after(index, &seg);
+                if seg.exact {
+                    break;
+                }
+            }
+            return k;
+        }
+        0
+    }
+
     /// c_x(α)·r_m·tan λ (Q20, N per rad/s) at the pose with cosine `cos_alpha`: Table 1 as
     /// [`Geometry::structure_damping`] interpolates it (linear in cos α between its angles,
     /// flat outside), times the lead.
@@ -670,7 +897,7 @@ pub const ACCEL_MAX: RadiansPerSecond2 = RadiansPerSecond2::lit("65536");
 /// Everything [`Estimator::model`] computes; each caller keeps what it returns (the rest is
 /// dead code after inlining).
 struct Model {
-    pose: Pose,
+    height: Metres,
     speed: RadiansPerSecond,
     accel: RadiansPerSecond2,
     /// M·g/sin α, raw Newtons bits.

@@ -428,8 +428,7 @@ impl Estimator {
         if index != self.segment.index || !self.segment.filled {
             self.segment = self.segment_after(index, &self.segment);
         }
-        let pose = self.pose_on(&self.segment, m.position_counts);
-        let x = self.model(m, &pose, speed, accel, flags);
+        let x = self.model(m, &self.segment, speed, accel, flags);
         TickEstimate {
             height: x.height,
             screw_speed: x.speed,
@@ -513,23 +512,23 @@ impl Estimator {
     ) -> Estimate {
         let index = m.position_counts >> self.pose_shift;
         let segment = self.segment_after(index, &PoseSegment::EMPTY);
-        let fast = self.pose_on(&segment, m.position_counts);
-        let x = self.model(m, &fast, speed, accel, flags);
-        // The pose's diagnostics (α, sin α, travel) exact; height, cos α and 1/sin α the
-        // model's (interpolated between exact nodes, as in the step).
+        let x = self.model(m, &segment, speed, accel, flags);
+        // The pose's diagnostics exact, its height the model's (interpolated between exact
+        // nodes, as in the step); R and F₀ from the exact pose (W's interpolated R + F₀·dir is
+        // within 2.4·10⁻⁴ of them, docs/model.md "Pose between nodes").
         let exact = self.geometry.pose(m.position_counts);
         let pose = Pose {
-            height: fast.height,
-            cos_alpha: fast.cos_alpha,
-            inv_sin_alpha: fast.inv_sin_alpha,
+            height: x.height,
             ..exact
         };
+        let weight = i64::from(Geometry::weight(m.load.clamp(Kilograms::ZERO, LOAD_MAX)).bits());
+        let ws = sat32((weight * i64::from(pose.inv_sin_alpha.bits())) >> 28);
         // Diagnostics, off the tick path: they saturate freely.
         let axial_load = Newtons::from_raw(sat32(
-            (i64::from(x.ws) * i64::from(pose.cos_alpha.bits())) >> 28,
+            (i64::from(ws) * i64::from(pose.cos_alpha.bits())) >> 28,
         ));
         let pin_friction = Newtons::from_raw(sat32(
-            (i64::from(x.ws) * i64::from(self.two_mu_pin.bits())) >> 28,
+            (i64::from(ws) * i64::from(self.two_mu_pin.bits())) >> 28,
         ));
         Estimate {
             pose,
@@ -562,7 +561,7 @@ impl Estimator {
     fn model(
         &self,
         m: &Measurements,
-        pose: &FastPose,
+        seg: &PoseSegment,
         speed: RadiansPerSecond,
         accel: RadiansPerSecond2,
         mut flags: u8,
@@ -572,9 +571,6 @@ impl Estimator {
         let load = m.load.clamp(Kilograms::ZERO, LOAD_MAX);
         let mut clamped = (speed_c != speed) | (accel_c != accel) | (load != m.load);
         let (speed, accel) = (speed_c, accel_c);
-        if pose.clamped {
-            flags |= EstimateFlags::POSE_CLAMPED;
-        }
         let dir: i8 = if speed > self.rest_speed {
             1
         } else if speed < self.rest_speed.sat_neg() {
@@ -583,15 +579,17 @@ impl Estimator {
             flags |= EstimateFlags::AT_REST;
             m.commanded_dir.signum()
         };
-        // M·g/sin α: ≤ 98.1 kN·8 (sin α ≥ sin 7°, 1/sin α saturates at 8) < 2^20 N.
-        let weight = Geometry::weight(load).bits();
-        let ws = narrow((i64::from(weight) * i64::from(pose.inv_sin_alpha.bits())) >> 28);
-        // R + F₀·dir = M·g/sin α·(cos α + 2μ_b·dir): one product; |…| ≤ 3, ≤ 2.4 MN.
+        let pose = self.pose_on(seg, m.position_counts, dir);
+        if pose.clamped {
+            flags |= EstimateFlags::POSE_CLAMPED;
+        }
         let dir32 = i32::from(dir);
-        let pins = dir32 * self.two_mu_pin.bits();
-        let r_f0 = narrow((i64::from(ws) * i64::from(pose.cos_alpha.bits() + pins)) >> 28);
+        // R + F₀·dir = M·g·(cos α + 2μ_b·dir)/sin α: the weight (≤ 98.1 kN) times the pose's
+        // factor g (|g| ≤ 3·8 in Q24, sin α ≥ sin 7°, 1/sin α saturates at 8): ≤ 2.4 MN.
+        let weight = Geometry::weight(load).bits();
+        let r_f0 = narrow((i64::from(weight) * i64::from(pose.g)) >> 24);
         // c_x·ẋ = (c_x·r_m·tan λ)·θ̇: ≤ 1066 N·s/rad · 2000 rad/s < 2.2 MN (Q20·Q16 → Q8).
-        let cxl = self.damping_lead(pose.cos_alpha);
+        let cxl = pose.cxl;
         let damping = narrow((i64::from(cxl) * i64::from(speed.bits())) >> 28);
         // m·r_m·tan λ·θ̈ < 0.091·65 536 < 6 kN: the high word of Q8·Q32.
         let inertial = narrow((i64::from(accel.bits()) * i64::from(self.mass_lead_q32)) >> 32);
@@ -654,7 +652,6 @@ impl Estimator {
             height: pose.height,
             speed,
             accel,
-            ws,
             mu,
             mu_s,
             w,
@@ -671,18 +668,21 @@ impl Estimator {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct FastPose {
     height: Metres,
-    cos_alpha: Ratio,
-    inv_sin_alpha: Ratio,
+    /// (cos α + 2μ_b·dir)/sin α in Q24 (|g| ≤ 24): R + F₀·dir per newton of weight.
+    g: i32,
+    /// c_x(α)·r_m·tan λ in Q20 ([`Estimator::damping_lead`]).
+    cxl: i32,
     clamped: bool,
 }
 
 /// The pose between two exact nodes, at counts `index·2^k` and `(index + 1)·2^k`
-/// (k = [`Estimator`]'s `pose_shift`): height, cos α and 1/sin α interpolated linearly in the
-/// count (docs/model.md "Pose between nodes"). cos α is linear in the count (Eq 1), so only the
-/// curvature of h and 1/sin α in cos α costs accuracy; k is chosen per configuration so that
-/// it stays within a tenth of the budgets ([`Estimator::choose_pose_shift`]). A segment that
-/// touches the clamp band's edges or 1/sin α's saturation (below ≈ 7.2°) is `exact`: the exact
-/// pose at the count.
+/// (k = [`Estimator`]'s `pose_shift`): the height, g = (cos α + 2μ_b·dir)/sin α for the three
+/// directions and c_x·r_m·tan λ, interpolated linearly in the count (docs/model.md "Pose
+/// between nodes"). cos α is linear in the count (Eq 1), so only the curvature of h and g in
+/// cos α costs accuracy; k is chosen per configuration so that it stays within a tenth of the
+/// budgets ([`Estimator::choose_pose_shift`]). A segment that touches the clamp band's edges,
+/// 1/sin α's saturation (below ≈ 7.2°) or a row of Table 1 (where c_x's slope changes) is
+/// `exact`: the exact pose at the count.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct PoseSegment {
     index: i32,
@@ -692,11 +692,18 @@ struct PoseSegment {
     /// beyond i32 counts).
     bad0: bool,
     bad1: bool,
-    /// Node values at the start (raw bits: height Q24 m, cos α and 1/sin α Q28) and their rise
-    /// to the end node.
-    v0: [i32; 3],
-    dv: [i32; 3],
+    /// Node values at the start ([`NODE_HEIGHT`], g for dir −1, 0, 1, c_x·r_m·tan λ; raw bits)
+    /// and their rise to the end node; cos α of both nodes (Table 1's rows).
+    v0: [i32; 5],
+    dv: [i32; 5],
+    cos0: i32,
+    cos1: i32,
 }
+
+/// Indices into a segment's values.
+const NODE_HEIGHT: usize = 0;
+const NODE_G: usize = 1;
+const NODE_CXL: usize = 4;
 
 impl PoseSegment {
     const EMPTY: PoseSegment = PoseSegment {
@@ -705,30 +712,48 @@ impl PoseSegment {
         exact: true,
         bad0: true,
         bad1: true,
-        v0: [0; 3],
-        dv: [0; 3],
+        v0: [0; 5],
+        dv: [0; 5],
+        cos0: 0,
+        cos1: 0,
     };
 }
 
 /// Interpolation error allowed between nodes, a tenth of the budgets (docs/model.md): height
-/// 5 µm (Q24 m), 1/sin α 2·10⁻⁴ relative (T_r's 0.2 %: W is proportional to it).
+/// 5 µm (Q24 m), g 2.4·10⁻⁴ of (cos α + 2μ_b)/sin α (T_r's budget is 0.2 %: W is proportional
+/// to R + F₀·dir).
 const POSE_HEIGHT_TOL: i32 = 84; // 5·10⁻⁶·2^24
-const POSE_INV_SIN_TOL_SHIFT: u32 = 12; // 2.4·10⁻⁴
+const POSE_G_TOL_SHIFT: u32 = 12; // 2.4·10⁻⁴
 /// Largest node spacing tried, 2^16 counts.
 const POSE_SHIFT_MAX: u32 = 16;
 
 impl Estimator {
-    /// The exact node at `counts`: its values and whether it is unusable.
-    fn pose_node(&self, counts: Option<i32>) -> ([i32; 3], bool) {
+    /// (cos α + 2μ_b·dir)/sin α in Q24 for an exact pose's cos α and 1/sin α (Q28):
+    /// |cos α + 2μ_b·dir| ≤ 3 and 1/sin α ≤ 8, so the Q56 product's Q24 fits.
+    #[inline(always)]
+    fn g_of(&self, cos: i32, inv_sin: i32, dir: i32) -> i32 {
+        narrow((i64::from(cos + dir * self.two_mu_pin.bits()) * i64::from(inv_sin)) >> 32)
+    }
+
+    /// The exact node at `counts`: its values, its cos α and whether it is unusable.
+    fn pose_node(&self, counts: Option<i32>) -> ([i32; 5], i32, bool) {
         match counts {
             Some(c) => {
                 let p = self.geometry.pose(c);
+                let (cos, inv) = (p.cos_alpha.bits(), p.inv_sin_alpha.bits());
                 (
-                    [p.height.bits(), p.cos_alpha.bits(), p.inv_sin_alpha.bits()],
-                    p.clamped || p.inv_sin_alpha.bits() == i32::MAX,
+                    [
+                        p.height.bits(),
+                        self.g_of(cos, inv, -1),
+                        self.g_of(cos, inv, 0),
+                        self.g_of(cos, inv, 1),
+                        self.damping_lead(p.cos_alpha),
+                    ],
+                    cos,
+                    p.clamped || inv == i32::MAX,
                 )
             }
-            None => ([0; 3], true),
+            None => ([0; 5], 0, true),
         }
     }
 
@@ -747,63 +772,86 @@ impl Estimator {
         }
         let start = |i: i32| i.checked_mul(1 << k);
         let end = |i: i32| i.checked_add(1).and_then(start);
-        let ((v0, bad0), (v1, bad1)) = if prev.filled && prev.index.checked_add(1) == Some(index) {
-            let old_end = core::array::from_fn(|j| prev.v0[j].wrapping_add(prev.dv[j]));
-            ((old_end, prev.bad1), self.pose_node(end(index)))
-        } else if prev.filled && prev.index.checked_sub(1) == Some(index) {
-            (self.pose_node(start(index)), (prev.v0, prev.bad0))
-        } else {
-            (self.pose_node(start(index)), self.pose_node(end(index)))
-        };
+        let ((v0, cos0, bad0), (v1, cos1, bad1)) =
+            if prev.filled && prev.index.checked_add(1) == Some(index) {
+                let old_end = core::array::from_fn(|j| prev.v0[j].wrapping_add(prev.dv[j]));
+                ((old_end, prev.cos1, prev.bad1), self.pose_node(end(index)))
+            } else if prev.filled && prev.index.checked_sub(1) == Some(index) {
+                (
+                    self.pose_node(start(index)),
+                    (prev.v0, prev.cos0, prev.bad0),
+                )
+            } else {
+                (self.pose_node(start(index)), self.pose_node(end(index)))
+            };
+        // A row of Table 1 strictly inside (cos α falls along the segment): c_x's slope
+        // changes there, so the segment is evaluated exactly.
+        let kink = self
+            .damping_lead
+            .iter()
+            .any(|&(c, _, _)| c < cos0 && c > cos1);
         PoseSegment {
             index,
             filled: true,
-            exact: bad0 || bad1,
+            exact: bad0 || bad1 || kink,
             bad0,
             bad1,
             v0,
-            // Nodes within the band: heights ≤ 3 m, cos α and 1/sin α within 0…8 (Q28): the
-            // differences fit.
+            // Nodes within the band: heights ≤ 3 m, |g| ≤ 24 (Q24), c_x·r_m·tan λ < 2^30:
+            // the differences of usable nodes fit (an unusable one is never interpolated).
             dv: core::array::from_fn(|j| v1[j].wrapping_sub(v0[j])),
+            cos0,
+            cos1,
         }
     }
 
-    /// The model's pose at `counts` on `seg` (the segment holding it).
+    /// The model's pose at `counts` for direction `dir` on `seg` (the segment holding it).
     #[inline(always)]
-    fn pose_on(&self, seg: &PoseSegment, counts: i32) -> FastPose {
+    fn pose_on(&self, seg: &PoseSegment, counts: i32, dir: i8) -> FastPose {
         if seg.exact {
-            return self.exact_pose(counts);
+            return self.exact_pose(counts, dir);
         }
         // The position within the segment as a Q31 fraction: the count's low k bits on top.
-        let f = ((counts as u32) << ((32 - self.pose_shift) & 31)) >> 1;
-        // v0 + dv·f: the high word of dv·f (Q31) is half the rise.
+        let f = (((counts as u32) << ((32 - self.pose_shift) & 31)) >> 1) as i32;
+        // v0 + dv·f: the high word of dv·f (Q31) is half the rise (1 LSB of rounding).
         let at = |j: usize| {
-            seg.v0[j] + ((((i64::from(seg.dv[j]) * i64::from(f as i32)) >> 32) as i32) << 1)
+            seg.v0[j] + ((((i64::from(seg.dv[j]) * i64::from(f)) >> 32) as i32) << 1)
+        };
+        let g = match dir {
+            1 => at(NODE_G + 2),
+            -1 => at(NODE_G),
+            _ => at(NODE_G + 1),
         };
         FastPose {
-            height: Metres::from_raw(at(0)),
-            cos_alpha: Ratio::from_raw(at(1)),
-            inv_sin_alpha: Ratio::from_raw(at(2)),
+            height: Metres::from_raw(at(NODE_HEIGHT)),
+            g,
+            cxl: at(NODE_CXL),
             clamped: false,
         }
     }
 
-    /// The exact pose's values, out of line (segments at the band's edges, coarse encoders).
+    /// The exact pose's values, out of line (segments at the band's edges and Table 1's rows,
+    /// coarse encoders).
     #[inline(never)]
-    fn exact_pose(&self, counts: i32) -> FastPose {
+    fn exact_pose(&self, counts: i32, dir: i8) -> FastPose {
         let p = self.geometry.pose(counts);
         FastPose {
             height: p.height,
-            cos_alpha: p.cos_alpha,
-            inv_sin_alpha: p.inv_sin_alpha,
+            g: self.g_of(
+                p.cos_alpha.bits(),
+                p.inv_sin_alpha.bits(),
+                i32::from(dir),
+            ),
+            cxl: self.damping_lead(p.cos_alpha),
             clamped: p.clamped,
         }
     }
 
     /// The largest node spacing 2^k (k ≤ [`POSE_SHIFT_MAX`]) whose interpolation stays within
-    /// [`POSE_HEIGHT_TOL`] and 1/sin α's relative tolerance at three points of each of the four
-    /// lowest usable segments of the band (just above α₀ − 5°), where the curvature of h and
-    /// 1/sin α in cos α (1/sin³ α; 1/sin³ α + 3 cos² α/sin⁵ α) is largest: both fall as α grows,
+    /// [`POSE_HEIGHT_TOL`] and g's tolerance ([`POSE_G_TOL_SHIFT`]) at three points of each of the four
+    /// lowest usable segments of the band (just above α₀ − 5°), where the curvature of h and g
+    /// in cos α (1/sin³ α; (1 + 2μ_b cos α)/sin³ α + 3 cos α (cos α + 2μ_b)/sin⁵ α, and less
+    /// for −μ_b) is largest: they fall as α grows,
     /// and cos α is linear in the count, so every segment above is closer. 0 if none passes.
     /// Configuration time: ≈ 30 poses to find the band's edge, ≤ 20 per spacing tried.
     fn choose_pose_shift(&mut self) -> u32 {
@@ -840,13 +888,17 @@ impl Estimator {
                     else {
                         continue 'k;
                     };
-                    let got = self.pose_on(&seg, c);
                     let want = self.geometry.pose(c);
-                    if (got.height.bits() - want.height.bits()).abs() > POSE_HEIGHT_TOL
-                        || (got.inv_sin_alpha.bits() - want.inv_sin_alpha.bits()).abs()
-                            > want.inv_sin_alpha.bits() >> POSE_INV_SIN_TOL_SHIFT
-                    {
-                        continue 'k;
+                    let (cos, inv) = (want.cos_alpha.bits(), want.inv_sin_alpha.bits());
+                    // g's scale: (cos α + 2μ_b)/sin α, the sum of R's and F₀'s magnitudes.
+                    let tol = self.g_of(cos, inv, 1) >> POSE_G_TOL_SHIFT;
+                    for dir in [-1i8, 1] {
+                        let got = self.pose_on(&seg, c, dir);
+                        if (got.height.bits() - want.height.bits()).abs() > POSE_HEIGHT_TOL
+                            || (got.g - self.g_of(cos, inv, i32::from(dir))).abs() > tol
+                        {
+                            continue 'k;
+                        }
                     }
                 }
                 if index == i32::MAX {
@@ -900,8 +952,6 @@ struct Model {
     height: Metres,
     speed: RadiansPerSecond,
     accel: RadiansPerSecond2,
-    /// M·g/sin α, raw Newtons bits.
-    ws: i32,
     mu: Ratio,
     mu_s: Ratio,
     w: Newtons,

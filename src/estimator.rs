@@ -584,10 +584,10 @@ impl Estimator {
             flags |= EstimateFlags::POSE_CLAMPED;
         }
         let dir32 = i32::from(dir);
-        // R + F₀·dir = M·g·(cos α + 2μ_b·dir)/sin α: the weight (≤ 98.1 kN) times the pose's
-        // factor g (|g| ≤ 3·8 in Q24, sin α ≥ sin 7°, 1/sin α saturates at 8): ≤ 2.4 MN.
-        let weight = Geometry::weight(load).bits();
-        let r_f0 = narrow((i64::from(weight) * i64::from(pose.g)) >> 24);
+        // R + F₀·dir = M·g·(cos α + 2μ_b·dir)/sin α: the load (≤ 10 t, Q12) times the pose's
+        // factor (|…| ≤ 3·8·9.81 N/kg in Q23, sin α ≥ sin 7°, 1/sin α saturates at 8), one
+        // product: ≤ 2.4 MN (Q12·Q23 = Q35 → Q8).
+        let r_f0 = narrow((i64::from(load.bits()) * i64::from(pose.g)) >> 27);
         // c_x·ẋ = (c_x·r_m·tan λ)·θ̇: ≤ 1066 N·s/rad · 2000 rad/s < 2.2 MN (Q20·Q16 → Q8).
         let cxl = pose.cxl;
         let damping = narrow((i64::from(cxl) * i64::from(speed.bits())) >> 28);
@@ -668,7 +668,7 @@ impl Estimator {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct FastPose {
     height: Metres,
-    /// (cos α + 2μ_b·dir)/sin α in Q24 (|g| ≤ 24): R + F₀·dir per newton of weight.
+    /// g_n·(cos α + 2μ_b·dir)/sin α in Q23 N/kg (≤ 235.4): R + F₀·dir per kilogram of load.
     g: i32,
     /// c_x(α)·r_m·tan λ in Q20 ([`Estimator::damping_lead`]).
     cxl: i32,
@@ -676,8 +676,8 @@ struct FastPose {
 }
 
 /// The pose between two exact nodes, at counts `index·2^k` and `(index + 1)·2^k`
-/// (k = [`Estimator`]'s `pose_shift`): the height, g = (cos α + 2μ_b·dir)/sin α for the three
-/// directions and c_x·r_m·tan λ, interpolated linearly in the count (docs/model.md "Pose
+/// (k = [`Estimator`]'s `pose_shift`): the height, R + F₀·dir per kilogram of load as
+/// g_n·cos α/sin α + dir·g_n·2μ_b/sin α, and c_x·r_m·tan λ, interpolated linearly in the count (docs/model.md "Pose
 /// between nodes"). cos α is linear in the count (Eq 1), so only the curvature of h and g in
 /// cos α costs accuracy; k is chosen per configuration so that it stays within a tenth of the
 /// budgets ([`Estimator::choose_pose_shift`]). A segment that touches the clamp band's edges,
@@ -692,18 +692,23 @@ struct PoseSegment {
     /// beyond i32 counts).
     bad0: bool,
     bad1: bool,
-    /// Node values at the start ([`NODE_HEIGHT`], g for dir −1, 0, 1, c_x·r_m·tan λ; raw bits)
-    /// and their rise to the end node; cos α of both nodes (Table 1's rows).
-    v0: [i32; 5],
-    dv: [i32; 5],
+    /// Node values at the start ([`NODE_HEIGHT`], [`NODE_G`], [`NODE_PIN`], [`NODE_CXL`]: raw
+    /// bits) and their rise to the end node; cos α of both nodes (Table 1's rows).
+    v0: [i32; 4],
+    dv: [i32; 4],
     cos0: i32,
     cos1: i32,
 }
 
 /// Indices into a segment's values.
+/// Height, Q24 m.
 const NODE_HEIGHT: usize = 0;
+/// g_n·cos α/sin α, Q23 N/kg.
 const NODE_G: usize = 1;
-const NODE_CXL: usize = 4;
+/// g_n·2μ_b/sin α, Q23 N/kg.
+const NODE_PIN: usize = 2;
+/// c_x·r_m·tan λ, Q20 N per rad/s.
+const NODE_CXL: usize = 3;
 
 impl PoseSegment {
     const EMPTY: PoseSegment = PoseSegment {
@@ -712,15 +717,18 @@ impl PoseSegment {
         exact: true,
         bad0: true,
         bad1: true,
-        v0: [0; 5],
-        dv: [0; 5],
+        v0: [0; 4],
+        dv: [0; 4],
         cos0: 0,
         cos1: 0,
     };
 }
 
+/// Standard gravity in Q16 m/s² (as [`Geometry::weight`]).
+const G_N_Q16: i64 = 642_689;
+
 /// Interpolation error allowed between nodes, a tenth of the budgets (docs/model.md): height
-/// 5 µm (Q24 m), g 2.4·10⁻⁴ of (cos α + 2μ_b)/sin α (T_r's budget is 0.2 %: W is proportional
+/// 5 µm (Q24 m), R + F₀·dir 2.4·10⁻⁴ of R + F₀ (T_r's budget is 0.2 %: W is proportional
 /// to R + F₀·dir).
 const POSE_HEIGHT_TOL: i32 = 84; // 5·10⁻⁶·2^24
 const POSE_G_TOL_SHIFT: u32 = 12; // 2.4·10⁻⁴
@@ -728,32 +736,35 @@ const POSE_G_TOL_SHIFT: u32 = 12; // 2.4·10⁻⁴
 const POSE_SHIFT_MAX: u32 = 16;
 
 impl Estimator {
-    /// (cos α + 2μ_b·dir)/sin α in Q24 for an exact pose's cos α and 1/sin α (Q28):
-    /// |cos α + 2μ_b·dir| ≤ 3 and 1/sin α ≤ 8, so the Q56 product's Q24 fits.
+    /// g_n·(cos α + 2μ_b·dir)/sin α in Q23 N/kg for an exact pose's cos α and 1/sin α (Q28):
+    /// |cos α + 2μ_b·dir| ≤ 3 and 1/sin α ≤ 8, so the product fits below 2^31 (3·8·9.81·2^23
+    /// < 1.98·10⁹); in i64 with a constant shift (the node's fill runs on a tick).
     #[inline(always)]
     fn g_of(&self, cos: i32, inv_sin: i32, dir: i32) -> i32 {
-        narrow((i64::from(cos + dir * self.two_mu_pin.bits()) * i64::from(inv_sin)) >> 32)
+        // (cos + 2μ_b·dir)/sin in Q24, then × g_n (Q16) → Q23.
+        let g = (i64::from(cos + dir * self.two_mu_pin.bits()) * i64::from(inv_sin)) >> 32;
+        narrow((g * G_N_Q16) >> 17)
     }
 
     /// The exact node at `counts`: its values, its cos α and whether it is unusable.
-    fn pose_node(&self, counts: Option<i32>) -> ([i32; 5], i32, bool) {
+    fn pose_node(&self, counts: Option<i32>) -> ([i32; 4], i32, bool) {
         match counts {
             Some(c) => {
                 let p = self.geometry.pose(c);
                 let (cos, inv) = (p.cos_alpha.bits(), p.inv_sin_alpha.bits());
+                let g0 = self.g_of(cos, inv, 0);
                 (
                     [
                         p.height.bits(),
-                        self.g_of(cos, inv, -1),
-                        self.g_of(cos, inv, 0),
-                        self.g_of(cos, inv, 1),
+                        g0,
+                        self.g_of(cos, inv, 1) - g0,
                         self.damping_lead(p.cos_alpha),
                     ],
                     cos,
                     p.clamped || inv == i32::MAX,
                 )
             }
-            None => ([0; 5], 0, true),
+            None => ([0; 4], 0, true),
         }
     }
 
@@ -797,7 +808,7 @@ impl Estimator {
             bad0,
             bad1,
             v0,
-            // Nodes within the band: heights ≤ 3 m, |g| ≤ 24 (Q24), c_x·r_m·tan λ < 2^30:
+            // Nodes within the band: heights ≤ 3 m, |g| ≤ 235.4 (Q23), c_x·r_m·tan λ < 2^30:
             // the differences of usable nodes fit (an unusable one is never interpolated).
             dv: core::array::from_fn(|j| v1[j].wrapping_sub(v0[j])),
             cos0,
@@ -817,14 +828,10 @@ impl Estimator {
         let at = |j: usize| {
             seg.v0[j] + ((((i64::from(seg.dv[j]) * i64::from(f)) >> 32) as i32) << 1)
         };
-        let g = match dir {
-            1 => at(NODE_G + 2),
-            -1 => at(NODE_G),
-            _ => at(NODE_G + 1),
-        };
         FastPose {
             height: Metres::from_raw(at(NODE_HEIGHT)),
-            g,
+            // |g_n·2μ_b/sin α| ≤ 157 N/kg (Q23 < 2^31): the sum stays within ±235.4.
+            g: at(NODE_G) + i32::from(dir) * at(NODE_PIN),
             cxl: at(NODE_CXL),
             clamped: false,
         }

@@ -223,10 +223,12 @@ impl ScrewModel {
         let tan = self.tan_l.bits();
         let mt = narrow((i64::from(mu_s.bits()) * i64::from(tan)) >> 28);
         let loaded = w >= Newtons::ZERO;
-        let (den, num) = if loaded {
-            ((1 << 28) - mt, tan + mu_s.bits())
+        // μ_s·sgn W (|μ_s| ≤ 4: no overflow): T_r = μ_s·|wk| = (μ_s·sgn W)·wk below, one
+        // 32×32 product instead of a 64-bit absolute value and product (the same bits).
+        let (den, num, mu_w) = if loaded {
+            ((1 << 28) - mt, tan + mu_s.bits(), mu_s.bits())
         } else {
-            ((1 << 28) + mt, tan - mu_s.bits())
+            ((1 << 28) + mt, tan - mu_s.bits(), -mu_s.bits())
         };
         let inv_q16 = recip_q16_fast(den as u32);
         // r_m/(1 ∓ μ_s tan λ) in Q32: Q16·Q24 = Q40 → Q32; ≤ 1.5·0.05 m·2^32 < 2^29.
@@ -234,7 +236,8 @@ impl ScrewModel {
         // r_m·W/(1 ∓ μ_s tan λ) once (Q8·Q32 = Q40 → Q16): T_r = μ_s·|that|, thread torque
         // r_m·W·ξ = that·num.
         let wk = sat32((i64::from(w.bits()) * i64::from(k)) >> 24);
-        let friction = sat32((i64::from(wk).abs() * i64::from(mu_s.bits())) >> 28);
+        // wk has W's sign (k > 0), or is 0.
+        let friction = sat32((i64::from(wk) * i64::from(mu_w)) >> 28);
         let thread = sat32((i64::from(wk) * i64::from(num)) >> 28);
         ContactCore {
             inv_q16,

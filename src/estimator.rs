@@ -221,6 +221,8 @@ pub struct Estimator {
     /// The pose between exact nodes every 2^`pose_shift` counts ([`PoseSegment`]); 0: the
     /// exact pose at every count (the configuration's encoder is too coarse for it).
     pose_shift: u32,
+    /// 2^(32 − `pose_shift`) (unused while it is 0).
+    pose_frac: u32,
     /// The segment of the last step's count (state: refilled when the count leaves it).
     segment: PoseSegment,
     // Filter state: the last count; position relative to it, speed and acceleration in Q16
@@ -362,6 +364,7 @@ impl Estimator {
             accel_scale,
             late_us: cfg.tick_us * 3 / 2,
             pose_shift: 0,
+            pose_frac: 0,
             segment: PoseSegment::EMPTY,
             last_counts: 0,
             q: 0,
@@ -370,6 +373,7 @@ impl Estimator {
             last: None,
         };
         est.pose_shift = est.choose_pose_shift();
+        est.pose_frac = est.frac_for(est.pose_shift);
         Ok(est)
     }
 
@@ -822,8 +826,9 @@ impl Estimator {
         if seg.exact {
             return self.exact_pose(counts, dir);
         }
-        // The position within the segment as a Q31 fraction: the count's low k bits on top.
-        let f = (((counts as u32) << ((32 - self.pose_shift) & 31)) >> 1) as i32;
+        // The position within the segment as a Q31 fraction: the count's low k bits on top
+        // (a product by 2^(32−k): one `MUL`, where a variable shift is masked first).
+        let f = ((counts as u32).wrapping_mul(self.pose_frac) >> 1) as i32;
         // v0 + dv·f: the high word of dv·f (Q31) is half the rise (1 LSB of rounding).
         let at = |j: usize| {
             seg.v0[j] + ((((i64::from(seg.dv[j]) * i64::from(f)) >> 32) as i32) << 1)
@@ -854,6 +859,15 @@ impl Estimator {
         }
     }
 
+    /// 2^(32 − k) for a node spacing 2^k (k ≥ 1), 0 for k = 0.
+    fn frac_for(&self, k: u32) -> u32 {
+        if k == 0 {
+            0
+        } else {
+            1u32 << (32 - k)
+        }
+    }
+
     /// The largest node spacing 2^k (k ≤ [`POSE_SHIFT_MAX`]) whose interpolation stays within
     /// [`POSE_HEIGHT_TOL`] and g's tolerance ([`POSE_G_TOL_SHIFT`]) at three points of each of the four
     /// lowest usable segments of the band (just above α₀ − 5°), where the curvature of h and g
@@ -875,6 +889,7 @@ impl Estimator {
         let lowest = inside as i32;
         'k: for k in (1..=POSE_SHIFT_MAX).rev() {
             self.pose_shift = k;
+            self.pose_frac = self.frac_for(k);
             // The first segment wholly inside the band and past 1/sin α's saturation.
             let mut index = (lowest >> k).saturating_add(1);
             let mut seg = self.segment_after(index, &PoseSegment::EMPTY);

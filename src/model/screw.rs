@@ -7,7 +7,6 @@
 //! `r_m·W·ξ`; friction torque about the screw axis `T_r = μ_s·|N|·r_m·cos λ`
 //! (= μ_s·|W|·r_m/(1 ∓ μ_s tan λ): cos λ cancels). docs/model.md derives it.
 
-use crate::math::recip_q16_fast;
 use crate::model::geometry::DriveConfig;
 use crate::model::Scale;
 use crate::units::{narrow, sat32};
@@ -215,7 +214,7 @@ impl ScrewModel {
     /// 1 ∓ μ_s·tan λ, ξ's numerator and the two torques.
     ///
     /// Range (docs/model.md "Numeric envelope"): |μ_s·tan λ| ≤ ⅓, so the denominator lies in
-    /// [⅔, 4/3], its reciprocal in [¾, 3/2] (one `UDIV`, [`recip_q16_fast`]) and |tan λ ± μ_s|
+    /// [⅔, 4/3], its reciprocal in [¾, 3/2] (one `UDIV`, [`crate::math::recip_q16_fast`]) and |tan λ ± μ_s|
     /// < 4.4: none of these can overflow. Only the torques can leave `NewtonMetres` (±32 768
     /// N·m) for a large |W| with a large screw; they saturate, and the caller flags it.
     #[inline(always)]
@@ -225,12 +224,18 @@ impl ScrewModel {
         let loaded = w >= Newtons::ZERO;
         // μ_s·sgn W (|μ_s| ≤ 4: no overflow): T_r = μ_s·|wk| = (μ_s·sgn W)·wk below, one
         // 32×32 product instead of a 64-bit absolute value and product (the same bits).
-        let (den, num, mu_w) = if loaded {
-            ((1 << 28) - mt, tan + mu_s.bits(), mu_s.bits())
+        let (den, num) = if loaded {
+            ((1 << 28) - mt, tan + mu_s.bits())
         } else {
-            ((1 << 28) + mt, tan - mu_s.bits(), -mu_s.bits())
+            ((1 << 28) + mt, tan - mu_s.bits())
         };
-        let inv_q16 = recip_q16_fast(den as u32);
+        // Negated branch-free in i32 by W's sign (s = 0 or −1: (μ ^ s) − s).
+        let s = w.bits() >> 31;
+        let mu_w = (mu_s.bits() ^ s) - s;
+        // [`crate::math::recip_q16_fast`] without its saturating add, which cannot act here: den ∈ [⅔, 4/3]·
+        // 2^28, so den + 2^11 cannot wrap (the same bits; the floor at 2^15 keeps a caller that
+        // breaks the contract from dividing by zero).
+        let inv_q16 = u32::MAX / (((den as u32).wrapping_add(1 << 11) >> 12).max(1 << 15));
         // r_m/(1 ∓ μ_s tan λ) in Q32: Q16·Q24 = Q40 → Q32; ≤ 1.5·0.05 m·2^32 < 2^29.
         let k = narrow(((u64::from(inv_q16) * u64::from(self.r_m.bits() as u32)) >> 8) as i64);
         // r_m·W/(1 ∓ μ_s tan λ) once (Q8·Q32 = Q40 → Q16): T_r = μ_s·|that|, thread torque

@@ -449,8 +449,9 @@ impl Estimator {
 
     /// The whole estimate of a tick that [`Self::step`] returned `tick` for, with `m` its
     /// measurements: the same numbers (bit for bit) plus the diagnostics (pose, R, F₀, c_x, μ,
-    /// ξ, N, residual, self-locking margin). Recomputed from the tick's inputs: about the cost
-    /// of a step, for telemetry and tests rather than every tick.
+    /// ξ, N, residual, self-locking margin). Recomputed from the tick's inputs (the pose
+    /// segment's two nodes and the exact pose: ≈ 2.8 steps), for telemetry and tests rather
+    /// than every tick.
     pub fn details(&self, m: &Measurements, tick: &TickEstimate) -> Estimate {
         self.estimate(m, tick.screw_speed, tick.screw_accel, tick.flags.0)
     }
@@ -520,7 +521,7 @@ impl Estimator {
         // The pose's diagnostics exact, its height the model's (interpolated between exact
         // nodes, as in the step); R and F₀ from the exact pose (W's interpolated R + F₀·dir is
         // within 2.4·10⁻⁴ of them, docs/model.md "Pose between nodes").
-        let exact = self.geometry.pose(m.position_counts);
+        let exact = self.exact_pose_at(m.position_counts);
         let pose = Pose {
             height: x.height,
             ..exact
@@ -714,7 +715,23 @@ const NODE_PIN: usize = 2;
 /// c_x·r_m·tan λ, Q20 N per rad/s.
 const NODE_CXL: usize = 3;
 
+/// An exact node: [`PoseSegment`]'s four values, cos α, whether it is unusable (clamped,
+/// saturated, beyond i32 counts), whether the pose was clamped.
+struct Node {
+    v: [i32; 4],
+    cos: i32,
+    bad: bool,
+    clamped: bool,
+}
+
 impl PoseSegment {
+    /// Value `j` at the Q31 fraction `f` of the segment: v0 + dv·f, the high word of dv·f
+    /// being half the rise (1 LSB of rounding).
+    #[inline(always)]
+    fn at(&self, f: i32, j: usize) -> i32 {
+        self.v0[j] + ((((i64::from(self.dv[j]) * i64::from(f)) >> 32) as i32) << 1)
+    }
+
     const EMPTY: PoseSegment = PoseSegment {
         index: 0,
         filled: false,
@@ -750,25 +767,33 @@ impl Estimator {
         narrow((g * G_N_Q16) >> 17)
     }
 
-    /// The exact node at `counts`: its values, its cos α and whether it is unusable.
-    fn pose_node(&self, counts: Option<i32>) -> ([i32; 4], i32, bool) {
+    /// The exact node at `counts` (`None`: beyond i32, unusable). Out of line: the segment's
+    /// fill, the exact segments and the configuration-time search share it.
+    #[inline(never)]
+    fn pose_node(&self, counts: Option<i32>) -> Node {
         match counts {
             Some(c) => {
-                let p = self.geometry.pose(c);
+                let p = self.exact_pose_at(c);
                 let (cos, inv) = (p.cos_alpha.bits(), p.inv_sin_alpha.bits());
                 let g0 = self.g_of(cos, inv, 0);
-                (
-                    [
+                Node {
+                    v: [
                         p.height.bits(),
                         g0,
                         self.g_of(cos, inv, 1) - g0,
                         self.damping_lead(p.cos_alpha),
                     ],
                     cos,
-                    p.clamped || inv == i32::MAX,
-                )
+                    bad: p.clamped || inv == i32::MAX,
+                    clamped: p.clamped,
+                }
             }
-            None => ([0; 4], 0, true),
+            None => Node {
+                v: [0; 4],
+                cos: 0,
+                bad: true,
+                clamped: true,
+            },
         }
     }
 
@@ -787,17 +812,21 @@ impl Estimator {
         }
         let start = |i: i32| i.checked_mul(1 << k);
         let end = |i: i32| i.checked_add(1).and_then(start);
+        let node = |n: Node| (n.v, n.cos, n.bad);
         let ((v0, cos0, bad0), (v1, cos1, bad1)) =
             if prev.filled && prev.index.checked_add(1) == Some(index) {
                 let old_end = core::array::from_fn(|j| prev.v0[j].wrapping_add(prev.dv[j]));
-                ((old_end, prev.cos1, prev.bad1), self.pose_node(end(index)))
+                ((old_end, prev.cos1, prev.bad1), node(self.pose_node(end(index))))
             } else if prev.filled && prev.index.checked_sub(1) == Some(index) {
                 (
-                    self.pose_node(start(index)),
+                    node(self.pose_node(start(index))),
                     (prev.v0, prev.cos0, prev.bad0),
                 )
             } else {
-                (self.pose_node(start(index)), self.pose_node(end(index)))
+                (
+                    node(self.pose_node(start(index))),
+                    node(self.pose_node(end(index))),
+                )
             };
         // A row of Table 1 strictly inside (cos α falls along the segment): c_x's slope
         // changes there, so the segment is evaluated exactly.
@@ -826,13 +855,8 @@ impl Estimator {
         if seg.exact {
             return self.exact_pose(counts, dir);
         }
-        // The position within the segment as a Q31 fraction: the count's low k bits on top
-        // (a product by 2^(32−k): one `MUL`, where a variable shift is masked first).
-        let f = ((counts as u32).wrapping_mul(self.pose_frac) >> 1) as i32;
-        // v0 + dv·f: the high word of dv·f (Q31) is half the rise (1 LSB of rounding).
-        let at = |j: usize| {
-            seg.v0[j] + ((((i64::from(seg.dv[j]) * i64::from(f)) >> 32) as i32) << 1)
-        };
+        let f = self.fraction(counts);
+        let at = |j: usize| seg.at(f, j);
         FastPose {
             height: Metres::from_raw(at(NODE_HEIGHT)),
             // |g_n·2μ_b/sin α| ≤ 157 N/kg (Q23 < 2^31): the sum stays within ±235.4.
@@ -842,21 +866,31 @@ impl Estimator {
         }
     }
 
-    /// The exact pose's values, out of line (segments at the band's edges and Table 1's rows,
-    /// coarse encoders).
+    /// The exact pose at `counts`: one out-of-line copy of [`Geometry::pose`] for the nodes,
+    /// the exact segments, `details` and the configuration-time search (flash).
     #[inline(never)]
+    fn exact_pose_at(&self, counts: i32) -> Pose {
+        self.geometry.pose(counts)
+    }
+
+    /// The exact pose's values (segments at the band's edges and Table 1's rows, coarse
+    /// encoders): the node's values at the count, the same arithmetic.
+    #[inline(always)]
     fn exact_pose(&self, counts: i32, dir: i8) -> FastPose {
-        let p = self.geometry.pose(counts);
+        let n = self.pose_node(Some(counts));
         FastPose {
-            height: p.height,
-            g: self.g_of(
-                p.cos_alpha.bits(),
-                p.inv_sin_alpha.bits(),
-                i32::from(dir),
-            ),
-            cxl: self.damping_lead(p.cos_alpha),
-            clamped: p.clamped,
+            height: Metres::from_raw(n.v[NODE_HEIGHT]),
+            g: n.v[NODE_G] + i32::from(dir) * n.v[NODE_PIN],
+            cxl: n.v[NODE_CXL],
+            clamped: n.clamped,
         }
+    }
+
+    /// The position of `counts` within its segment as a Q31 fraction: the count's low k bits
+    /// on top (a product by 2^(32−k): one `MUL`, where a variable shift is masked first).
+    #[inline(always)]
+    fn fraction(&self, counts: i32) -> i32 {
+        ((counts as u32).wrapping_mul(self.pose_frac) >> 1) as i32
     }
 
     /// 2^(32 − k) for a node spacing 2^k (k ≥ 1), 0 for k = 0.
@@ -869,18 +903,20 @@ impl Estimator {
     }
 
     /// The largest node spacing 2^k (k ≤ [`POSE_SHIFT_MAX`]) whose interpolation stays within
-    /// [`POSE_HEIGHT_TOL`] and g's tolerance ([`POSE_G_TOL_SHIFT`]) at three points of each of the four
-    /// lowest usable segments of the band (just above α₀ − 5°), where the curvature of h and g
+    /// [`POSE_HEIGHT_TOL`] and g's tolerance ([`POSE_G_TOL_SHIFT`]) at the midpoint of each of the
+    /// four lowest usable segments of the band (just above α₀ − 5°), where the curvature of h and g
     /// in cos α (1/sin³ α; (1 + 2μ_b cos α)/sin³ α + 3 cos α (cos α + 2μ_b)/sin⁵ α, and less
     /// for −μ_b) is largest: they fall as α grows,
     /// and cos α is linear in the count, so every segment above is closer. 0 if none passes.
-    /// Configuration time: ≈ 30 poses to find the band's edge, ≤ 20 per spacing tried.
+    /// Configuration time: ≈ 32 poses to find the band's edge, ≤ 140 per spacing tried. Out of
+    /// line: its frame is not on `new`'s while the law's table is built.
+    #[inline(never)]
     fn choose_pose_shift(&mut self) -> u32 {
         // The band's lowest count (the pose clamps below it), by bisection on [i32::MIN, 0].
         let (mut below, mut inside) = (i64::from(i32::MIN), 0i64);
         while inside - below > 1 {
             let mid = (below + inside) / 2;
-            if self.geometry.pose(mid as i32).clamped {
+            if self.exact_pose_at(mid as i32).clamped {
                 below = mid;
             } else {
                 inside = mid;
@@ -890,49 +926,36 @@ impl Estimator {
         'k: for k in (1..=POSE_SHIFT_MAX).rev() {
             self.pose_shift = k;
             self.pose_frac = self.frac_for(k);
-            // The first segment wholly inside the band and past 1/sin α's saturation.
-            let mut index = (lowest >> k).saturating_add(1);
-            let mut seg = self.segment_after(index, &PoseSegment::EMPTY);
-            let mut steps = 0;
-            while seg.exact {
-                steps += 1;
-                if steps > 64 || index == i32::MAX {
-                    continue 'k;
-                }
-                index += 1;
+            // From the first segment wholly inside the band (the band lies below count 0 and
+            // above i32::MIN, so these indices and counts cannot wrap), past any exact ones.
+            let mut index = (lowest >> k) + 1;
+            let mut seg = PoseSegment::EMPTY;
+            let mut checked = 0;
+            for _ in 0..68 {
                 seg = self.segment_after(index, &seg);
-            }
-            for _ in 0..4 {
-                for q in 1..=3i32 {
-                    let Some(c) = index
-                        .checked_mul(1 << k)
-                        .and_then(|s| s.checked_add((q << k) >> 2))
-                    else {
+                if !seg.exact {
+                    // The midpoint, where a segment's interpolation error peaks: h, and
+                    // G(±1) = G₀ ± G_b through |ΔG₀| + |ΔG_b|, against G₀ + G_b (R + F₀).
+                    let c = (index << k) + (1 << (k - 1));
+                    let want = self.pose_node(Some(c)).v;
+                    let f = self.fraction(c);
+                    let err = |j: usize| (seg.at(f, j) - want[j]).abs();
+                    if err(NODE_HEIGHT) > POSE_HEIGHT_TOL
+                        || err(NODE_G) + err(NODE_PIN)
+                            > (want[NODE_G] + want[NODE_PIN]) >> POSE_G_TOL_SHIFT
+                    {
                         continue 'k;
-                    };
-                    let want = self.geometry.pose(c);
-                    let (cos, inv) = (want.cos_alpha.bits(), want.inv_sin_alpha.bits());
-                    // g's scale: (cos α + 2μ_b)/sin α, the sum of R's and F₀'s magnitudes.
-                    let tol = self.g_of(cos, inv, 1) >> POSE_G_TOL_SHIFT;
-                    for dir in [-1i8, 1] {
-                        let got = self.pose_on(&seg, c, dir);
-                        if (got.height.bits() - want.height.bits()).abs() > POSE_HEIGHT_TOL
-                            || (got.g - self.g_of(cos, inv, i32::from(dir))).abs() > tol
-                        {
-                            continue 'k;
-                        }
+                    }
+                    checked += 1;
+                    if checked == 4 {
+                        break;
                     }
                 }
-                if index == i32::MAX {
-                    break;
-                }
                 index += 1;
-                seg = self.segment_after(index, &seg);
-                if seg.exact {
-                    break;
-                }
             }
-            return k;
+            if checked > 0 {
+                return k;
+            }
         }
         0
     }

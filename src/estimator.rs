@@ -521,7 +521,7 @@ impl Estimator {
         // The pose's diagnostics exact, its height the model's (interpolated between exact
         // nodes, as in the step); R and F₀ from the exact pose (W's interpolated R + F₀·dir is
         // within 2.4·10⁻⁴ of them, docs/model.md "Pose between nodes").
-        let exact = self.exact_pose_at(m.position_counts);
+        let exact = self.geometry.pose(m.position_counts);
         let pose = Pose {
             height: x.height,
             ..exact
@@ -773,19 +773,19 @@ impl Estimator {
     fn pose_node(&self, counts: Option<i32>) -> Node {
         match counts {
             Some(c) => {
-                let p = self.exact_pose_at(c);
-                let (cos, inv) = (p.cos_alpha.bits(), p.inv_sin_alpha.bits());
+                let (height, cos_alpha, inv_sin, clamped) = self.exact_pose_at(c);
+                let (cos, inv) = (cos_alpha.bits(), inv_sin.bits());
                 let g0 = self.g_of(cos, inv, 0);
                 Node {
                     v: [
-                        p.height.bits(),
+                        height.bits(),
                         g0,
                         self.g_of(cos, inv, 1) - g0,
-                        self.damping_lead(p.cos_alpha),
+                        self.damping_lead(cos_alpha),
                     ],
                     cos,
-                    bad: p.clamped || inv == i32::MAX,
-                    clamped: p.clamped,
+                    bad: clamped || inv == i32::MAX,
+                    clamped,
                 }
             }
             None => Node {
@@ -810,24 +810,19 @@ impl Estimator {
                 ..PoseSegment::EMPTY
             };
         }
-        let start = |i: i32| i.checked_mul(1 << k);
-        let end = |i: i32| i.checked_add(1).and_then(start);
+        // The nodes' counts in i64 (index·2^k and the next), unusable beyond i32.
+        let at = |i: i64| self.pose_node(i32::try_from(i << k).ok());
+        let (start, end) = (i64::from(index), i64::from(index) + 1);
         let node = |n: Node| (n.v, n.cos, n.bad);
-        let ((v0, cos0, bad0), (v1, cos1, bad1)) =
-            if prev.filled && prev.index.checked_add(1) == Some(index) {
+        let prev_index = i64::from(prev.index);
+        let ((v0, cos0, bad0), (v1, cos1, bad1)) = if prev.filled && prev_index + 1 == start {
                 let old_end = core::array::from_fn(|j| prev.v0[j].wrapping_add(prev.dv[j]));
-                ((old_end, prev.cos1, prev.bad1), node(self.pose_node(end(index))))
-            } else if prev.filled && prev.index.checked_sub(1) == Some(index) {
-                (
-                    node(self.pose_node(start(index))),
-                    (prev.v0, prev.cos0, prev.bad0),
-                )
-            } else {
-                (
-                    node(self.pose_node(start(index))),
-                    node(self.pose_node(end(index))),
-                )
-            };
+            ((old_end, prev.cos1, prev.bad1), node(at(end)))
+        } else if prev.filled && prev_index == end {
+            (node(at(start)), (prev.v0, prev.cos0, prev.bad0))
+        } else {
+            (node(at(start)), node(at(end)))
+        };
         // A row of Table 1 strictly inside (cos α falls along the segment): c_x's slope
         // changes there, so the segment is evaluated exactly.
         let kink = self
@@ -868,14 +863,17 @@ impl Estimator {
 
     /// The exact pose at `counts`: one out-of-line copy of [`Geometry::pose`] for the nodes,
     /// the exact segments, `details` and the configuration-time search (flash).
+    /// Returns (height, cos α, 1/sin α, clamped): α itself is left out (`details` computes it).
     #[inline(never)]
-    fn exact_pose_at(&self, counts: i32) -> Pose {
-        self.geometry.pose(counts)
+    fn exact_pose_at(&self, counts: i32) -> (Metres, Ratio, Ratio, bool) {
+        let p = self.geometry.pose(counts);
+        (p.height, p.cos_alpha, p.inv_sin_alpha, p.clamped)
     }
 
     /// The exact pose's values (segments at the band's edges and Table 1's rows, coarse
-    /// encoders): the node's values at the count, the same arithmetic.
-    #[inline(always)]
+    /// encoders): the node's values at the count, the same arithmetic. Out of line: inlined,
+    /// it cost the step's common path ≈ 25 instructions of register moves.
+    #[inline(never)]
     fn exact_pose(&self, counts: i32, dir: i8) -> FastPose {
         let n = self.pose_node(Some(counts));
         FastPose {
@@ -916,7 +914,7 @@ impl Estimator {
         let (mut below, mut inside) = (i64::from(i32::MIN), 0i64);
         while inside - below > 1 {
             let mid = (below + inside) / 2;
-            if self.exact_pose_at(mid as i32).clamped {
+            if self.exact_pose_at(mid as i32).3 {
                 below = mid;
             } else {
                 inside = mid;

@@ -301,6 +301,16 @@ impl Estimator {
             let dc = i64::from(damping_lead[i + 1].1 - damping_lead[i].1);
             damping_lead[i].2 = ((dc << 24) / dcos) as i32;
         }
+        // The pose segments' node spacing, from the configuration alone ([`PoseCtx`]).
+        let two_mu_pin = Ratio::from_raw(cfg.geometry.mu_pin.bits() * 2);
+        let pose_shift = PoseCtx {
+            geometry: &geometry,
+            two_mu_pin,
+            damping_lead: &damping_lead,
+            pose_shift: 0,
+            pose_frac: 0,
+        }
+        .choose_pose_shift();
         let n = i128::from(cfg.drive.gear_ratio.to_bits()); // Q16
         let eta = i128::from(m.gear_efficiency.bits()); // Q28
                                                         // n·η in i64 (two i32 factors: it fits), once.
@@ -338,7 +348,7 @@ impl Estimator {
         // Screw rad/s² (Q8) from counts/tick² (Q16): × rad/count × ticks²/s² / 2^8.
         let accel_scale = rpc.times(i128::from(tick_hz) * i128::from(tick_hz), 1 << 24);
         let mu_table = MuTable::build(&law);
-        let mut est = Estimator {
+        Ok(Estimator {
             geometry,
             screw,
             law,
@@ -349,7 +359,7 @@ impl Estimator {
             eta_over_n,
             inv_n_eta,
             rest_speed: cfg.rest_speed,
-            two_mu_pin: Ratio::from_raw(cfg.geometry.mu_pin.bits() * 2),
+            two_mu_pin,
             mass_lead_q32: {
                 // m (Q12)·r_m (Q24)·tan λ (Q28) = value·2^64 → Q32; ≤ 5·0.05·0.364·2^32.
                 let m = i128::from(cfg.mechanics.nut_mass.bits());
@@ -363,18 +373,15 @@ impl Estimator {
             speed_scale,
             accel_scale,
             late_us: cfg.tick_us * 3 / 2,
-            pose_shift: 0,
-            pose_frac: 0,
+            pose_shift,
+            pose_frac: PoseCtx::frac_for(pose_shift),
             segment: PoseSegment::EMPTY,
             last_counts: 0,
             q: 0,
             v: 0,
             a: 0,
             last: None,
-        };
-        est.pose_shift = est.choose_pose_shift();
-        est.pose_frac = est.frac_for(est.pose_shift);
-        Ok(est)
+        })
     }
 
     /// The validated geometry.
@@ -675,7 +682,7 @@ struct FastPose {
     height: Metres,
     /// g_n·(cos α + 2μ_b·dir)/sin α in Q23 N/kg (≤ 235.4): R + F₀·dir per kilogram of load.
     g: i32,
-    /// c_x(α)·r_m·tan λ in Q20 ([`Estimator::damping_lead`]).
+    /// c_x(α)·r_m·tan λ in Q20 ([`PoseCtx::damping_lead`]).
     cxl: i32,
     clamped: bool,
 }
@@ -685,7 +692,7 @@ struct FastPose {
 /// g_n·cos α/sin α + dir·g_n·2μ_b/sin α, and c_x·r_m·tan λ, interpolated linearly in the count (docs/model.md "Pose
 /// between nodes"). cos α is linear in the count (Eq 1), so only the curvature of h and g in
 /// cos α costs accuracy; k is chosen per configuration so that it stays within a tenth of the
-/// budgets ([`Estimator::choose_pose_shift`]). A segment that touches the clamp band's edges,
+/// budgets ([`PoseCtx::choose_pose_shift`]). A segment that touches the clamp band's edges,
 /// 1/sin α's saturation (below ≈ 7.2°) or a row of Table 1 (where c_x's slope changes) is
 /// `exact`: the exact pose at the count.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -756,7 +763,69 @@ const POSE_G_TOL_SHIFT: u32 = 12; // 2.4·10⁻⁴
 /// Largest node spacing tried, 2^16 counts.
 const POSE_SHIFT_MAX: u32 = 16;
 
+/// What the pose segments need of the estimator's configuration (borrowed): also usable
+/// while `Estimator::new` is still choosing the node spacing, so that the estimator is built
+/// once, in its caller's slot (a local adjusted and then moved into `Ok` was a second 1 KiB
+/// copy on the frame of every caller of `new`).
+struct PoseCtx<'a> {
+    geometry: &'a Geometry,
+    two_mu_pin: Ratio,
+    damping_lead: &'a [(i32, i32, i32); 3],
+    pose_shift: u32,
+    pose_frac: u32,
+}
+
 impl Estimator {
+    /// The pose segments' view of this estimator.
+    #[inline(always)]
+    fn pose_ctx(&self) -> PoseCtx<'_> {
+        PoseCtx {
+            geometry: &self.geometry,
+            two_mu_pin: self.two_mu_pin,
+            damping_lead: &self.damping_lead,
+            pose_shift: self.pose_shift,
+            pose_frac: self.pose_frac,
+        }
+    }
+
+    /// [`PoseCtx::segment_after`] for this estimator.
+    #[inline(never)]
+    fn segment_after(&self, index: i32, prev: &PoseSegment) -> PoseSegment {
+        self.pose_ctx().segment_after(index, prev)
+    }
+
+    /// [`PoseCtx::exact_pose`] for this estimator.
+    #[inline(never)]
+    fn exact_pose(&self, counts: i32, dir: i8) -> FastPose {
+        self.pose_ctx().exact_pose(counts, dir)
+    }
+
+    /// The model's pose at `counts` for direction `dir` on `seg` (the segment holding it).
+    #[inline(always)]
+    fn pose_on(&self, seg: &PoseSegment, counts: i32, dir: i8) -> FastPose {
+        if seg.exact {
+            return self.exact_pose(counts, dir);
+        }
+        let f = fraction(self.pose_frac, counts);
+        let at = |j: usize| seg.at(f, j);
+        FastPose {
+            height: Metres::from_raw(at(NODE_HEIGHT)),
+            // |g_n·2μ_b/sin α| ≤ 157 N/kg (Q23 < 2^31): the sum stays within ±235.4.
+            g: at(NODE_G) + i32::from(dir) * at(NODE_PIN),
+            cxl: at(NODE_CXL),
+            clamped: false,
+        }
+    }
+}
+
+/// The position of `counts` within its segment as a Q31 fraction, for `frac` = 2^(32−k): the
+/// count's low k bits on top (a product: one `MUL`, where a variable shift is masked first).
+#[inline(always)]
+fn fraction(frac: u32, counts: i32) -> i32 {
+    ((counts as u32).wrapping_mul(frac) >> 1) as i32
+}
+
+impl PoseCtx<'_> {
     /// g_n·(cos α + 2μ_b·dir)/sin α in Q23 N/kg for an exact pose's cos α and 1/sin α (Q28):
     /// |cos α + 2μ_b·dir| ≤ 3 and 1/sin α ≤ 8, so the product fits below 2^31 (3·8·9.81·2^23
     /// < 1.98·10⁹); in i64 with a constant shift (the node's fill runs on a tick).
@@ -844,23 +913,6 @@ impl Estimator {
         }
     }
 
-    /// The model's pose at `counts` for direction `dir` on `seg` (the segment holding it).
-    #[inline(always)]
-    fn pose_on(&self, seg: &PoseSegment, counts: i32, dir: i8) -> FastPose {
-        if seg.exact {
-            return self.exact_pose(counts, dir);
-        }
-        let f = self.fraction(counts);
-        let at = |j: usize| seg.at(f, j);
-        FastPose {
-            height: Metres::from_raw(at(NODE_HEIGHT)),
-            // |g_n·2μ_b/sin α| ≤ 157 N/kg (Q23 < 2^31): the sum stays within ±235.4.
-            g: at(NODE_G) + i32::from(dir) * at(NODE_PIN),
-            cxl: at(NODE_CXL),
-            clamped: false,
-        }
-    }
-
     /// The exact pose at `counts`: one out-of-line copy of [`Geometry::pose`] for the nodes,
     /// the exact segments, `details` and the configuration-time search (flash).
     /// Returns (height, cos α, 1/sin α, clamped): α itself is left out (`details` computes it).
@@ -873,7 +925,7 @@ impl Estimator {
     /// The exact pose's values (segments at the band's edges and Table 1's rows, coarse
     /// encoders): the node's values at the count, the same arithmetic. Out of line: inlined,
     /// it cost the step's common path ≈ 25 instructions of register moves.
-    #[inline(never)]
+    #[inline(always)]
     fn exact_pose(&self, counts: i32, dir: i8) -> FastPose {
         let n = self.pose_node(Some(counts));
         FastPose {
@@ -884,15 +936,8 @@ impl Estimator {
         }
     }
 
-    /// The position of `counts` within its segment as a Q31 fraction: the count's low k bits
-    /// on top (a product by 2^(32−k): one `MUL`, where a variable shift is masked first).
-    #[inline(always)]
-    fn fraction(&self, counts: i32) -> i32 {
-        ((counts as u32).wrapping_mul(self.pose_frac) >> 1) as i32
-    }
-
     /// 2^(32 − k) for a node spacing 2^k (k ≥ 1), 0 for k = 0.
-    fn frac_for(&self, k: u32) -> u32 {
+    fn frac_for(k: u32) -> u32 {
         if k == 0 {
             0
         } else {
@@ -923,7 +968,7 @@ impl Estimator {
         let lowest = inside as i32;
         'k: for k in (1..=POSE_SHIFT_MAX).rev() {
             self.pose_shift = k;
-            self.pose_frac = self.frac_for(k);
+            self.pose_frac = Self::frac_for(k);
             // From the first segment wholly inside the band (the band lies below count 0 and
             // above i32::MIN, so these indices and counts cannot wrap), past any exact ones.
             let mut index = (lowest >> k) + 1;
@@ -936,7 +981,7 @@ impl Estimator {
                     // G(±1) = G₀ ± G_b through |ΔG₀| + |ΔG_b|, against G₀ + G_b (R + F₀).
                     let c = (index << k) + (1 << (k - 1));
                     let want = self.pose_node(Some(c)).v;
-                    let f = self.fraction(c);
+                    let f = fraction(self.pose_frac, c);
                     let err = |j: usize| (seg.at(f, j) - want[j]).abs();
                     if err(NODE_HEIGHT) > POSE_HEIGHT_TOL
                         || err(NODE_G) + err(NODE_PIN)

@@ -885,7 +885,7 @@ impl PoseCtx<'_> {
         let node = |n: Node| (n.v, n.cos, n.bad);
         let prev_index = i64::from(prev.index);
         let ((v0, cos0, bad0), (v1, cos1, bad1)) = if prev.filled && prev_index + 1 == start {
-                let old_end = core::array::from_fn(|j| prev.v0[j].wrapping_add(prev.dv[j]));
+            let old_end = core::array::from_fn(|j| prev.v0[j].wrapping_add(prev.dv[j]));
             ((old_end, prev.cos1, prev.bad1), node(at(end)))
         } else if prev.filled && prev_index == end {
             (node(at(start)), (prev.v0, prev.cos0, prev.bad0))
@@ -901,7 +901,8 @@ impl PoseCtx<'_> {
         PoseSegment {
             index,
             filled: true,
-            exact: bad0 || bad1 || kink,
+            // Below count 0 (α₀ − 5° … α₀, outside the envelope the spacing is checked over).
+            exact: bad0 || bad1 || kink || index < 0,
             bad0,
             bad1,
             v0,
@@ -947,31 +948,20 @@ impl PoseCtx<'_> {
 
     /// The largest node spacing 2^k (k ≤ [`POSE_SHIFT_MAX`]) whose interpolation stays within
     /// [`POSE_HEIGHT_TOL`] and g's tolerance ([`POSE_G_TOL_SHIFT`]) at the midpoint of each of the
-    /// four lowest usable segments of the band (just above α₀ − 5°), where the curvature of h and g
+    /// four lowest usable segments from α₀ (count 0) up, where the curvature of h and g
     /// in cos α (1/sin³ α; (1 + 2μ_b cos α)/sin³ α + 3 cos α (cos α + 2μ_b)/sin⁵ α, and less
     /// for −μ_b) is largest: they fall as α grows,
     /// and cos α is linear in the count, so every segment above is closer. 0 if none passes.
-    /// Configuration time: ≈ 32 poses to find the band's edge, ≤ 140 per spacing tried. Out of
+    /// Configuration time: ≤ 140 poses per spacing tried. Out of
     /// line: its frame is not on `new`'s while the law's table is built.
     #[inline(never)]
     fn choose_pose_shift(&mut self) -> u32 {
-        // The band's lowest count (the pose clamps below it), by bisection on [i32::MIN, 0].
-        let (mut below, mut inside) = (i64::from(i32::MIN), 0i64);
-        while inside - below > 1 {
-            let mid = (below + inside) / 2;
-            if self.exact_pose_at(mid as i32).3 {
-                below = mid;
-            } else {
-                inside = mid;
-            }
-        }
-        let lowest = inside as i32;
         'k: for k in (1..=POSE_SHIFT_MAX).rev() {
             self.pose_shift = k;
             self.pose_frac = Self::frac_for(k);
-            // From the first segment wholly inside the band (the band lies below count 0 and
-            // above i32::MIN, so these indices and counts cannot wrap), past any exact ones.
-            let mut index = (lowest >> k) + 1;
+            // From the segment at α₀ (count 0; those below are exact), past any exact ones
+            // (Table 1's rows): indices ≤ 68, counts ≤ 69·2^16, no wrap.
+            let mut index = 0i32;
             let mut seg = PoseSegment::EMPTY;
             let mut checked = 0;
             for _ in 0..68 {
@@ -1048,4 +1038,86 @@ struct Model {
     model_motor_torque: NewtonMetres,
     measured_screw_torque: NewtonMetres,
     flags: u8,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fixed::types::I16F16;
+
+    /// Configurations of very different node spacings: the default lift, a long lift at a
+    /// low α₀ with a fine encoder, a short one at a high α₀ with a coarse encoder and a big
+    /// screw, and heavy pin friction.
+    fn configs() -> [EstimatorConfig; 4] {
+        let d = EstimatorConfig::DEFAULT;
+        let mut fine = d;
+        fine.geometry.length = Metres::lit("2");
+        fine.geometry.alpha0_deg = I16F16::lit("12");
+        fine.geometry.alpha_max_deg = I16F16::lit("89");
+        fine.drive.counts_per_rev = 4096;
+        fine.drive.gear_ratio = I16F16::lit("100");
+        let mut coarse = d;
+        coarse.geometry.length = Metres::lit("0.05");
+        coarse.geometry.alpha0_deg = I16F16::lit("60");
+        coarse.geometry.alpha_max_deg = I16F16::lit("89");
+        coarse.drive.counts_per_rev = 4;
+        coarse.drive.gear_ratio = I16F16::lit("1");
+        coarse.drive.pitch_radius = Metres::lit("0.05");
+        coarse.drive.lead_angle_deg = I16F16::lit("20");
+        let mut pins = d;
+        pins.geometry.mu_pin = Ratio::ONE;
+        [d, fine, coarse, pins]
+    }
+
+    /// Over the whole stroke (α₀ to the band's top, 4096 positions), the pose the model reads
+    /// between nodes is within the tolerances the node spacing was chosen for, for both
+    /// directions: the curvature falls as α grows, so the segments checked at α₀ bound all the
+    /// others. Also: the same bits from a fresh segment as from a walked one (the nodes are
+    /// functions of the count).
+    #[test]
+    fn the_pose_between_nodes_stays_within_its_tolerances_over_the_stroke() {
+        for cfg in configs() {
+            let mut est = Estimator::new(&cfg).unwrap();
+            let k = est.pose_shift();
+            // The band's top: the first clamped count above 0.
+            let (mut lo, mut hi) = (0i64, i64::from(i32::MAX));
+            while hi - lo > 1 {
+                let mid = (lo + hi) / 2;
+                if est.geometry.pose(mid as i32).clamped {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            let top = lo as i32;
+            let mut interpolated = 0;
+            for i in 0..4096i64 {
+                let c = (i64::from(top) * i / 4096) as i32;
+                let index = c >> k;
+                if index != est.segment.index || !est.segment.filled {
+                    est.segment = est.segment_after(index, &est.segment);
+                }
+                let fresh = est.segment_after(index, &PoseSegment::EMPTY);
+                assert_eq!(fresh, est.segment, "{c}");
+                let exact = est.geometry.pose(c);
+                let (cos, inv) = (exact.cos_alpha.bits(), exact.inv_sin_alpha.bits());
+                let ctx = est.pose_ctx();
+                let tol = ctx.g_of(cos, inv, 1) >> POSE_G_TOL_SHIFT;
+                for dir in [-1i8, 0, 1] {
+                    let got = est.pose_on(&est.segment, c, dir);
+                    let dh = (got.height.bits() - exact.height.bits()).abs();
+                    let dg = (got.g - ctx.g_of(cos, inv, i32::from(dir))).abs();
+                    assert!(dh <= POSE_HEIGHT_TOL + 2, "{k} {c} height {dh}");
+                    assert!(dg <= tol + 4, "{k} {c} g {dg} > {tol}");
+                    let dc = (got.cxl - ctx.damping_lead(exact.cos_alpha)).abs();
+                    assert!(dc <= 4, "{k} {c} c_x {dc}");
+                }
+                interpolated += usize::from(!est.segment.exact);
+            }
+            // The default lift and the fine encoder interpolate nearly everywhere.
+            if k >= 4 {
+                assert!(interpolated > 3900, "{k}: {interpolated}");
+            }
+        }
+    }
 }

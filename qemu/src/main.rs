@@ -244,6 +244,24 @@ fn count_instructions() {
         s_lith.report();
     }
 
+    // A step whose count enters the next (or the previous) pose segment: one exact pose for
+    // the new node (docs/model.md "Pose between nodes"), the step's worst case in motion.
+    if let Ok(mut cross) = Estimator::new(&cfg) {
+        let seg = 1i32 << cross.pose_shift();
+        let (t0, m0) = motion(0);
+        cross.step(t0, &m0);
+        let mut s_cross = Stats::new("estimator.step entering a pose segment");
+        for k in 1..=N {
+            let (_, mut m) = motion(0);
+            // Up the stroke for the first half, back down for the second.
+            let j = if k <= N / 2 { k } else { N - k };
+            m.position_counts = m0.position_counts + j as i32 * seg;
+            let now = Instant(1_000 * k as u32);
+            s_cross.push(ticks(&m, |m| cross.step(now, m)), overhead);
+        }
+        s_cross.report();
+    }
+
     // The model alone (no filter), over the envelope.
     let mut e_fixed = Stats::new("estimator.estimate fixed");
     let mut e_f32 = Stats::new("estimator.estimate f32-micromath");

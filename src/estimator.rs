@@ -410,6 +410,13 @@ impl Estimator {
         self.pose_shift
     }
 
+    /// The index of the pose segment the last step read (count >> [`Self::pose_shift`]; the
+    /// QEMU harness checks with it that a step it counts entered a new segment).
+    #[doc(hidden)]
+    pub fn pose_segment_index(&self) -> i32 {
+        self.segment.index
+    }
+
     /// Restart the speed filter at a position, at rest (after a fault or a re-home).
     pub fn reset(&mut self, position_counts: i32) {
         self.last_counts = position_counts;
@@ -437,7 +444,7 @@ impl Estimator {
         let (speed, accel, flags) = self.filter(now, m.position_counts, fraction);
         let index = m.position_counts >> self.pose_shift;
         if index != self.segment.index || !self.segment.filled {
-            self.segment = self.segment_after(index, &self.segment);
+            self.enter_segment(index);
         }
         let x = self.model(m, &self.segment, speed, accel, flags);
         TickEstimate {
@@ -523,7 +530,8 @@ impl Estimator {
         flags: u8,
     ) -> Estimate {
         let index = m.position_counts >> self.pose_shift;
-        let segment = self.segment_after(index, &PoseSegment::EMPTY);
+        let mut segment = PoseSegment::EMPTY;
+        self.pose_ctx().refill(&mut segment, index);
         let x = self.model(m, &segment, speed, accel, flags);
         // The pose's diagnostics exact, its height the model's (interpolated between exact
         // nodes, as in the step); R and F₀ from the exact pose (W's interpolated R + F₀·dir is
@@ -731,6 +739,16 @@ struct Node {
     clamped: bool,
 }
 
+impl Node {
+    /// Beyond i32 counts: unusable.
+    const BAD: Node = Node {
+        v: [0; 4],
+        cos: 0,
+        bad: true,
+        clamped: true,
+    };
+}
+
 impl PoseSegment {
     /// Value `j` at the Q31 fraction `f` of the segment: v0 + dv·f, the high word of dv·f
     /// being half the rise (1 LSB of rounding).
@@ -788,10 +806,18 @@ impl Estimator {
         }
     }
 
-    /// [`PoseCtx::segment_after`] for this estimator.
+    /// The state's segment moved to `index` ([`PoseCtx::refill`]): in place, the old
+    /// segment's node reused when it is a neighbour.
     #[inline(never)]
-    fn segment_after(&self, index: i32, prev: &PoseSegment) -> PoseSegment {
-        self.pose_ctx().segment_after(index, prev)
+    fn enter_segment(&mut self, index: i32) {
+        let ctx = PoseCtx {
+            geometry: &self.geometry,
+            two_mu_pin: self.two_mu_pin,
+            damping_lead: &self.damping_lead,
+            pose_shift: self.pose_shift,
+            pose_frac: self.pose_frac,
+        };
+        ctx.refill(&mut self.segment, index);
     }
 
     /// [`PoseCtx::exact_pose`] for this estimator.
@@ -826,101 +852,101 @@ fn fraction(frac: u32, counts: i32) -> i32 {
 }
 
 impl PoseCtx<'_> {
-    /// g_n·(cos α + 2μ_b·dir)/sin α in Q23 N/kg for an exact pose's cos α and 1/sin α (Q28):
-    /// |cos α + 2μ_b·dir| ≤ 3 and 1/sin α ≤ 8, so the product fits below 2^31 (3·8·9.81·2^23
-    /// < 1.98·10⁹); in i64 with a constant shift (the node's fill runs on a tick).
+    /// (G₀, G_b) = (g_n·cos α/sin α, g_n·2μ_b/sin α) in Q23 N/kg for an exact pose's cos α and
+    /// 1/sin α (Q28): g_n/sin α first (Q23, ≤ 8·9.81 < 2^30), then one product each (cos α ≤ 1,
+    /// 2μ_b ≤ 2 in Q28): |G₀ ± G_b| ≤ 3·8·9.81 < 2^31 in Q23.
     #[inline(always)]
-    fn g_of(&self, cos: i32, inv_sin: i32, dir: i32) -> i32 {
-        // (cos + 2μ_b·dir)/sin in Q24, then × g_n (Q16) → Q23.
-        let g = (i64::from(cos + dir * self.two_mu_pin.bits()) * i64::from(inv_sin)) >> 32;
-        narrow((g * G_N_Q16) >> 17)
+    fn g_parts(&self, cos: i32, inv_sin: i32) -> (i32, i32) {
+        let g_inv = (i64::from(inv_sin) * G_N_Q16) >> 21;
+        let part = |x: i32| ((g_inv * i64::from(x)) >> 28) as i32;
+        (part(cos), part(self.two_mu_pin.bits()))
     }
 
-    /// The exact node at `counts` (`None`: beyond i32, unusable). Out of line: the segment's
-    /// fill, the exact segments and the configuration-time search share it.
+    /// The exact node at `counts`: the pose's height, cos α and 1/sin α (one scale and one
+    /// √/1/√ kernel, [`Geometry::pose_node`]), G₀ and G_b (three products) and Table 1's
+    /// c_x·lead. Out of line: the segment's fill, the exact segments and the
+    /// configuration-time spacing search share it (the search validates these nodes).
     #[inline(never)]
-    fn pose_node(&self, counts: Option<i32>) -> Node {
-        match counts {
-            Some(c) => {
-                let (height, cos_alpha, inv_sin, clamped) = self.exact_pose_at(c);
-                let (cos, inv) = (cos_alpha.bits(), inv_sin.bits());
-                let g0 = self.g_of(cos, inv, 0);
-                Node {
-                    v: [
-                        height.bits(),
-                        g0,
-                        self.g_of(cos, inv, 1) - g0,
-                        self.damping_lead(cos_alpha),
-                    ],
-                    cos,
-                    bad: clamped || inv == i32::MAX,
-                    clamped,
-                }
+    fn pose_node(&self, counts: i32) -> Node {
+        let (height, cos_alpha, inv_sin, clamped) = self.geometry.pose_node(counts);
+        let (cos, inv) = (cos_alpha.bits(), inv_sin.bits());
+        let (g0, gb) = self.g_parts(cos, inv);
+        Node {
+            v: [height.bits(), g0, gb, self.damping_lead(cos_alpha)],
+            cos,
+            bad: clamped || inv == i32::MAX,
+            clamped,
+        }
+    }
+
+    /// The node at segment boundary `i` (count i·2^k); unusable beyond i32 counts.
+    #[inline(always)]
+    fn node_at(&self, i: i32) -> Node {
+        match i32::try_from(i64::from(i) << self.pose_shift) {
+            Ok(c) => self.pose_node(c),
+            Err(_) => Node::BAD,
+        }
+    }
+
+    /// `seg` moved to the segment `index`, in place: a neighbour of the segment it held keeps
+    /// that node (a count that crosses into the next segment costs one exact node, not two).
+    /// A function of `index` alone: the nodes are exact poses at fixed counts.
+    #[inline(never)]
+    fn refill(&self, seg: &mut PoseSegment, index: i32) {
+        let was = seg.index;
+        let filled = seg.filled;
+        seg.index = index;
+        seg.filled = true;
+        if self.pose_shift == 0 {
+            seg.exact = true;
+            return;
+        }
+        if filled && Some(index) == was.checked_add(1) {
+            // Forward: the old end node is the new start.
+            let n = self.node_at(index.saturating_add(1));
+            for j in 0..4 {
+                let v0 = seg.v0[j].wrapping_add(seg.dv[j]);
+                seg.v0[j] = v0;
+                seg.dv[j] = n.v[j].wrapping_sub(v0);
             }
-            None => Node {
-                v: [0; 4],
-                cos: 0,
-                bad: true,
-                clamped: true,
-            },
-        }
-    }
-
-    /// The segment `index`, reusing a node of `prev` when it is a neighbour (a count that
-    /// crosses into the next segment costs one exact pose, not two). A function of `index`
-    /// alone: the nodes are exact poses at fixed counts.
-    #[inline(never)]
-    fn segment_after(&self, index: i32, prev: &PoseSegment) -> PoseSegment {
-        let k = self.pose_shift;
-        if k == 0 {
-            return PoseSegment {
-                index,
-                filled: true,
-                ..PoseSegment::EMPTY
-            };
-        }
-        // The nodes' counts in i64 (index·2^k and the next), unusable beyond i32.
-        let at = |i: i64| self.pose_node(i32::try_from(i << k).ok());
-        let (start, end) = (i64::from(index), i64::from(index) + 1);
-        let node = |n: Node| (n.v, n.cos, n.bad);
-        let prev_index = i64::from(prev.index);
-        let ((v0, cos0, bad0), (v1, cos1, bad1)) = if prev.filled && prev_index + 1 == start {
-            let old_end = core::array::from_fn(|j| prev.v0[j].wrapping_add(prev.dv[j]));
-            ((old_end, prev.cos1, prev.bad1), node(at(end)))
-        } else if prev.filled && prev_index == end {
-            (node(at(start)), (prev.v0, prev.cos0, prev.bad0))
+            seg.cos0 = seg.cos1;
+            seg.bad0 = seg.bad1;
+            seg.cos1 = n.cos;
+            seg.bad1 = n.bad;
+        } else if filled && Some(index) == was.checked_sub(1) {
+            // Backward: the old start node is the new end.
+            let n = self.node_at(index);
+            for j in 0..4 {
+                seg.dv[j] = seg.v0[j].wrapping_sub(n.v[j]);
+                seg.v0[j] = n.v[j];
+            }
+            seg.cos1 = seg.cos0;
+            seg.bad1 = seg.bad0;
+            seg.cos0 = n.cos;
+            seg.bad0 = n.bad;
         } else {
-            (node(at(start)), node(at(end)))
-        };
+            let n0 = self.node_at(index);
+            let n1 = self.node_at(index.saturating_add(1));
+            for j in 0..4 {
+                seg.v0[j] = n0.v[j];
+                seg.dv[j] = n1.v[j].wrapping_sub(n0.v[j]);
+            }
+            seg.cos0 = n0.cos;
+            seg.bad0 = n0.bad;
+            seg.cos1 = n1.cos;
+            seg.bad1 = n1.bad;
+        }
+        // Nodes within the band: heights ≤ 3 m, |G| ≤ 235.4 (Q23), c_x·r_m·tan λ < 2^30: the
+        // differences of usable nodes fit (an unusable one is never interpolated).
         // A row of Table 1 strictly inside (cos α falls along the segment): c_x's slope
-        // changes there, so the segment is evaluated exactly.
+        // changes there, so the segment is evaluated exactly. Below count 0 (α₀ − 5° … α₀,
+        // outside the envelope the spacing is checked over): exact.
+        let (cos0, cos1) = (seg.cos0, seg.cos1);
         let kink = self
             .damping_lead
             .iter()
             .any(|&(c, _, _)| c < cos0 && c > cos1);
-        PoseSegment {
-            index,
-            filled: true,
-            // Below count 0 (α₀ − 5° … α₀, outside the envelope the spacing is checked over).
-            exact: bad0 || bad1 || kink || index < 0,
-            bad0,
-            bad1,
-            v0,
-            // Nodes within the band: heights ≤ 3 m, |g| ≤ 235.4 (Q23), c_x·r_m·tan λ < 2^30:
-            // the differences of usable nodes fit (an unusable one is never interpolated).
-            dv: core::array::from_fn(|j| v1[j].wrapping_sub(v0[j])),
-            cos0,
-            cos1,
-        }
-    }
-
-    /// The exact pose at `counts`: one out-of-line copy of [`Geometry::pose`] for the nodes,
-    /// the exact segments, `details` and the configuration-time search (flash).
-    /// Returns (height, cos α, 1/sin α, clamped): α itself is left out (`details` computes it).
-    #[inline(never)]
-    fn exact_pose_at(&self, counts: i32) -> (Metres, Ratio, Ratio, bool) {
-        let p = self.geometry.pose(counts);
-        (p.height, p.cos_alpha, p.inv_sin_alpha, p.clamped)
+        seg.exact = seg.bad0 || seg.bad1 || kink || index < 0;
     }
 
     /// The exact pose's values (segments at the band's edges and Table 1's rows, coarse
@@ -928,7 +954,7 @@ impl PoseCtx<'_> {
     /// it cost the step's common path ≈ 25 instructions of register moves.
     #[inline(always)]
     fn exact_pose(&self, counts: i32, dir: i8) -> FastPose {
-        let n = self.pose_node(Some(counts));
+        let n = self.pose_node(counts);
         FastPose {
             height: Metres::from_raw(n.v[NODE_HEIGHT]),
             g: n.v[NODE_G] + i32::from(dir) * n.v[NODE_PIN],
@@ -965,12 +991,12 @@ impl PoseCtx<'_> {
             let mut seg = PoseSegment::EMPTY;
             let mut checked = 0;
             for _ in 0..68 {
-                seg = self.segment_after(index, &seg);
+                self.refill(&mut seg, index);
                 if !seg.exact {
                     // The midpoint, where a segment's interpolation error peaks: h, and
                     // G(±1) = G₀ ± G_b through |ΔG₀| + |ΔG_b|, against G₀ + G_b (R + F₀).
                     let c = (index << k) + (1 << (k - 1));
-                    let want = self.pose_node(Some(c)).v;
+                    let want = self.pose_node(c).v;
                     let f = fraction(self.pose_frac, c);
                     let err = |j: usize| (seg.at(f, j) - want[j]).abs();
                     if err(NODE_HEIGHT) > POSE_HEIGHT_TOL
@@ -1095,18 +1121,20 @@ mod tests {
                 let c = (i64::from(top) * i / 4096) as i32;
                 let index = c >> k;
                 if index != est.segment.index || !est.segment.filled {
-                    est.segment = est.segment_after(index, &est.segment);
+                    est.enter_segment(index);
                 }
-                let fresh = est.segment_after(index, &PoseSegment::EMPTY);
+                let mut fresh = PoseSegment::EMPTY;
+                est.pose_ctx().refill(&mut fresh, index);
                 assert_eq!(fresh, est.segment, "{c}");
                 let exact = est.geometry.pose(c);
                 let (cos, inv) = (exact.cos_alpha.bits(), exact.inv_sin_alpha.bits());
                 let ctx = est.pose_ctx();
-                let tol = ctx.g_of(cos, inv, 1) >> POSE_G_TOL_SHIFT;
+                let (g0, gb) = ctx.g_parts(cos, inv);
+                let tol = (g0 + gb) >> POSE_G_TOL_SHIFT;
                 for dir in [-1i8, 0, 1] {
                     let got = est.pose_on(&est.segment, c, dir);
                     let dh = (got.height.bits() - exact.height.bits()).abs();
-                    let dg = (got.g - ctx.g_of(cos, inv, i32::from(dir))).abs();
+                    let dg = (got.g - (g0 + i32::from(dir) * gb)).abs();
                     assert!(dh <= POSE_HEIGHT_TOL + 2, "{k} {c} height {dh}");
                     assert!(dg <= tol + 4, "{k} {c} g {dg} > {tol}");
                     let dc = (got.cxl - ctx.damping_lead(exact.cos_alpha)).abs();

@@ -882,9 +882,12 @@ impl PoseCtx<'_> {
     /// The node at segment boundary `i` (count i·2^k); unusable beyond i32 counts.
     #[inline(always)]
     fn node_at(&self, i: i32) -> Node {
-        match i32::try_from(i64::from(i) << self.pose_shift) {
-            Ok(c) => self.pose_node(c),
-            Err(_) => Node::BAD,
+        // i·2^k in i32 iff shifting back gives i (k ≤ 16): no 64-bit shift.
+        let c = i.wrapping_shl(self.pose_shift);
+        if c >> self.pose_shift == i {
+            self.pose_node(c)
+        } else {
+            Node::BAD
         }
     }
 

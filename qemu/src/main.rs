@@ -248,9 +248,9 @@ fn count_instructions() {
 
     // A step whose count enters the next (or the previous) pose segment: one exact pose for
     // the new node (docs/model.md "Pose between nodes"), the step's worst case in motion.
-    // The count moves by one (the cruise's 1.4 counts per tick) onto a segment's first count
-    // (up) or below its start (down), from a step one count away: the crossing a real motion
-    // makes. Every measured step is checked to have entered a new segment.
+    // The count moves by one per tick (the cruise's 1.4) onto a segment's first count (up) or
+    // below its start (down), the filter restarted four counts before: the crossing a real
+    // motion makes. Every measured step is checked to have entered a new segment.
     if let Ok(mut cross) = Estimator::new(&cfg) {
         let seg = 1i32 << cross.pose_shift();
         let (_, m0) = motion(0);
@@ -265,13 +265,19 @@ fn count_instructions() {
                 (boundary, boundary - 1)
             };
             let mut m = m0;
-            m.commanded_dir = if up { 1 } else { -1 };
-            m.position_counts = from;
-            let t = 4_000 * k as u32;
-            cross.step(Instant(t), &m);
+            let dir = if up { 1 } else { -1 };
+            m.commanded_dir = dir as i8;
+            // Four steps at one count per tick up to `from` (the filter at ≈ 2 rad/s, as in
+            // the motion), then the measured step onto `to`.
+            let t = 8_000 * k as u32;
+            cross.reset(from - 4 * dir);
+            for j in 0..4 {
+                m.position_counts = from - (3 - j) * dir;
+                cross.step(Instant(t + 1000 * j as u32), &m);
+            }
             let before = cross.pose_segment_index();
             m.position_counts = to;
-            s_cross.push(ticks(&m, |m| cross.step(Instant(t + 1000), m)), overhead);
+            s_cross.push(ticks(&m, |m| cross.step(Instant(t + 4000), m)), overhead);
             entered += usize::from(cross.pose_segment_index() != before);
         }
         s_cross.report();

@@ -721,16 +721,12 @@ struct PoseSegment {
     index: i32,
     filled: bool,
     exact: bool,
-    /// Whether the node at the segment's start / end is unusable (clamped, saturated, or
-    /// beyond i32 counts).
-    bad0: bool,
-    bad1: bool,
-    /// Node values at the start ([`NODE_HEIGHT`], [`NODE_G`], [`NODE_PIN`], [`NODE_CXL`]: raw
-    /// bits) and their rise to the end node; cos α of both nodes (Table 1's rows).
-    v0: [i32; 4],
+    /// The nodes at the segment's start and end (values [`NODE_HEIGHT`], [`NODE_G`],
+    /// [`NODE_PIN`], [`NODE_CXL`] as raw bits; cos α for Table 1's rows; unusable: clamped,
+    /// saturated, or beyond i32 counts), and the values' rise from start to end.
+    n0: Node,
+    n1: Node,
     dv: [i32; 4],
-    cos0: i32,
-    cos1: i32,
 }
 
 /// Indices into a segment's values.
@@ -768,20 +764,26 @@ impl PoseSegment {
     /// being half the rise (1 LSB of rounding).
     #[inline(always)]
     fn at(&self, f: i32, j: usize) -> i32 {
-        self.v0[j] + ((((i64::from(self.dv[j]) * i64::from(f)) >> 32) as i32) << 1)
+        self.n0.v[j] + ((((i64::from(self.dv[j]) * i64::from(f)) >> 32) as i32) << 1)
     }
 
     const EMPTY: PoseSegment = PoseSegment {
         index: 0,
         filled: false,
         exact: true,
-        bad0: true,
-        bad1: true,
-        v0: [0; 4],
+        n0: Node::BAD,
+        n1: Node::BAD,
         dv: [0; 4],
-        cos0: 0,
-        cos1: 0,
     };
+
+    /// `dv` and `exact` for the nodes `n0`, `n1` ([`PoseCtx::classify`]).
+    #[inline(always)]
+    fn finish(&mut self, ctx: &PoseCtx<'_>) {
+        // Nodes within the band: heights ≤ 3 m, |G| ≤ 235.4 (Q23), c_x·r_m·tan λ < 2^30: the
+        // differences of usable nodes fit (an unusable one is never interpolated).
+        self.dv = core::array::from_fn(|j| self.n1.v[j].wrapping_sub(self.n0.v[j]));
+        self.exact = ctx.classify(self);
+    }
 }
 
 /// The tag of a node not computed ([`Estimator`]'s `ahead_at`, `behind_at`): no segment's
@@ -850,38 +852,24 @@ impl Estimator {
         };
         let seg = &mut self.segment;
         let was = seg.index;
-        if seg.filled && Some(index) == was.checked_add(1) && self.ahead_at == index.wrapping_add(1)
-        {
-            // Forward: the old end is the new start, the node ahead the new end; the old
-            // start is the node behind.
-            let a = &self.ahead;
-            for j in 0..4 {
-                let v0 = seg.v0[j].wrapping_add(seg.dv[j]);
-                self.behind.v[j] = seg.v0[j];
-                seg.v0[j] = v0;
-                seg.dv[j] = a.v[j].wrapping_sub(v0);
+        let forward = Some(index) == was.checked_add(1) && self.ahead_at == index.wrapping_add(1);
+        let backward = Some(index) == was.checked_sub(1) && self.behind_at == index;
+        if seg.filled && (forward || backward) {
+            if forward {
+                // The old start is the node behind, the old end the new start, the node
+                // ahead the new end.
+                self.behind = seg.n0;
+                self.behind_at = was;
+                seg.n0 = seg.n1;
+                seg.n1 = self.ahead;
+            } else {
+                self.ahead = seg.n1;
+                self.ahead_at = was.wrapping_add(1);
+                seg.n1 = seg.n0;
+                seg.n0 = self.behind;
             }
-            (self.behind.cos, self.behind.bad) = (seg.cos0, seg.bad0);
-            (seg.cos0, seg.bad0) = (seg.cos1, seg.bad1);
-            (seg.cos1, seg.bad1) = (a.cos, a.bad);
-            self.behind_at = was;
             seg.index = index;
-            ctx.classify(seg);
-        } else if seg.filled && Some(index) == was.checked_sub(1) && self.behind_at == index {
-            // Backward: the old start is the new end, the node behind the new start; the old
-            // end is the node ahead.
-            let b = &self.behind;
-            for j in 0..4 {
-                self.ahead.v[j] = seg.v0[j].wrapping_add(seg.dv[j]);
-                seg.dv[j] = seg.v0[j].wrapping_sub(b.v[j]);
-                seg.v0[j] = b.v[j];
-            }
-            (self.ahead.cos, self.ahead.bad) = (seg.cos1, seg.bad1);
-            (seg.cos1, seg.bad1) = (seg.cos0, seg.bad0);
-            (seg.cos0, seg.bad0) = (b.cos, b.bad);
-            self.ahead_at = was.wrapping_add(1);
-            seg.index = index;
-            ctx.classify(seg);
+            seg.finish(&ctx);
         } else {
             ctx.refill(seg, index);
         }
@@ -901,14 +889,16 @@ impl Estimator {
         };
         // Segment indices are counts >> k (k ≥ 1 here): ± 2 stays in i32.
         let i = self.segment.index;
-        if self.ahead_at != i + 2 {
-            self.ahead = ctx.node_at(i + 2);
-            self.ahead_at = i + 2;
+        let ahead = self.ahead_at != i + 2;
+        let (node, at, j) = if ahead {
+            (&mut self.ahead, &mut self.ahead_at, i + 2)
         } else {
-            self.behind = ctx.node_at(i - 1);
-            self.behind_at = i - 1;
-        }
-        self.prefetch_pending = self.ahead_at != i + 2 || self.behind_at != i - 1;
+            (&mut self.behind, &mut self.behind_at, i - 1)
+        };
+        *node = ctx.node_at(j);
+        *at = j;
+        // The one ahead first, then the one behind: done after the second.
+        self.prefetch_pending = ahead && self.behind_at != i - 1;
     }
 
     /// [`PoseCtx::exact_pose`] for this estimator.
@@ -982,70 +972,34 @@ impl PoseCtx<'_> {
         }
     }
 
-    /// `seg` moved to the segment `index`, in place: a neighbour of the segment it held keeps
-    /// that node (a count that crosses into the next segment costs one exact node, not two).
-    /// A function of `index` alone: the nodes are exact poses at fixed counts.
+    /// `seg` filled for the segment `index`, in place: its two exact nodes (a jump, the first
+    /// step, `estimate`, the spacing search; a step entering a neighbour takes a node computed
+    /// ahead, [`Estimator::enter_segment`]). A function of `index` alone: the nodes are exact
+    /// poses at fixed counts.
     #[inline(never)]
     fn refill(&self, seg: &mut PoseSegment, index: i32) {
-        let was = seg.index;
-        let filled = seg.filled;
         seg.index = index;
         seg.filled = true;
         if self.pose_shift == 0 {
             seg.exact = true;
             return;
         }
-        if filled && Some(index) == was.checked_add(1) {
-            // Forward: the old end node is the new start.
-            let n = self.node_at(index.saturating_add(1));
-            for j in 0..4 {
-                let v0 = seg.v0[j].wrapping_add(seg.dv[j]);
-                seg.v0[j] = v0;
-                seg.dv[j] = n.v[j].wrapping_sub(v0);
-            }
-            seg.cos0 = seg.cos1;
-            seg.bad0 = seg.bad1;
-            seg.cos1 = n.cos;
-            seg.bad1 = n.bad;
-        } else if filled && Some(index) == was.checked_sub(1) {
-            // Backward: the old start node is the new end.
-            let n = self.node_at(index);
-            for j in 0..4 {
-                seg.dv[j] = seg.v0[j].wrapping_sub(n.v[j]);
-                seg.v0[j] = n.v[j];
-            }
-            seg.cos1 = seg.cos0;
-            seg.bad1 = seg.bad0;
-            seg.cos0 = n.cos;
-            seg.bad0 = n.bad;
-        } else {
-            let n0 = self.node_at(index);
-            let n1 = self.node_at(index.saturating_add(1));
-            for j in 0..4 {
-                seg.v0[j] = n0.v[j];
-                seg.dv[j] = n1.v[j].wrapping_sub(n0.v[j]);
-            }
-            seg.cos0 = n0.cos;
-            seg.bad0 = n0.bad;
-            seg.cos1 = n1.cos;
-            seg.bad1 = n1.bad;
-        }
-        // Nodes within the band: heights ≤ 3 m, |G| ≤ 235.4 (Q23), c_x·r_m·tan λ < 2^30: the
-        // differences of usable nodes fit (an unusable one is never interpolated).
-        self.classify(seg);
+        seg.n0 = self.node_at(index);
+        seg.n1 = self.node_at(index.saturating_add(1));
+        seg.finish(self);
     }
 
     /// Whether `seg` (its nodes filled) is evaluated exactly: an unusable node, a row of
     /// Table 1 strictly inside (cos α falls along the segment: c_x's slope changes there),
     /// or below count 0 (α₀ − 5° … α₀, outside the envelope the spacing is checked over).
     #[inline(never)]
-    fn classify(&self, seg: &mut PoseSegment) {
-        let (cos0, cos1) = (seg.cos0, seg.cos1);
+    fn classify(&self, seg: &PoseSegment) -> bool {
+        let (cos0, cos1) = (seg.n0.cos, seg.n1.cos);
         let kink = self
             .damping_lead
             .iter()
             .any(|&(c, _, _)| c < cos0 && c > cos1);
-        seg.exact = seg.bad0 || seg.bad1 || kink || seg.index < 0;
+        seg.n0.bad || seg.n1.bad || kink || seg.index < 0
     }
 
     /// The exact pose's values (segments at the band's edges and Table 1's rows, coarse

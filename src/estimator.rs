@@ -960,8 +960,9 @@ impl PoseCtx<'_> {
         }
     }
 
-    /// The node at segment boundary `i` (count i·2^k); unusable beyond i32 counts.
-    #[inline(always)]
+    /// The node at segment boundary `i` (count i·2^k); unusable beyond i32 counts. Out of
+    /// line: the fill and the prefetch share it (flash).
+    #[inline(never)]
     fn node_at(&self, i: i32) -> Node {
         // i·2^k in i32 iff shifting back gives i (k ≤ 16): no 64-bit shift.
         let c = i.wrapping_shl(self.pose_shift);

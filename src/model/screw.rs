@@ -288,10 +288,7 @@ impl ScrewModel {
 
     /// r_m·tan λ (Q24·Q28 bits, value·2^52).
     fn r_tan(&self) -> i128 {
-        crate::math::mul128(
-            i128::from(self.r_m.bits()),
-            i128::from(self.tan_l.bits()),
-        )
+        crate::math::mul128(i128::from(self.r_m.bits()), i128::from(self.tan_l.bits()))
     }
 
     /// Nut travel per screw radian r_m·tan λ as a scale: θ̇ (Q16) → ẋ (Q24) (r_m tan λ =

@@ -7,7 +7,7 @@
 //! ≤ 0.05 mm of nut travel at 50 N·m).
 
 use crate::check_range as check;
-use crate::math::{first_quadrant_angle, mul128, sqrt_q30, sqrt_rsqrt_q30};
+use crate::math::{first_quadrant_angle, mul128, sqrt_rsqrt_q30};
 use crate::model::Scale;
 use crate::units::{sat32, Angle, Kilograms, KilogramsPerSecond, Metres, Newtons, Ratio, Q};
 use crate::ConfigError;
@@ -377,7 +377,7 @@ impl Geometry {
             return None;
         }
         let c2 = (1i64 << 56) - s_q28 * s_q28; // Q56
-        let c_q30 = sqrt_q30((c2 >> 26) as u32);
+        let (c_q30, _) = sqrt_rsqrt_q30((c2 >> 26) as u32);
         let c = i64::from(c_q30 >> 2);
         // x = L·(cos α₀ − c).
         let x_q24 = (i64::from(self.cfg.length.bits()) * (i64::from(self.cos_a0.bits()) - c)) >> 28;

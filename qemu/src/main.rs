@@ -249,7 +249,7 @@ fn count_instructions() {
     // A step whose count enters the next (or the previous) pose segment: one exact pose for
     // the new node (docs/model.md "Pose between nodes"), the step's worst case in motion.
     // The count moves by one per tick (the cruise's 1.4) onto a segment's first count (up) or
-    // below its start (down), the filter restarted four counts before: the crossing a real
+    // below its start (down), the filter restarted eight counts before: the crossing a real
     // motion makes. Every measured step is checked to have entered a new segment.
     if let Ok(mut cross) = Estimator::new(&cfg) {
         let seg = 1i32 << cross.pose_shift();
@@ -268,21 +268,22 @@ fn count_instructions() {
             let mut m = m0;
             let dir = if up { 1 } else { -1 };
             m.commanded_dir = dir as i8;
-            // Four steps at one count per tick up to `from` (the filter at ≈ 2 rad/s, as in
-            // the motion), then the measured step onto `to`.
-            let t = 8_000 * k as u32;
-            cross.reset(from - 4 * dir);
-            for j in 0..4 {
-                m.position_counts = from - (3 - j) * dir;
+            // Eight steps at one count per tick up to `from` (the filter at ≈ 2 rad/s, as in
+            // the motion; the nodes beyond the segment's ends computed by then), then the
+            // measured step onto `to`.
+            let t = 16_000 * k as u32;
+            cross.reset(from - 8 * dir);
+            for j in 0..8 {
+                m.position_counts = from - (7 - j) * dir;
                 cross.step(Instant(t + 1000 * j as u32), &m);
             }
             let before = cross.pose_segment_index();
             m.position_counts = to;
-            s_cross.push(ticks(&m, |m| cross.step(Instant(t + 4000), m)), overhead);
+            s_cross.push(ticks(&m, |m| cross.step(Instant(t + 8000), m)), overhead);
             entered += usize::from(cross.pose_segment_index() != before);
             // The next step, one count on: it computes the node beyond the new segment's far end.
             m.position_counts = to + dir;
-            s_after.push(ticks(&m, |m| cross.step(Instant(t + 5000), m)), overhead);
+            s_after.push(ticks(&m, |m| cross.step(Instant(t + 9000), m)), overhead);
         }
         s_cross.report();
         s_after.report();

@@ -781,7 +781,9 @@ impl PoseSegment {
     fn finish(&mut self, ctx: &PoseCtx<'_>) {
         // Nodes within the band: heights ≤ 3 m, |G| ≤ 235.4 (Q23), c_x·r_m·tan λ < 2^30: the
         // differences of usable nodes fit (an unusable one is never interpolated).
-        self.dv = core::array::from_fn(|j| self.n1.v[j].wrapping_sub(self.n0.v[j]));
+        for j in 0..4 {
+            self.dv[j] = self.n1.v[j].wrapping_sub(self.n0.v[j]);
+        }
         self.exact = ctx.classify(self);
     }
 }
@@ -830,9 +832,17 @@ impl Estimator {
     /// last one, else one node beyond its ends computed ahead while any is missing.
     #[inline(always)]
     fn track_segment(&mut self, index: i32) {
+        if index != self.segment.index || !self.segment.filled || self.prefetch_pending {
+            self.update_segment(index);
+        }
+    }
+
+    /// [`Self::enter_segment`] or [`Self::prefetch`]: one out-of-line call for both (flash).
+    #[inline(never)]
+    fn update_segment(&mut self, index: i32) {
         if index != self.segment.index || !self.segment.filled {
             self.enter_segment(index);
-        } else if self.prefetch_pending {
+        } else {
             self.prefetch();
         }
     }
@@ -840,8 +850,8 @@ impl Estimator {
     /// The state's segment moved to `index`, in place. A neighbour takes the node computed
     /// ahead beyond the old segment's end (or start) and keeps the one they share: no exact
     /// pose. Otherwise (a jump, the first step, a node not yet computed) [`PoseCtx::refill`]:
-    /// one or two exact nodes.
-    #[inline(never)]
+    /// two exact nodes.
+    #[inline(always)]
     fn enter_segment(&mut self, index: i32) {
         let ctx = PoseCtx {
             geometry: &self.geometry,
@@ -878,7 +888,7 @@ impl Estimator {
 
     /// One missing node beyond the segment's ends (the one ahead first), computed while the
     /// count stays in the segment: one exact node on this step.
-    #[inline(never)]
+    #[inline(always)]
     fn prefetch(&mut self) {
         let ctx = PoseCtx {
             geometry: &self.geometry,

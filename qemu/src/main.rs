@@ -287,7 +287,9 @@ fn count_instructions() {
         }
         s_cross.report();
         s_after.report();
-        println!("ICOUNT-CHECK estimator.step entering a pose segment: {entered} of {N} entered one");
+        println!(
+            "ICOUNT-CHECK estimator.step entering a pose segment: {entered} of {N} entered one"
+        );
         cross_max = s_cross.max().max(s_after.max());
     }
 
@@ -549,7 +551,10 @@ fn count_crossing_ticks(overhead: u32) -> u32 {
             if k == N {
                 let _ = c.command(Command::Stop);
             }
-            c.step(Instant(10_000 + 1000 * k as u32), &cruise_inputs_from(offset, k));
+            c.step(
+                Instant(10_000 + 1000 * k as u32),
+                &cruise_inputs_from(offset, k),
+            );
         }
         if t == N {
             let _ = c.command(Command::Stop);

@@ -1181,12 +1181,21 @@ mod tests {
             }
             let top = lo as i32;
             let mut interpolated = 0;
+            let mut neighbour = 0;
             // Up the stroke and back down, as the steps track the segment (nodes computed
-            // ahead, neighbours entered from them).
+            // ahead, neighbours entered from them: counted, and the same bits as a fresh fill).
             for i in (0..4096i64).chain((0..4096).rev()) {
                 let c = (i64::from(top) * i / 4096) as i32;
                 let index = c >> k;
-                est.track_segment(index);
+                let moved = (index - est.segment.index).abs() == 1 && est.segment.filled;
+                let had = (est.ahead_at, est.behind_at);
+                // Three steps at this count (the nodes beyond the segment's ends computed on
+                // the two after entering it, as in a motion with many ticks per segment).
+                for _ in 0..3 {
+                    est.track_segment(index);
+                }
+                // Entering a neighbour from a node computed ahead (the fast path).
+                neighbour += usize::from(moved && (had.0 == index + 1 || had.1 == index));
                 let mut fresh = PoseSegment::EMPTY;
                 est.pose_ctx().refill(&mut fresh, index);
                 assert_eq!(fresh, est.segment, "{c}");
@@ -1209,6 +1218,8 @@ mod tests {
             // The default lift and the fine encoder interpolate nearly everywhere.
             if k >= 4 {
                 assert!(interpolated > 7800, "{k}: {interpolated}");
+                // Both directions enter neighbours from the nodes computed ahead.
+                assert!(neighbour > 100, "{k}: {neighbour}");
             }
         }
     }

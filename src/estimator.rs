@@ -218,6 +218,23 @@ pub struct Estimator {
     accel_scale: Scale,
     /// A tick later than this (1.5 periods, µs) is flagged late.
     late_us: u32,
+    /// The pose between exact nodes every 2^`pose_shift` counts ([`PoseSegment`]); 0: the
+    /// exact pose at every count (the configuration's encoder is too coarse for it).
+    pose_shift: u32,
+    /// 2^(32 − `pose_shift`) (unused while it is 0).
+    pose_frac: u32,
+    /// The segment of the last step's count (state: refilled when the count leaves it).
+    segment: PoseSegment,
+    /// The nodes beyond the segment's ends, computed ahead on the steps after the count
+    /// entered it (one a step, [`Self::prefetch`]) so that entering a neighbour needs no exact
+    /// pose: `ahead` at boundary `ahead_at` (the segment's index + 2), `behind` at `behind_at`
+    /// (index − 1); a tag that does not match means not (yet) computed.
+    ahead: Node,
+    behind: Node,
+    ahead_at: i32,
+    behind_at: i32,
+    /// A node beyond the segment's ends is still to be computed.
+    prefetch_pending: bool,
     // Filter state: the last count; position relative to it, speed and acceleration in Q16
     // counts, counts/tick, counts/tick².
     last_counts: i32,
@@ -294,6 +311,16 @@ impl Estimator {
             let dc = i64::from(damping_lead[i + 1].1 - damping_lead[i].1);
             damping_lead[i].2 = ((dc << 24) / dcos) as i32;
         }
+        // The pose segments' node spacing, from the configuration alone ([`PoseCtx`]).
+        let two_mu_pin = Ratio::from_raw(cfg.geometry.mu_pin.bits() * 2);
+        let pose_shift = PoseCtx {
+            geometry: &geometry,
+            two_mu_pin,
+            damping_lead: &damping_lead,
+            pose_shift: 0,
+            pose_frac: 0,
+        }
+        .choose_pose_shift();
         let n = i128::from(cfg.drive.gear_ratio.to_bits()); // Q16
         let eta = i128::from(m.gear_efficiency.bits()); // Q28
                                                         // n·η in i64 (two i32 factors: it fits), once.
@@ -342,7 +369,7 @@ impl Estimator {
             eta_over_n,
             inv_n_eta,
             rest_speed: cfg.rest_speed,
-            two_mu_pin: Ratio::from_raw(cfg.geometry.mu_pin.bits() * 2),
+            two_mu_pin,
             mass_lead_q32: {
                 // m (Q12)·r_m (Q24)·tan λ (Q28) = value·2^64 → Q32; ≤ 5·0.05·0.364·2^32.
                 let m = i128::from(cfg.mechanics.nut_mass.bits());
@@ -356,6 +383,14 @@ impl Estimator {
             speed_scale,
             accel_scale,
             late_us: cfg.tick_us * 3 / 2,
+            pose_shift,
+            pose_frac: PoseCtx::frac_for(pose_shift),
+            segment: PoseSegment::EMPTY,
+            ahead: Node::BAD,
+            behind: Node::BAD,
+            ahead_at: NO_NODE,
+            behind_at: NO_NODE,
+            prefetch_pending: false,
             last_counts: 0,
             q: 0,
             v: 0,
@@ -384,6 +419,19 @@ impl Estimator {
         self.mu_table.is_some()
     }
 
+    /// log2 of the pose's node spacing in counts ([`PoseSegment`]); 0: the exact pose at every
+    /// count.
+    pub fn pose_shift(&self) -> u32 {
+        self.pose_shift
+    }
+
+    /// The index of the pose segment the last step read (count >> [`Self::pose_shift`]; the
+    /// QEMU harness checks with it that a step it counts entered a new segment).
+    #[doc(hidden)]
+    pub fn pose_segment_index(&self) -> i32 {
+        self.segment.index
+    }
+
     /// Restart the speed filter at a position, at rest (after a fault or a re-home).
     pub fn reset(&mut self, position_counts: i32) {
         self.last_counts = position_counts;
@@ -409,9 +457,11 @@ impl Estimator {
     #[inline]
     pub fn step_at(&mut self, now: Instant, m: &Measurements, fraction: u16) -> TickEstimate {
         let (speed, accel, flags) = self.filter(now, m.position_counts, fraction);
-        let x = self.model(m, speed, accel, flags);
+        let index = m.position_counts >> self.pose_shift;
+        self.track_segment(index);
+        let x = self.model(m, &self.segment, speed, accel, flags);
         TickEstimate {
-            height: x.pose.height,
+            height: x.height,
             screw_speed: x.speed,
             screw_accel: x.accel,
             friction_torque: x.core.friction_torque,
@@ -426,8 +476,9 @@ impl Estimator {
 
     /// The whole estimate of a tick that [`Self::step`] returned `tick` for, with `m` its
     /// measurements: the same numbers (bit for bit) plus the diagnostics (pose, R, F₀, c_x, μ,
-    /// ξ, N, residual, self-locking margin). Recomputed from the tick's inputs: about the cost
-    /// of a step, for telemetry and tests rather than every tick.
+    /// ξ, N, residual, self-locking margin). Recomputed from the tick's inputs (the pose
+    /// segment's two nodes and the exact pose: ≈ 2.8 steps), for telemetry and tests rather
+    /// than every tick.
     pub fn details(&self, m: &Measurements, tick: &TickEstimate) -> Estimate {
         self.estimate(m, tick.screw_speed, tick.screw_accel, tick.flags.0)
     }
@@ -491,21 +542,34 @@ impl Estimator {
         accel: RadiansPerSecond2,
         flags: u8,
     ) -> Estimate {
-        let x = self.model(m, speed, accel, flags);
+        let index = m.position_counts >> self.pose_shift;
+        let mut segment = PoseSegment::EMPTY;
+        self.pose_ctx().refill(&mut segment, index);
+        let x = self.model(m, &segment, speed, accel, flags);
+        // The pose's diagnostics exact, its height the model's (interpolated between exact
+        // nodes, as in the step); R and F₀ from the exact pose (W's interpolated R + F₀·dir is
+        // within 2.4·10⁻⁴ of them, docs/model.md "Pose between nodes").
+        let exact = self.geometry.pose(m.position_counts);
+        let pose = Pose {
+            height: x.height,
+            ..exact
+        };
+        let weight = i64::from(Geometry::weight(m.load.clamp(Kilograms::ZERO, LOAD_MAX)).bits());
+        let ws = sat32((weight * i64::from(pose.inv_sin_alpha.bits())) >> 28);
         // Diagnostics, off the tick path: they saturate freely.
         let axial_load = Newtons::from_raw(sat32(
-            (i64::from(x.ws) * i64::from(x.pose.cos_alpha.bits())) >> 28,
+            (i64::from(ws) * i64::from(pose.cos_alpha.bits())) >> 28,
         ));
         let pin_friction = Newtons::from_raw(sat32(
-            (i64::from(x.ws) * i64::from(self.two_mu_pin.bits())) >> 28,
+            (i64::from(ws) * i64::from(self.two_mu_pin.bits())) >> 28,
         ));
         Estimate {
-            pose: x.pose,
+            pose,
             screw_speed: x.speed,
             screw_accel: x.accel,
             axial_load,
             pin_friction,
-            structure_damping: self.geometry.structure_damping(x.pose.cos_alpha),
+            structure_damping: self.geometry.structure_damping(pose.cos_alpha),
             mu: x.mu,
             contact: self.screw.contact_from(x.mu_s, x.w, &x.core),
             model_screw_torque: x.model_screw_torque,
@@ -530,6 +594,7 @@ impl Estimator {
     fn model(
         &self,
         m: &Measurements,
+        seg: &PoseSegment,
         speed: RadiansPerSecond,
         accel: RadiansPerSecond2,
         mut flags: u8,
@@ -539,10 +604,6 @@ impl Estimator {
         let load = m.load.clamp(Kilograms::ZERO, LOAD_MAX);
         let mut clamped = (speed_c != speed) | (accel_c != accel) | (load != m.load);
         let (speed, accel) = (speed_c, accel_c);
-        let pose = self.geometry.pose(m.position_counts);
-        if pose.clamped {
-            flags |= EstimateFlags::POSE_CLAMPED;
-        }
         let dir: i8 = if speed > self.rest_speed {
             1
         } else if speed < self.rest_speed.sat_neg() {
@@ -551,15 +612,17 @@ impl Estimator {
             flags |= EstimateFlags::AT_REST;
             m.commanded_dir.signum()
         };
-        // M·g/sin α: ≤ 98.1 kN·8 (sin α ≥ sin 7°, 1/sin α saturates at 8) < 2^20 N.
-        let weight = Geometry::weight(load).bits();
-        let ws = narrow((i64::from(weight) * i64::from(pose.inv_sin_alpha.bits())) >> 28);
-        // R + F₀·dir = M·g/sin α·(cos α + 2μ_b·dir): one product; |…| ≤ 3, ≤ 2.4 MN.
+        let pose = self.pose_on(seg, m.position_counts, dir);
+        if pose.clamped {
+            flags |= EstimateFlags::POSE_CLAMPED;
+        }
         let dir32 = i32::from(dir);
-        let pins = dir32 * self.two_mu_pin.bits();
-        let r_f0 = narrow((i64::from(ws) * i64::from(pose.cos_alpha.bits() + pins)) >> 28);
+        // R + F₀·dir = M·g·(cos α + 2μ_b·dir)/sin α: the load (≤ 10 t, Q12) times the pose's
+        // factor (|…| ≤ 3·8·9.81 N/kg in Q23, sin α ≥ sin 7°, 1/sin α saturates at 8), one
+        // product: ≤ 2.4 MN (Q12·Q23 = Q35 → Q8).
+        let r_f0 = narrow((i64::from(load.bits()) * i64::from(pose.g)) >> 27);
         // c_x·ẋ = (c_x·r_m·tan λ)·θ̇: ≤ 1066 N·s/rad · 2000 rad/s < 2.2 MN (Q20·Q16 → Q8).
-        let cxl = self.damping_lead(pose.cos_alpha);
+        let cxl = pose.cxl;
         let damping = narrow((i64::from(cxl) * i64::from(speed.bits())) >> 28);
         // m·r_m·tan λ·θ̈ < 0.091·65 536 < 6 kN: the high word of Q8·Q32.
         let inertial = narrow((i64::from(accel.bits()) * i64::from(self.mass_lead_q32)) >> 32);
@@ -619,10 +682,9 @@ impl Estimator {
             flags |= EstimateFlags::SATURATED;
         }
         Model {
-            pose,
+            height: pose.height,
             speed,
             accel,
-            ws,
             mu,
             mu_s,
             w,
@@ -635,7 +697,392 @@ impl Estimator {
     }
 }
 
+/// The pose values the per-tick model reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct FastPose {
+    height: Metres,
+    /// g_n·(cos α + 2μ_b·dir)/sin α in Q23 N/kg (≤ 235.4): R + F₀·dir per kilogram of load.
+    g: i32,
+    /// c_x(α)·r_m·tan λ in Q20 ([`PoseCtx::damping_lead`]).
+    cxl: i32,
+    clamped: bool,
+}
+
+/// The pose between two exact nodes, at counts `index·2^k` and `(index + 1)·2^k`
+/// (k = [`Estimator`]'s `pose_shift`): the height, R + F₀·dir per kilogram of load as
+/// g_n·cos α/sin α + dir·g_n·2μ_b/sin α, and c_x·r_m·tan λ, interpolated linearly in the count (docs/model.md "Pose
+/// between nodes"). cos α is linear in the count (Eq 1), so only the curvature of h and g in
+/// cos α costs accuracy; k is chosen per configuration so that it stays within a tenth of the
+/// budgets ([`PoseCtx::choose_pose_shift`]). A segment that touches the clamp band's edges,
+/// 1/sin α's saturation (below ≈ 7.2°) or a row of Table 1 (where c_x's slope changes) is
+/// `exact`: the exact pose at the count.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct PoseSegment {
+    index: i32,
+    filled: bool,
+    exact: bool,
+    /// The nodes at the segment's start and end (values [`NODE_HEIGHT`], [`NODE_G`],
+    /// [`NODE_PIN`], [`NODE_CXL`] as raw bits; cos α for Table 1's rows; unusable: clamped,
+    /// saturated, or beyond i32 counts), and the values' rise from start to end.
+    n0: Node,
+    n1: Node,
+    dv: [i32; 4],
+}
+
+/// Indices into a segment's values.
+/// Height, Q24 m.
+const NODE_HEIGHT: usize = 0;
+/// g_n·cos α/sin α, Q23 N/kg.
+const NODE_G: usize = 1;
+/// g_n·2μ_b/sin α, Q23 N/kg.
+const NODE_PIN: usize = 2;
+/// c_x·r_m·tan λ, Q20 N per rad/s.
+const NODE_CXL: usize = 3;
+
+/// An exact node: [`PoseSegment`]'s four values, cos α, whether it is unusable (clamped,
+/// saturated, beyond i32 counts), whether the pose was clamped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Node {
+    v: [i32; 4],
+    cos: i32,
+    bad: bool,
+    clamped: bool,
+}
+
+impl Node {
+    /// Beyond i32 counts: unusable.
+    const BAD: Node = Node {
+        v: [0; 4],
+        cos: 0,
+        bad: true,
+        clamped: true,
+    };
+}
+
+impl PoseSegment {
+    /// Value `j` at the Q31 fraction `f` of the segment: v0 + dv·f, the high word of dv·f
+    /// being half the rise (1 LSB of rounding).
+    #[inline(always)]
+    fn at(&self, f: i32, j: usize) -> i32 {
+        self.n0.v[j] + ((((i64::from(self.dv[j]) * i64::from(f)) >> 32) as i32) << 1)
+    }
+
+    const EMPTY: PoseSegment = PoseSegment {
+        index: 0,
+        filled: false,
+        exact: true,
+        n0: Node::BAD,
+        n1: Node::BAD,
+        dv: [0; 4],
+    };
+
+    /// `dv` and `exact` for the nodes `n0`, `n1` ([`PoseCtx::classify`]).
+    #[inline(always)]
+    fn finish(&mut self, ctx: &PoseCtx<'_>) {
+        // Nodes within the band: heights ≤ 3 m, |G| ≤ 235.4 (Q23), c_x·r_m·tan λ < 2^30: the
+        // differences of usable nodes fit (an unusable one is never interpolated).
+        for j in 0..4 {
+            self.dv[j] = self.n1.v[j].wrapping_sub(self.n0.v[j]);
+        }
+        self.exact = ctx.classify(self);
+    }
+}
+
+/// The tag of a node not computed ([`Estimator`]'s `ahead_at`, `behind_at`): no segment's
+/// neighbour (indices are counts >> k, k ≥ 1 where nodes are used).
+const NO_NODE: i32 = i32::MIN;
+
+/// Standard gravity in Q16 m/s² (as [`Geometry::weight`]).
+const G_N_Q16: i64 = 642_689;
+
+/// Interpolation error allowed between nodes, a tenth of the budgets (docs/model.md): height
+/// 5 µm (Q24 m), R + F₀·dir 2.4·10⁻⁴ of R + F₀ (T_r's budget is 0.2 %: W is proportional
+/// to R + F₀·dir).
+const POSE_HEIGHT_TOL: i32 = 84; // 5·10⁻⁶·2^24
+const POSE_G_TOL_SHIFT: u32 = 12; // 2.4·10⁻⁴
+/// Largest node spacing tried, 2^16 counts.
+const POSE_SHIFT_MAX: u32 = 16;
+
+/// What the pose segments need of the estimator's configuration (borrowed): also usable
+/// while `Estimator::new` is still choosing the node spacing, so that the estimator is built
+/// once, in its caller's slot (a local adjusted and then moved into `Ok` was a second 1 KiB
+/// copy on the frame of every caller of `new`).
+struct PoseCtx<'a> {
+    geometry: &'a Geometry,
+    two_mu_pin: Ratio,
+    damping_lead: &'a [(i32, i32, i32); 3],
+    pose_shift: u32,
+    pose_frac: u32,
+}
+
 impl Estimator {
+    /// The pose segments' view of this estimator.
+    #[inline(always)]
+    fn pose_ctx(&self) -> PoseCtx<'_> {
+        PoseCtx {
+            geometry: &self.geometry,
+            two_mu_pin: self.two_mu_pin,
+            damping_lead: &self.damping_lead,
+            pose_shift: self.pose_shift,
+            pose_frac: self.pose_frac,
+        }
+    }
+
+    /// The state's segment for the count's segment `index`: entered when the count left the
+    /// last one, else one node beyond its ends computed ahead while any is missing.
+    #[inline(always)]
+    fn track_segment(&mut self, index: i32) {
+        if index != self.segment.index || !self.segment.filled || self.prefetch_pending {
+            self.update_segment(index);
+        }
+    }
+
+    /// [`Self::enter_segment`] or [`Self::prefetch`]: one out-of-line call for both (flash).
+    #[inline(never)]
+    fn update_segment(&mut self, index: i32) {
+        if index != self.segment.index || !self.segment.filled {
+            self.enter_segment(index);
+        } else {
+            self.prefetch();
+        }
+    }
+
+    /// The state's segment moved to `index`, in place. A neighbour takes the node computed
+    /// ahead beyond the old segment's end (or start) and keeps the one they share: no exact
+    /// pose. Otherwise (a jump, the first step, a node not yet computed) [`PoseCtx::refill`]:
+    /// two exact nodes.
+    #[inline(always)]
+    fn enter_segment(&mut self, index: i32) {
+        let ctx = PoseCtx {
+            geometry: &self.geometry,
+            two_mu_pin: self.two_mu_pin,
+            damping_lead: &self.damping_lead,
+            pose_shift: self.pose_shift,
+            pose_frac: self.pose_frac,
+        };
+        let seg = &mut self.segment;
+        let was = seg.index;
+        let forward = Some(index) == was.checked_add(1) && self.ahead_at == index.wrapping_add(1);
+        let backward = Some(index) == was.checked_sub(1) && self.behind_at == index;
+        if seg.filled && (forward || backward) {
+            if forward {
+                // The old start is the node behind, the old end the new start, the node
+                // ahead the new end.
+                self.behind = seg.n0;
+                self.behind_at = was;
+                seg.n0 = seg.n1;
+                seg.n1 = self.ahead;
+            } else {
+                self.ahead = seg.n1;
+                self.ahead_at = was.wrapping_add(1);
+                seg.n1 = seg.n0;
+                seg.n0 = self.behind;
+            }
+            seg.index = index;
+            seg.finish(&ctx);
+        } else {
+            ctx.refill(seg, index);
+        }
+        self.prefetch_pending = self.pose_shift != 0;
+    }
+
+    /// One missing node beyond the segment's ends (the one ahead first), computed while the
+    /// count stays in the segment: one exact node on this step.
+    #[inline(always)]
+    fn prefetch(&mut self) {
+        let ctx = PoseCtx {
+            geometry: &self.geometry,
+            two_mu_pin: self.two_mu_pin,
+            damping_lead: &self.damping_lead,
+            pose_shift: self.pose_shift,
+            pose_frac: self.pose_frac,
+        };
+        // Segment indices are counts >> k (k ≥ 1 here): ± 2 stays in i32.
+        let i = self.segment.index;
+        let ahead = self.ahead_at != i + 2;
+        let (node, at, j) = if ahead {
+            (&mut self.ahead, &mut self.ahead_at, i + 2)
+        } else {
+            (&mut self.behind, &mut self.behind_at, i - 1)
+        };
+        *node = ctx.node_at(j);
+        *at = j;
+        // The one ahead first, then the one behind: done after the second.
+        self.prefetch_pending = ahead && self.behind_at != i - 1;
+    }
+
+    /// [`PoseCtx::exact_pose`] for this estimator.
+    #[inline(never)]
+    fn exact_pose(&self, counts: i32, dir: i8) -> FastPose {
+        self.pose_ctx().exact_pose(counts, dir)
+    }
+
+    /// The model's pose at `counts` for direction `dir` on `seg` (the segment holding it).
+    #[inline(always)]
+    fn pose_on(&self, seg: &PoseSegment, counts: i32, dir: i8) -> FastPose {
+        if seg.exact {
+            return self.exact_pose(counts, dir);
+        }
+        let f = fraction(self.pose_frac, counts);
+        let at = |j: usize| seg.at(f, j);
+        FastPose {
+            height: Metres::from_raw(at(NODE_HEIGHT)),
+            // |g_n·2μ_b/sin α| ≤ 157 N/kg (Q23 < 2^31): the sum stays within ±235.4.
+            g: at(NODE_G) + i32::from(dir) * at(NODE_PIN),
+            cxl: at(NODE_CXL),
+            clamped: false,
+        }
+    }
+}
+
+/// The position of `counts` within its segment as a Q31 fraction, for `frac` = 2^(32−k): the
+/// count's low k bits on top (a product: one `MUL`, where a variable shift is masked first).
+#[inline(always)]
+fn fraction(frac: u32, counts: i32) -> i32 {
+    ((counts as u32).wrapping_mul(frac) >> 1) as i32
+}
+
+impl PoseCtx<'_> {
+    /// (G₀, G_b) = (g_n·cos α/sin α, g_n·2μ_b/sin α) in Q23 N/kg for an exact pose's cos α and
+    /// 1/sin α (Q28): g_n/sin α first (Q23, ≤ 8·9.81 < 2^30), then one product each (cos α ≤ 1,
+    /// 2μ_b ≤ 2 in Q28): |G₀ ± G_b| ≤ 3·8·9.81 < 2^31 in Q23.
+    #[inline(always)]
+    fn g_parts(&self, cos: i32, inv_sin: i32) -> (i32, i32) {
+        let g_inv = (i64::from(inv_sin) * G_N_Q16) >> 21;
+        let part = |x: i32| ((g_inv * i64::from(x)) >> 28) as i32;
+        (part(cos), part(self.two_mu_pin.bits()))
+    }
+
+    /// The exact node at `counts`: the pose's height, cos α and 1/sin α (one scale and one
+    /// √/1/√ kernel, [`Geometry::pose_node`]), G₀ and G_b (three products) and Table 1's
+    /// c_x·lead. Out of line: the segment's fill, the exact segments and the
+    /// configuration-time spacing search share it (the search validates these nodes).
+    #[inline(never)]
+    fn pose_node(&self, counts: i32) -> Node {
+        let (height, cos_alpha, inv_sin, clamped) = self.geometry.pose_node(counts);
+        let (cos, inv) = (cos_alpha.bits(), inv_sin.bits());
+        let (g0, gb) = self.g_parts(cos, inv);
+        Node {
+            v: [height.bits(), g0, gb, self.damping_lead(cos_alpha)],
+            cos,
+            bad: clamped || inv == i32::MAX,
+            clamped,
+        }
+    }
+
+    /// The node at segment boundary `i` (count i·2^k); unusable beyond i32 counts. Out of
+    /// line: the fill and the prefetch share it (flash).
+    #[inline(never)]
+    fn node_at(&self, i: i32) -> Node {
+        // i·2^k in i32 iff shifting back gives i (k ≤ 16): no 64-bit shift.
+        let c = i.wrapping_shl(self.pose_shift);
+        if c >> self.pose_shift == i {
+            self.pose_node(c)
+        } else {
+            Node::BAD
+        }
+    }
+
+    /// `seg` filled for the segment `index`, in place: its two exact nodes (a jump, the first
+    /// step, `estimate`, the spacing search; a step entering a neighbour takes a node computed
+    /// ahead, [`Estimator::enter_segment`]). A function of `index` alone: the nodes are exact
+    /// poses at fixed counts.
+    #[inline(never)]
+    fn refill(&self, seg: &mut PoseSegment, index: i32) {
+        seg.index = index;
+        seg.filled = true;
+        if self.pose_shift == 0 {
+            seg.exact = true;
+            return;
+        }
+        seg.n0 = self.node_at(index);
+        seg.n1 = self.node_at(index.saturating_add(1));
+        seg.finish(self);
+    }
+
+    /// Whether `seg` (its nodes filled) is evaluated exactly: an unusable node, a row of
+    /// Table 1 strictly inside (cos α falls along the segment: c_x's slope changes there),
+    /// or below count 0 (α₀ − 5° … α₀, outside the envelope the spacing is checked over).
+    #[inline(never)]
+    fn classify(&self, seg: &PoseSegment) -> bool {
+        let (cos0, cos1) = (seg.n0.cos, seg.n1.cos);
+        let kink = self
+            .damping_lead
+            .iter()
+            .any(|&(c, _, _)| c < cos0 && c > cos1);
+        seg.n0.bad || seg.n1.bad || kink || seg.index < 0
+    }
+
+    /// The exact pose's values (segments at the band's edges and Table 1's rows, coarse
+    /// encoders): the node's values at the count, the same arithmetic. Out of line: inlined,
+    /// it cost the step's common path ≈ 25 instructions of register moves.
+    #[inline(always)]
+    fn exact_pose(&self, counts: i32, dir: i8) -> FastPose {
+        let n = self.pose_node(counts);
+        FastPose {
+            height: Metres::from_raw(n.v[NODE_HEIGHT]),
+            g: n.v[NODE_G] + i32::from(dir) * n.v[NODE_PIN],
+            cxl: n.v[NODE_CXL],
+            clamped: n.clamped,
+        }
+    }
+
+    /// 2^(32 − k) for a node spacing 2^k (k ≥ 1), 0 for k = 0.
+    fn frac_for(k: u32) -> u32 {
+        if k == 0 {
+            0
+        } else {
+            1u32 << (32 - k)
+        }
+    }
+
+    /// The largest node spacing 2^k (k ≤ [`POSE_SHIFT_MAX`]) whose interpolation stays within
+    /// [`POSE_HEIGHT_TOL`] and g's tolerance ([`POSE_G_TOL_SHIFT`]) at the midpoint of each of the
+    /// four lowest usable segments from α₀ (count 0) up, where the curvature of h and g
+    /// in cos α (1/sin³ α; (1 + 2μ_b cos α)/sin³ α + 3 cos α (cos α + 2μ_b)/sin⁵ α, and less
+    /// for −μ_b) is largest: they fall as α grows,
+    /// and cos α is linear in the count, so every segment above is closer. 0 if none passes.
+    /// Configuration time: ≤ 140 poses per spacing tried. Out of
+    /// line: its frame is not on `new`'s while the law's table is built.
+    #[inline(never)]
+    fn choose_pose_shift(&mut self) -> u32 {
+        'k: for k in (1..=POSE_SHIFT_MAX).rev() {
+            self.pose_shift = k;
+            self.pose_frac = Self::frac_for(k);
+            // From the segment at α₀ (count 0; those below are exact), past any exact ones
+            // (Table 1's rows): indices ≤ 68, counts ≤ 69·2^16, no wrap.
+            let mut index = 0i32;
+            let mut seg = PoseSegment::EMPTY;
+            let mut checked = 0;
+            for _ in 0..68 {
+                self.refill(&mut seg, index);
+                if !seg.exact {
+                    // The midpoint, where a segment's interpolation error peaks: h, and
+                    // G(±1) = G₀ ± G_b through |ΔG₀| + |ΔG_b|, against G₀ + G_b (R + F₀).
+                    let c = (index << k) + (1 << (k - 1));
+                    let want = self.pose_node(c).v;
+                    let f = fraction(self.pose_frac, c);
+                    let err = |j: usize| (seg.at(f, j) - want[j]).abs();
+                    if err(NODE_HEIGHT) > POSE_HEIGHT_TOL
+                        || err(NODE_G) + err(NODE_PIN)
+                            > (want[NODE_G] + want[NODE_PIN]) >> POSE_G_TOL_SHIFT
+                    {
+                        continue 'k;
+                    }
+                    checked += 1;
+                    if checked == 4 {
+                        break;
+                    }
+                }
+                index += 1;
+            }
+            if checked > 0 {
+                return k;
+            }
+        }
+        0
+    }
+
     /// c_x(α)·r_m·tan λ (Q20, N per rad/s) at the pose with cosine `cos_alpha`: Table 1 as
     /// [`Geometry::structure_damping`] interpolates it (linear in cos α between its angles,
     /// flat outside), times the lead.
@@ -670,11 +1117,9 @@ pub const ACCEL_MAX: RadiansPerSecond2 = RadiansPerSecond2::lit("65536");
 /// Everything [`Estimator::model`] computes; each caller keeps what it returns (the rest is
 /// dead code after inlining).
 struct Model {
-    pose: Pose,
+    height: Metres,
     speed: RadiansPerSecond,
     accel: RadiansPerSecond2,
-    /// M·g/sin α, raw Newtons bits.
-    ws: i32,
     mu: Ratio,
     mu_s: Ratio,
     w: Newtons,
@@ -683,4 +1128,99 @@ struct Model {
     model_motor_torque: NewtonMetres,
     measured_screw_torque: NewtonMetres,
     flags: u8,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fixed::types::I16F16;
+
+    /// Configurations of very different node spacings: the default lift, a long lift at a
+    /// low α₀ with a fine encoder, a short one at a high α₀ with a coarse encoder and a big
+    /// screw, and heavy pin friction.
+    fn configs() -> [EstimatorConfig; 4] {
+        let d = EstimatorConfig::DEFAULT;
+        let mut fine = d;
+        fine.geometry.length = Metres::lit("2");
+        fine.geometry.alpha0_deg = I16F16::lit("12");
+        fine.geometry.alpha_max_deg = I16F16::lit("89");
+        fine.drive.counts_per_rev = 4096;
+        fine.drive.gear_ratio = I16F16::lit("100");
+        let mut coarse = d;
+        coarse.geometry.length = Metres::lit("0.05");
+        coarse.geometry.alpha0_deg = I16F16::lit("60");
+        coarse.geometry.alpha_max_deg = I16F16::lit("89");
+        coarse.drive.counts_per_rev = 4;
+        coarse.drive.gear_ratio = I16F16::lit("1");
+        coarse.drive.pitch_radius = Metres::lit("0.05");
+        coarse.drive.lead_angle_deg = I16F16::lit("20");
+        let mut pins = d;
+        pins.geometry.mu_pin = Ratio::ONE;
+        [d, fine, coarse, pins]
+    }
+
+    /// Over the whole stroke (α₀ to the band's top, 4096 positions), the pose the model reads
+    /// between nodes is within the tolerances the node spacing was chosen for, for both
+    /// directions: the curvature falls as α grows, so the segments checked at α₀ bound all the
+    /// others. Also: the same bits from a fresh segment as from a walked one (the nodes are
+    /// functions of the count).
+    #[test]
+    fn the_pose_between_nodes_stays_within_its_tolerances_over_the_stroke() {
+        for cfg in configs() {
+            let mut est = Estimator::new(&cfg).unwrap();
+            let k = est.pose_shift();
+            // The band's top: the first clamped count above 0.
+            let (mut lo, mut hi) = (0i64, i64::from(i32::MAX));
+            while hi - lo > 1 {
+                let mid = (lo + hi) / 2;
+                if est.geometry.pose(mid as i32).clamped {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            let top = lo as i32;
+            let mut interpolated = 0;
+            let mut neighbour = 0;
+            // Up the stroke and back down, as the steps track the segment (nodes computed
+            // ahead, neighbours entered from them: counted, and the same bits as a fresh fill).
+            for i in (0..4096i64).chain((0..4096).rev()) {
+                let c = (i64::from(top) * i / 4096) as i32;
+                let index = c >> k;
+                let moved = (index - est.segment.index).abs() == 1 && est.segment.filled;
+                let had = (est.ahead_at, est.behind_at);
+                // Three steps at this count (the nodes beyond the segment's ends computed on
+                // the two after entering it, as in a motion with many ticks per segment).
+                for _ in 0..3 {
+                    est.track_segment(index);
+                }
+                // Entering a neighbour from a node computed ahead (the fast path).
+                neighbour += usize::from(moved && (had.0 == index + 1 || had.1 == index));
+                let mut fresh = PoseSegment::EMPTY;
+                est.pose_ctx().refill(&mut fresh, index);
+                assert_eq!(fresh, est.segment, "{c}");
+                let exact = est.geometry.pose(c);
+                let (cos, inv) = (exact.cos_alpha.bits(), exact.inv_sin_alpha.bits());
+                let ctx = est.pose_ctx();
+                let (g0, gb) = ctx.g_parts(cos, inv);
+                let tol = (g0 + gb) >> POSE_G_TOL_SHIFT;
+                for dir in [-1i8, 0, 1] {
+                    let got = est.pose_on(&est.segment, c, dir);
+                    let dh = (got.height.bits() - exact.height.bits()).abs();
+                    let dg = (got.g - (g0 + i32::from(dir) * gb)).abs();
+                    assert!(dh <= POSE_HEIGHT_TOL + 2, "{k} {c} height {dh}");
+                    assert!(dg <= tol + 4, "{k} {c} g {dg} > {tol}");
+                    let dc = (got.cxl - ctx.damping_lead(exact.cos_alpha)).abs();
+                    assert!(dc <= 4, "{k} {c} c_x {dc}");
+                }
+                interpolated += usize::from(!est.segment.exact);
+            }
+            // The default lift and the fine encoder interpolate nearly everywhere.
+            if k >= 4 {
+                assert!(interpolated > 7800, "{k}: {interpolated}");
+                // Both directions enter neighbours from the nodes computed ahead.
+                assert!(neighbour > 100, "{k}: {neighbour}");
+            }
+        }
+    }
 }

@@ -7,7 +7,7 @@
 //! ≤ 0.05 mm of nut travel at 50 N·m).
 
 use crate::check_range as check;
-use crate::math::{first_quadrant_angle, mul128, sqrt_q30, sqrt_rsqrt_q30};
+use crate::math::{first_quadrant_angle, mul128, sqrt_rsqrt_q30};
 use crate::model::Scale;
 use crate::units::{sat32, Angle, Kilograms, KilogramsPerSecond, Metres, Newtons, Ratio, Q};
 use crate::ConfigError;
@@ -303,18 +303,7 @@ impl Geometry {
     /// The pose for a travel `x` and its x/L in Q28.
     #[inline(always)]
     fn pose_with(&self, x: Metres, x_over_l: i32) -> Pose {
-        let mut c = self.cos_a0.bits().saturating_sub(x_over_l);
-        let mut clamped = false;
-        if c > self.cos_hi.bits() {
-            c = self.cos_hi.bits();
-            clamped = true;
-        } else if c < self.cos_lo.bits() {
-            c = self.cos_lo.bits();
-            clamped = true;
-        }
-        // sin α = √(1 − c²) and 1/sin α from one kernel: c in Q28 → c² in Q56 → 1 − c² in Q30.
-        let c2_q30 = ((i64::from(c) * i64::from(c)) >> 26) as u32;
-        let (s_q30, inv_s_q28) = sqrt_rsqrt_q30((1u32 << 30) - c2_q30);
+        let (c, s_q30, inv_s_q28, clamped) = self.cos_sin_with(x_over_l);
         let s = Ratio::from_raw((s_q30 >> 2) as i32);
         let inv_s = Ratio::from_raw(inv_s_q28 as i32);
         let cos_alpha = Ratio::from_raw(c);
@@ -337,6 +326,42 @@ impl Geometry {
         }
     }
 
+    /// (cos α in Q28, sin α in Q30, 1/sin α in Q28, clamped) for x/L in Q28: cos α clamped to
+    /// the band, then one √/1/√ kernel.
+    #[inline(always)]
+    fn cos_sin_with(&self, x_over_l: i32) -> (i32, u32, u32, bool) {
+        let mut c = self.cos_a0.bits().saturating_sub(x_over_l);
+        let mut clamped = false;
+        if c > self.cos_hi.bits() {
+            c = self.cos_hi.bits();
+            clamped = true;
+        } else if c < self.cos_lo.bits() {
+            c = self.cos_lo.bits();
+            clamped = true;
+        }
+        // sin α = √(1 − c²) and 1/sin α from one kernel: c in Q28 → c² in Q56 → 1 − c² in Q30.
+        let c2_q30 = ((i64::from(c) * i64::from(c)) >> 26) as u32;
+        let (s_q30, inv_s_q28) = sqrt_rsqrt_q30((1u32 << 30) - c2_q30);
+        (c, s_q30, inv_s_q28, clamped)
+    }
+
+    /// The part of [`Self::pose`] the estimator's pose nodes read, the same bits: (height,
+    /// cos α, 1/sin α, clamped), without the travel and α (one scale and one kernel).
+    #[inline(always)]
+    pub fn pose_node(&self, counts: i32) -> (Metres, Ratio, Ratio, bool) {
+        let (c, s_q30, inv_s_q28, clamped) = self.cos_sin_with(self.cos_per_count.apply32(counts));
+        let s = (s_q30 >> 2) as i32;
+        let height = Metres::from_raw(
+            self.cfg.h0.bits() + ((i64::from(self.cfg.length.bits()) * i64::from(s)) >> 28) as i32,
+        );
+        (
+            height,
+            Ratio::from_raw(c),
+            Ratio::from_raw(inv_s_q28 as i32),
+            clamped,
+        )
+    }
+
     /// Motor encoder position (counts from fully down) at which the head is at `height`;
     /// `None` if the height is outside α₀ … α_max.
     pub fn counts_for_height(&self, height: Metres) -> Option<i32> {
@@ -352,7 +377,7 @@ impl Geometry {
             return None;
         }
         let c2 = (1i64 << 56) - s_q28 * s_q28; // Q56
-        let c_q30 = sqrt_q30((c2 >> 26) as u32);
+        let (c_q30, _) = sqrt_rsqrt_q30((c2 >> 26) as u32);
         let c = i64::from(c_q30 >> 2);
         // x = L·(cos α₀ − c).
         let x_q24 = (i64::from(self.cfg.length.bits()) * (i64::from(self.cos_a0.bits()) - c)) >> 28;

@@ -7,7 +7,6 @@
 //! `r_m·W·ξ`; friction torque about the screw axis `T_r = μ_s·|N|·r_m·cos λ`
 //! (= μ_s·|W|·r_m/(1 ∓ μ_s tan λ): cos λ cancels). docs/model.md derives it.
 
-use crate::math::recip_q16_fast;
 use crate::model::geometry::DriveConfig;
 use crate::model::Scale;
 use crate::units::{narrow, sat32};
@@ -53,15 +52,10 @@ pub struct ScrewModel {
     tan_l: Ratio,
     sec_l: Ratio,
     cos_l: Ratio,
-    /// Nut travel per screw radian, r_m·tan λ: θ̇(Q16) → ẋ(Q24).
-    lead: Scale,
-    /// m·r_m·tan λ: θ̈(Q8) → N(Q8).
-    mass_lead: Scale,
-    /// I: θ̈(Q8) → N·m(Q16).
-    inertia: Scale,
-    /// c: θ̇(Q16) → N·m(Q16).
-    damping: Scale,
-    support_torque: NewtonMetres,
+    /// The mechanics as configured: the diagnostic forms' scales (lead, m·r_m·tan λ, I, c)
+    /// are computed from them on demand, off the tick path (the estimator's step has its own
+    /// constants), so `new` does not build four scales no firmware path reads.
+    mech: MechanicsConfig,
     /// Largest μ the contact evaluates: min(4, 1/(3·tan λ)), so that 1 ∓ μ_s·tan λ stays in
     /// [⅔, 4/3] (docs/model.md "Numeric envelope"). A law that gives more is clamped and flagged.
     mu_max: Ratio,
@@ -135,18 +129,6 @@ impl ScrewModel {
         let (cos_l, sin_l) = lambda.cos_sin();
         let tan_q28 = (i64::from(sin_l.bits()) << 28) / i64::from(cos_l.bits());
         let sec_q28 = (1i64 << 56) / i64::from(cos_l.bits());
-        let r = i128::from(drive.pitch_radius.bits()); // Q24
-        let t = i128::from(tan_q28); // Q28
-                                     // ẋ(Q24) = r·t·θ̇(Q16): value r_m tanλ = r·t/2^52 → scale = r·t·2^24/(2^52·2^16).
-        let rt = crate::math::mul128(r, t);
-        let lead = Scale::from_ratio(rt, 1i128 << 44);
-        // F(Q8) = m·r_m·tanλ·θ̈(Q8): m in Q12 → m·r·t/2^64, scale = that·2^8/2^8.
-        let m = i128::from(mech.nut_mass.bits());
-        let mass_lead = Scale::from_ratio(crate::math::mul128(m, rt), 1i128 << 64);
-        // T(Q16) = I·θ̈(Q8): I in µkg·m² → scale = I·10⁻⁶·2^16/2^8.
-        let inertia = Scale::from_ratio(i128::from(mech.inertia_ukgm2) << 8, 1_000_000);
-        // T(Q16) = c·θ̇(Q16): scale = c·10⁻⁶.
-        let damping = Scale::from_ratio(i128::from(mech.damping_unms), 1_000_000);
         // 1/(3·tan λ) in Q28 (tan λ ≥ tan 0.5° > 2^-7: at most 2^36/3, below 2^34), then ≤ 4.
         let mu_max = ((1i64 << 56) / (3 * tan_q28)).min(4 << 28) as i32;
         Ok(ScrewModel {
@@ -154,11 +136,7 @@ impl ScrewModel {
             tan_l: Ratio::from_raw(tan_q28 as i32),
             sec_l: Ratio::from_raw(sec_q28 as i32),
             cos_l,
-            lead,
-            mass_lead,
-            inertia,
-            damping,
-            support_torque: mech.support_torque,
+            mech: *mech,
             mu_max: Ratio::from_raw(mu_max),
         })
     }
@@ -186,7 +164,7 @@ impl ScrewModel {
     /// Nut speed ẋ = r_m·tan λ·θ̇.
     #[inline]
     pub fn nut_speed(&self, theta_dot: RadiansPerSecond) -> MetresPerSecond {
-        MetresPerSecond::from_raw(self.lead.apply32(theta_dot.bits()))
+        MetresPerSecond::from_raw(self.lead().apply32(theta_dot.bits()))
     }
 
     /// Axial demand W = m·ẍ + R + F₀·dir + c_x·ẋ, with dir = sgn θ̇ ∈ {−1, 0, 1}.
@@ -200,7 +178,7 @@ impl ScrewModel {
         pin_friction: Newtons,
         c_x: KilogramsPerSecond,
     ) -> Newtons {
-        let inertial = Newtons::from_raw(self.mass_lead.apply32(theta_ddot.bits()));
+        let inertial = Newtons::from_raw(self.mass_lead().apply32(theta_ddot.bits()));
         let damping: Newtons = qmul(c_x, self.nut_speed(theta_dot));
         let pins = match dir {
             d if d > 0 => pin_friction,
@@ -215,7 +193,7 @@ impl ScrewModel {
     /// 1 ∓ μ_s·tan λ, ξ's numerator and the two torques.
     ///
     /// Range (docs/model.md "Numeric envelope"): |μ_s·tan λ| ≤ ⅓, so the denominator lies in
-    /// [⅔, 4/3], its reciprocal in [¾, 3/2] (one `UDIV`, [`recip_q16_fast`]) and |tan λ ± μ_s|
+    /// [⅔, 4/3], its reciprocal in [¾, 3/2] (one `UDIV`, [`crate::math::recip_q16_fast`]) and |tan λ ± μ_s|
     /// < 4.4: none of these can overflow. Only the torques can leave `NewtonMetres` (±32 768
     /// N·m) for a large |W| with a large screw; they saturate, and the caller flags it.
     #[inline(always)]
@@ -223,18 +201,27 @@ impl ScrewModel {
         let tan = self.tan_l.bits();
         let mt = narrow((i64::from(mu_s.bits()) * i64::from(tan)) >> 28);
         let loaded = w >= Newtons::ZERO;
+        // μ_s·sgn W (|μ_s| ≤ 4: no overflow): T_r = μ_s·|wk| = (μ_s·sgn W)·wk below, one
+        // 32×32 product instead of a 64-bit absolute value and product (the same bits).
         let (den, num) = if loaded {
             ((1 << 28) - mt, tan + mu_s.bits())
         } else {
             ((1 << 28) + mt, tan - mu_s.bits())
         };
-        let inv_q16 = recip_q16_fast(den as u32);
+        // Negated branch-free in i32 by W's sign (s = 0 or −1: (μ ^ s) − s).
+        let s = w.bits() >> 31;
+        let mu_w = (mu_s.bits() ^ s) - s;
+        // [`crate::math::recip_q16_fast`] without its saturating add, which cannot act here: den ∈ [⅔, 4/3]·
+        // 2^28, so den + 2^11 cannot wrap (the same bits; the floor at 2^15 keeps a caller that
+        // breaks the contract from dividing by zero).
+        let inv_q16 = u32::MAX / (((den as u32).wrapping_add(1 << 11) >> 12).max(1 << 15));
         // r_m/(1 ∓ μ_s tan λ) in Q32: Q16·Q24 = Q40 → Q32; ≤ 1.5·0.05 m·2^32 < 2^29.
         let k = narrow(((u64::from(inv_q16) * u64::from(self.r_m.bits() as u32)) >> 8) as i64);
         // r_m·W/(1 ∓ μ_s tan λ) once (Q8·Q32 = Q40 → Q16): T_r = μ_s·|that|, thread torque
         // r_m·W·ξ = that·num.
         let wk = sat32((i64::from(w.bits()) * i64::from(k)) >> 24);
-        let friction = sat32((i64::from(wk).abs() * i64::from(mu_s.bits())) >> 28);
+        // wk has W's sign (k > 0), or is 0.
+        let friction = sat32((i64::from(wk) * i64::from(mu_w)) >> 28);
         let thread = sat32((i64::from(wk) * i64::from(num)) >> 28);
         ContactCore {
             inv_q16,
@@ -286,11 +273,11 @@ impl ScrewModel {
         dir: i8,
         contact: &Contact,
     ) -> NewtonMetres {
-        let inertia = NewtonMetres::from_raw(self.inertia.apply32(theta_ddot.bits()));
-        let damping = NewtonMetres::from_raw(self.damping.apply32(theta_dot.bits()));
+        let inertia = NewtonMetres::from_raw(self.inertia().apply32(theta_ddot.bits()));
+        let damping = NewtonMetres::from_raw(self.damping().apply32(theta_dot.bits()));
         let support = match dir {
-            d if d > 0 => self.support_torque,
-            d if d < 0 => self.support_torque.sat_neg(),
+            d if d > 0 => self.mech.support_torque,
+            d if d < 0 => self.mech.support_torque.sat_neg(),
             _ => NewtonMetres::ZERO,
         };
         inertia
@@ -299,19 +286,31 @@ impl ScrewModel {
             .sat_add(contact.thread_torque)
     }
 
-    /// m·r_m·tan λ as a scale: θ̈ (Q8) → N (Q8).
+    /// r_m·tan λ (Q24·Q28 bits, value·2^52).
+    fn r_tan(&self) -> i128 {
+        crate::math::mul128(i128::from(self.r_m.bits()), i128::from(self.tan_l.bits()))
+    }
+
+    /// Nut travel per screw radian r_m·tan λ as a scale: θ̇ (Q16) → ẋ (Q24) (r_m tan λ =
+    /// r·t/2^52, so the scale is r·t·2^24/(2^52·2^16)).
+    pub fn lead(&self) -> Scale {
+        Scale::from_ratio(self.r_tan(), 1i128 << 44)
+    }
+
+    /// m·r_m·tan λ as a scale: θ̈ (Q8) → N (Q8) (m in Q12: m·r·t/2^64).
     pub fn mass_lead(&self) -> Scale {
-        self.mass_lead
+        let m = i128::from(self.mech.nut_mass.bits());
+        Scale::from_ratio(crate::math::mul128(m, self.r_tan()), 1i128 << 64)
     }
 
-    /// I as a scale: θ̈ (Q8) → N·m (Q16).
+    /// I as a scale: θ̈ (Q8) → N·m (Q16) (I in µkg·m²: I·10⁻⁶·2^16/2^8).
     pub fn inertia(&self) -> Scale {
-        self.inertia
+        Scale::from_ratio(i128::from(self.mech.inertia_ukgm2) << 8, 1_000_000)
     }
 
-    /// c as a scale: θ̇ (Q16) → N·m (Q16).
+    /// c as a scale: θ̇ (Q16) → N·m (Q16) (c·10⁻⁶).
     pub fn damping(&self) -> Scale {
-        self.damping
+        Scale::from_ratio(i128::from(self.mech.damping_unms), 1_000_000)
     }
 
     /// Self-locking margin μ − tan λ: the screw holds its load at rest while it is positive.

@@ -74,8 +74,6 @@ impl core::fmt::Display for ConfigError {
     }
 }
 
-/// `Ok` if `lo ≤ v ≤ hi`, else [`ConfigError::OutOfRange`] naming `field` and `range`: the one
-/// range check every configuration type validates with.
 /// One row of a range table ([`check_bounds`]): `lo ≤ v ≤ hi` on a quantity's raw bits
 /// (`to_bits`, or the integer itself), else [`ConfigError::OutOfRange`] naming the setting at
 /// position `setting` of [`config::settings::SETTINGS`] with its range text (the registry's
@@ -108,6 +106,7 @@ pub(crate) fn check_bounds<const N: usize>(
     check_bounds_slice(&values, bounds)
 }
 
+/// [`check_bounds`]' one copy for every table length.
 #[inline(never)]
 fn check_bounds_slice(values: &[i32], bounds: &'static [Bound]) -> Result<(), ConfigError> {
     for (&v, b) in values.iter().zip(bounds) {
@@ -124,6 +123,8 @@ fn check_bounds_slice(values: &[i32], bounds: &'static [Bound]) -> Result<(), Co
     Ok(())
 }
 
+/// `Ok` if `lo ≤ v ≤ hi`, else [`ConfigError::OutOfRange`] naming `field` and `range`: a single
+/// range check (a run of them on one configuration type is smaller as a [`check_bounds`] table).
 pub(crate) fn check_range<T: PartialOrd>(
     v: T,
     lo: T,

@@ -74,8 +74,57 @@ impl core::fmt::Display for ConfigError {
     }
 }
 
-/// `Ok` if `lo ≤ v ≤ hi`, else [`ConfigError::OutOfRange`] naming `field` and `range`: the one
-/// range check every configuration type validates with.
+/// One row of a range table ([`check_bounds`]): `lo ≤ v ≤ hi` on a quantity's raw bits
+/// (`to_bits`, or the integer itself), else [`ConfigError::OutOfRange`] naming the setting at
+/// position `setting` of [`config::settings::SETTINGS`] with its range text (the registry's
+/// range is the text of the check: one copy of both strings, and 12 bytes a row).
+pub(crate) struct Bound {
+    pub lo: i32,
+    pub hi: i32,
+    pub setting: u8,
+}
+
+impl Bound {
+    /// The row of the setting with this key ([`config::settings::key_index`]: a compile-time
+    /// error if there is none).
+    pub const fn new(lo: i32, hi: i32, key: &str) -> Bound {
+        Bound {
+            lo,
+            hi,
+            setting: config::settings::key_index(key),
+        }
+    }
+}
+
+/// [`check_range`] over a table, in order: the first value outside its row's bounds is the
+/// error. One out-of-line loop over constant rows instead of one inlined check (with its own
+/// error path and string loads) per setting.
+pub(crate) fn check_bounds<const N: usize>(
+    values: [i32; N],
+    bounds: &'static [Bound; N],
+) -> Result<(), ConfigError> {
+    check_bounds_slice(&values, bounds)
+}
+
+/// [`check_bounds`]' one copy for every table length.
+#[inline(never)]
+fn check_bounds_slice(values: &[i32], bounds: &'static [Bound]) -> Result<(), ConfigError> {
+    for (&v, b) in values.iter().zip(bounds) {
+        if v < b.lo || v > b.hi {
+            // Rows are made by `Bound::new`, so the index is in bounds; `get` keeps it total.
+            let all = &config::settings::SETTINGS;
+            let s = all.get(usize::from(b.setting)).unwrap_or(&all[0]);
+            return Err(ConfigError::OutOfRange {
+                field: s.key,
+                range: s.range,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// `Ok` if `lo ≤ v ≤ hi`, else [`ConfigError::OutOfRange`] naming `field` and `range`: a single
+/// range check (a run of them on one configuration type is smaller as a [`check_bounds`] table).
 pub(crate) fn check_range<T: PartialOrd>(
     v: T,
     lo: T,

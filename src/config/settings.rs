@@ -580,6 +580,9 @@ macro_rules! registry {
             },
         )*];
 
+        /// The keys of [`SETTINGS`]' own entries, for [`key_index`] at compile time (no flash).
+        const KEYS: [&str; BALL_FIRST] = [$($key),*];
+
         /// Number of [`SETTINGS`].
         const SETTINGS_LEN: usize = BALL_FIRST + if cfg!(feature = "ball-screw") {
             BALL_KEYS.len()
@@ -639,6 +642,27 @@ macro_rules! registry {
             }
         }
     };
+}
+
+/// The position in [`SETTINGS`] of the setting with this key (exact spelling); a compile-time
+/// error in a `const` if there is none. For the range tables ([`crate::Bound`]) that name a
+/// setting instead of carrying its key and range text.
+pub(crate) const fn key_index(key: &str) -> u8 {
+    let mut i = 0;
+    while i < KEYS.len() {
+        let (a, b) = (KEYS[i].as_bytes(), key.as_bytes());
+        if a.len() == b.len() {
+            let mut j = 0;
+            while j < a.len() && a[j] == b[j] {
+                j += 1;
+            }
+            if j == a.len() {
+                return i as u8;
+            }
+        }
+        i += 1;
+    }
+    panic!("no setting has this key")
 }
 
 /// Whether the setting at `index` of [`SETTINGS`] is stored in the flash record

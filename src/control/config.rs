@@ -12,7 +12,7 @@ use crate::model::ballscrew::BallScrewConfig;
 use crate::model::geometry::Geometry;
 #[cfg_attr(not(feature = "ball-screw"), allow(unused_imports))]
 use crate::units::{Amperes, Kilograms, Metres, Newtons, RadiansPerSecond, Ratio, Volts};
-use crate::ConfigError;
+use crate::{check_bounds, Bound, ConfigError};
 
 pub use super::lube::LubeConfig;
 
@@ -335,36 +335,89 @@ impl ControlConfig {
         &self,
         geometry: &Geometry,
     ) -> Result<(i32, i32, i32), ConfigError> {
-        range(
-            self.rated_load,
-            const { Kilograms::lit("10") },
-            const { Kilograms::lit("5000") },
-            "load.rated",
-            "10..5000 kg",
-        )?;
+        // Raw bits against constant rows (`check_bounds`), in the order the checks report:
+        // a `u32` above `i32::MAX` wraps negative and is refused like any value below `lo`
+        // (every `lo` here is ≥ 0).
+        static LOAD_MOTION_CURRENT: [Bound; 5] = [
+            Bound::new(
+                Kilograms::lit("10").to_bits(),
+                Kilograms::lit("5000").to_bits(),
+                "load.rated",
+            ),
+            Bound::new(
+                RadiansPerSecond::lit("0.2").to_bits(),
+                RadiansPerSecond::lit("20").to_bits(),
+                "motion.cruise_speed",
+            ),
+            Bound::new(10, 2000, "motion.ramp_ms"),
+            Bound::new(
+                Amperes::lit("1").to_bits(),
+                Amperes::lit("60").to_bits(),
+                "protect.overcurrent",
+            ),
+            Bound::new(
+                Amperes::lit("1").to_bits(),
+                Amperes::lit("60").to_bits(),
+                "protect.current_limit",
+            ),
+        ];
+        static STALL_SUPPLY: [Bound; 6] = [
+            Bound::new(
+                Ratio::lit("0.05").to_bits(),
+                Ratio::ONE.to_bits(),
+                "protect.stall_duty",
+            ),
+            Bound::new(20, 5000, "protect.stall_ms"),
+            Bound::new(
+                RadiansPerSecond::lit("10").to_bits(),
+                RadiansPerSecond::lit("5000").to_bits(),
+                "protect.max_motor_speed",
+            ),
+            Bound::new(
+                Volts::lit("8").to_bits(),
+                Volts::lit("16").to_bits(),
+                "protect.supply_start_min",
+            ),
+            Bound::new(
+                Volts::lit("6").to_bits(),
+                Volts::lit("16").to_bits(),
+                "protect.supply_run_min",
+            ),
+            Bound::new(
+                Volts::lit("12").to_bits(),
+                Volts::lit("20").to_bits(),
+                "protect.supply_max",
+            ),
+        ];
+        static OVERLOAD_SENSE: [Bound; 7] = [
+            Bound::new(1, 1000, "protect.supply_ms"),
+            Bound::new(
+                Ratio::lit("0.05").to_bits(),
+                Ratio::lit("2").to_bits(),
+                "protect.overload_margin",
+            ),
+            Bound::new(10, 5000, "protect.overload_ms"),
+            Bound::new(
+                Metres::lit("0.00001").to_bits(),
+                Metres::lit("0.01").to_bits(),
+                "protect.runaway_travel",
+            ),
+            Bound::new(0, 4095, "sense.current_zero"),
+            Bound::new(1, 1_000_000, "sense.current_ua_per_code"),
+            Bound::new(1, 100_000, "sense.supply_uv_per_code"),
+        ];
         let m = &self.motion;
-        range(
-            m.cruise_speed,
-            const { RadiansPerSecond::lit("0.2") },
-            const { RadiansPerSecond::lit("20") },
-            "motion.cruise_speed",
-            "0.2..20 rad/s",
-        )?;
-        range(m.ramp_ms, 10, 2000, "motion.ramp_ms", "10..2000 ms")?;
         let p = &self.protection;
-        range(
-            p.overcurrent,
-            const { Amperes::lit("1") },
-            const { Amperes::lit("60") },
-            "protect.overcurrent",
-            "1..60 A",
-        )?;
-        range(
-            p.current_limit,
-            const { Amperes::lit("1") },
-            const { Amperes::lit("60") },
-            "protect.current_limit",
-            "1..60 A",
+        let s = &self.sensing;
+        check_bounds(
+            [
+                self.rated_load.to_bits(),
+                m.cruise_speed.to_bits(),
+                m.ramp_ms as i32,
+                p.overcurrent.to_bits(),
+                p.current_limit.to_bits(),
+            ],
+            &LOAD_MOTION_CURRENT,
         )?;
         if p.current_limit > p.overcurrent {
             return Err(ConfigError::Conflict {
@@ -372,41 +425,16 @@ impl ControlConfig {
                 reason: "must not exceed protect.overcurrent",
             });
         }
-        range(
-            p.stall_duty,
-            const { Ratio::lit("0.05") },
-            Ratio::ONE,
-            "protect.stall_duty",
-            "0.05..1",
-        )?;
-        range(p.stall_ms, 20, 5000, "protect.stall_ms", "20..5000 ms")?;
-        range(
-            p.max_motor_speed,
-            const { RadiansPerSecond::lit("10") },
-            const { RadiansPerSecond::lit("5000") },
-            "protect.max_motor_speed",
-            "10..5000 rad/s",
-        )?;
-        range(
-            p.supply_start_min,
-            const { Volts::lit("8") },
-            const { Volts::lit("16") },
-            "protect.supply_start_min",
-            "8..16 V",
-        )?;
-        range(
-            p.supply_run_min,
-            const { Volts::lit("6") },
-            const { Volts::lit("16") },
-            "protect.supply_run_min",
-            "6..16 V",
-        )?;
-        range(
-            p.supply_max,
-            const { Volts::lit("12") },
-            const { Volts::lit("20") },
-            "protect.supply_max",
-            "12..20 V",
+        check_bounds(
+            [
+                p.stall_duty.to_bits(),
+                p.stall_ms as i32,
+                p.max_motor_speed.to_bits(),
+                p.supply_start_min.to_bits(),
+                p.supply_run_min.to_bits(),
+                p.supply_max.to_bits(),
+            ],
+            &STALL_SUPPLY,
         )?;
         if p.supply_run_min > p.supply_start_min {
             return Err(ConfigError::Conflict {
@@ -420,49 +448,17 @@ impl ControlConfig {
                 reason: "must be below protect.supply_max",
             });
         }
-        range(p.supply_ms, 1, 1000, "protect.supply_ms", "1..1000 ms")?;
-        range(
-            p.overload_margin,
-            const { Ratio::lit("0.05") },
-            const { Ratio::lit("2") },
-            "protect.overload_margin",
-            "0.05..2",
-        )?;
-        range(
-            p.overload_ms,
-            10,
-            5000,
-            "protect.overload_ms",
-            "10..5000 ms",
-        )?;
-        range(
-            p.runaway_travel,
-            const { Metres::lit("0.00001") },
-            const { Metres::lit("0.01") },
-            "protect.runaway_travel",
-            "0.01..10 mm",
-        )?;
-        let s = &self.sensing;
-        range(
-            s.current_zero_code,
-            0,
-            4095,
-            "sense.current_zero",
-            "0..4095 codes",
-        )?;
-        range(
-            s.current_ua_per_code,
-            1,
-            1_000_000,
-            "sense.current_ua_per_code",
-            "1..1000000 uA",
-        )?;
-        range(
-            s.supply_uv_per_code,
-            1,
-            100_000,
-            "sense.supply_uv_per_code",
-            "1..100000 uV",
+        check_bounds(
+            [
+                p.supply_ms as i32,
+                p.overload_margin.to_bits(),
+                p.overload_ms as i32,
+                p.runaway_travel.to_bits(),
+                i32::from(s.current_zero_code),
+                s.current_ua_per_code as i32,
+                s.supply_uv_per_code as i32,
+            ],
+            &OVERLOAD_SENSE,
         )?;
         self.stick_slip.validate()?;
         #[cfg(feature = "ball-screw")]
@@ -516,6 +512,110 @@ mod tests {
                 ..
             })
         ));
+    }
+
+    /// Each range row names its setting with the text the inline checks reported before the
+    /// table (the registry's range text): one value at a time just outside its range.
+    #[test]
+    fn every_range_row_reports_its_key_and_range_text() {
+        type Edit = fn(&mut ControlConfig);
+        let cases: [(Edit, &str, &str); 18] = [
+            (
+                |c| c.rated_load = Kilograms::lit("5001"),
+                "load.rated",
+                "10..5000 kg",
+            ),
+            (
+                |c| c.motion.cruise_speed = RadiansPerSecond::lit("0.1"),
+                "motion.cruise_speed",
+                "0.2..20 rad/s",
+            ),
+            (|c| c.motion.ramp_ms = 2001, "motion.ramp_ms", "10..2000 ms"),
+            (
+                |c| c.protection.overcurrent = Amperes::lit("61"),
+                "protect.overcurrent",
+                "1..60 A",
+            ),
+            (
+                |c| c.protection.current_limit = Amperes::lit("0.5"),
+                "protect.current_limit",
+                "1..60 A",
+            ),
+            (
+                |c| c.protection.stall_duty = Ratio::lit("0.04"),
+                "protect.stall_duty",
+                "0.05..1",
+            ),
+            (
+                |c| c.protection.stall_ms = 19,
+                "protect.stall_ms",
+                "20..5000 ms",
+            ),
+            (
+                |c| c.protection.max_motor_speed = RadiansPerSecond::lit("5001"),
+                "protect.max_motor_speed",
+                "10..5000 rad/s",
+            ),
+            (
+                |c| c.protection.supply_start_min = Volts::lit("17"),
+                "protect.supply_start_min",
+                "8..16 V",
+            ),
+            (
+                |c| c.protection.supply_run_min = Volts::lit("5"),
+                "protect.supply_run_min",
+                "6..16 V",
+            ),
+            (
+                |c| c.protection.supply_max = Volts::lit("21"),
+                "protect.supply_max",
+                "12..20 V",
+            ),
+            (
+                |c| c.protection.supply_ms = 0,
+                "protect.supply_ms",
+                "1..1000 ms",
+            ),
+            (
+                |c| c.protection.overload_margin = Ratio::lit("2.01"),
+                "protect.overload_margin",
+                "0.05..2",
+            ),
+            (
+                |c| c.protection.overload_ms = u32::MAX,
+                "protect.overload_ms",
+                "10..5000 ms",
+            ),
+            (
+                |c| c.protection.runaway_travel = Metres::lit("0.011"),
+                "protect.runaway_travel",
+                "0.01..10 mm",
+            ),
+            (
+                |c| c.sensing.current_zero_code = 4096,
+                "sense.current_zero",
+                "0..4095 codes",
+            ),
+            (
+                |c| c.sensing.current_ua_per_code = 0,
+                "sense.current_ua_per_code",
+                "1..1000000 uA",
+            ),
+            (
+                |c| c.sensing.supply_uv_per_code = 100_001,
+                "sense.supply_uv_per_code",
+                "1..100000 uV",
+            ),
+        ];
+        for (edit, field, range) in cases {
+            let mut c = ControlConfig::DEFAULT;
+            edit(&mut c);
+            assert_eq!(
+                c.validate(&geometry()),
+                Err(ConfigError::OutOfRange { field, range }),
+                "{field}"
+            );
+        }
     }
 
     #[test]

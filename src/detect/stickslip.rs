@@ -36,10 +36,10 @@
 //! Everything is integer: Q16 N·m, tick counters; no division on the hot path. The float64
 //! twins and the property tests that hold this to them are in this module's tests.
 
-use crate::check_range as range;
 use crate::model::friction::CompiledLaw;
 use crate::units::{NewtonMetres, RadiansPerSecond, Ratio, Q};
 use crate::ConfigError;
+use crate::{check_bounds, Bound};
 
 /// What the controller does when an episode starts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -94,28 +94,29 @@ impl StickSlipConfig {
         escape_speed: RadiansPerSecond::lit("1.5"),
     };
 
-    /// Check the ranges.
+    /// Check the ranges (one constant table, [`crate::check_bounds`]).
     pub fn validate(&self) -> Result<(), ConfigError> {
-        range(
-            self.drop_threshold,
-            const { NewtonMetres::lit("0.2") },
-            const { NewtonMetres::lit("50") },
-            "stickslip.drop",
-            "0.2..50 Nm",
-        )?;
-        range(
-            self.window_ms,
-            100,
-            10_000,
-            "stickslip.window_ms",
-            "100..10000 ms",
-        )?;
-        range(
-            self.escape_speed,
-            const { RadiansPerSecond::lit("0.2") },
-            const { RadiansPerSecond::lit("20") },
-            "stickslip.escape_speed",
-            "0.2..20 rad/s",
+        static BOUNDS: [Bound; 3] = [
+            Bound::new(
+                NewtonMetres::lit("0.2").to_bits(),
+                NewtonMetres::lit("50").to_bits(),
+                "stickslip.drop",
+            ),
+            // A `u32` above `i32::MAX` wraps negative: refused like any value below 100.
+            Bound::new(100, 10_000, "stickslip.window_ms"),
+            Bound::new(
+                RadiansPerSecond::lit("0.2").to_bits(),
+                RadiansPerSecond::lit("20").to_bits(),
+                "stickslip.escape_speed",
+            ),
+        ];
+        check_bounds(
+            [
+                self.drop_threshold.to_bits(),
+                self.window_ms as i32,
+                self.escape_speed.to_bits(),
+            ],
+            &BOUNDS,
         )
     }
 }
@@ -960,6 +961,26 @@ mod tests {
             Err(ConfigError::OutOfRange {
                 field: "stickslip.window_ms",
                 range: "100..10000 ms"
+            })
+        );
+        c.window_ms = u32::MAX; // wraps negative in the table: still refused
+        assert!(c.validate().is_err());
+        let mut c = StickSlipConfig::DEFAULT;
+        c.drop_threshold = NewtonMetres::lit("50.1");
+        assert_eq!(
+            c.validate(),
+            Err(ConfigError::OutOfRange {
+                field: "stickslip.drop",
+                range: "0.2..50 Nm"
+            })
+        );
+        let mut c = StickSlipConfig::DEFAULT;
+        c.escape_speed = RadiansPerSecond::lit("0.1");
+        assert_eq!(
+            c.validate(),
+            Err(ConfigError::OutOfRange {
+                field: "stickslip.escape_speed",
+                range: "0.2..20 rad/s"
             })
         );
     }

@@ -127,6 +127,7 @@ async fn main(spawner: Spawner) {
     // Configuration and parked position, before the watchdog runs (a store repair may erase a
     // page: tens of ms). Any failure leaves the factory configuration and an unhomed lift.
     let boot = load_store(flash);
+    let greeting = log_source(&boot.source);
     let parked = trusted_position(&boot);
     let controller = install_controller(boot.config.get(), parked);
     #[cfg(not(feature = "ball-screw"))]
@@ -140,7 +141,7 @@ async fn main(spawner: Spawner) {
         controller.report_watchdog_reset(Instant(Clock::now().as_micros() as u32));
     }
     LIFT.lock(|c| c.replace(Some(controller)));
-    spawn_tasks(spawner, board, console, boot, parked);
+    spawn_tasks(spawner, board, console, greeting, boot, parked);
 }
 
 /// A HAL error for the defmt log. embassy-stm32 is built without its `defmt` feature: with
@@ -236,12 +237,29 @@ fn load_store(flash: Peri<'static, FLASH>) -> Boot {
             ecc
         );
     }
-    if boot.source.is_fallback() {
-        warn!("configuration: {}", boot.source);
-    } else {
-        info!("configuration: {}", boot.source);
-    }
     boot
+}
+
+/// Logs where the configuration came from, with the text the console greets with: the
+/// greeting's first lines (protocol version, the source's message) are written here into the
+/// console's reply buffer, and the log takes the message from there (`{=str}`) instead of a
+/// defmt encoding of [`Source`] (its derived format and those of the errors inside it: flash).
+/// Returns the buffer, for the console task to send.
+#[inline(never)]
+fn log_source(source: &Source) -> &'static mut Reply {
+    use core::fmt::Write as _;
+    let reply = CONSOLE_REPLY.take();
+    let _ = service::write_version(reply);
+    let _ = reply.write_str("\r\n");
+    let start = reply.0.len();
+    let _ = source.write_to(reply);
+    let message = reply.0.get(start..).unwrap_or_default();
+    if source.is_fallback() {
+        warn!("configuration: {=str}", message);
+    } else {
+        info!("configuration: {=str}", message);
+    }
+    reply
 }
 
 /// The parked position, if it can be trusted. A ball screw is not self-locking: with the
@@ -277,6 +295,7 @@ fn spawn_tasks(
     spawner: Spawner,
     board: &'static mut Board,
     console: ConsolePins,
+    greeting: &'static mut Reply,
     boot: Boot,
     parked: Option<i32>,
 ) {
@@ -293,8 +312,8 @@ fn spawn_tasks(
     spawner.spawn(token(control(board, park)));
     spawner.spawn(token(console_task(
         console,
+        greeting,
         boot.config,
-        boot.source,
         store_ok,
     )));
 }
@@ -536,8 +555,8 @@ impl Lift for SharedLift {
 #[embassy_executor::task]
 async fn console_task(
     pins: ConsolePins,
+    reply: &'static mut Reply,
     mut running: ValidatedConfig,
-    source: Source,
     store_ok: bool,
 ) {
     use core::fmt::Write as _;
@@ -560,12 +579,9 @@ async fn console_task(
             return;
         }
     };
-    let reply = CONSOLE_REPLY.take();
     let mut lift = SharedLift;
-    // Greeting: protocol version, where the configuration came from, whether to home.
-    let _ = service::write_version(reply);
-    let _ = reply.write_str("\r\n");
-    let _ = source.write_to(reply);
+    // Greeting: protocol version and where the configuration came from (already in `reply`,
+    // see `log_source`), whether to home.
     if !lift.status().homed {
         let _ = reply.write_str("\r\n");
         let _ = reply.write_str(Refusal::NotHomed.message());

@@ -23,7 +23,7 @@ use board::{Board, ConsolePins, CONSOLE_BAUD, STORE_RANGE};
 use core::cell::RefCell;
 use core::mem::MaybeUninit;
 use defmt::{error, info, warn};
-use embassy_executor::{SpawnError, SpawnToken, Spawner};
+use embassy_executor::{Executor, SpawnError, SpawnToken, Spawner};
 use embassy_futures::select::{select, Either};
 use embassy_stm32::flash::{Blocking, Flash};
 use embassy_stm32::peripherals::FLASH;
@@ -72,7 +72,7 @@ static LIFT: Mutex<CriticalSectionRawMutex, RefCell<Option<&'static mut Controll
     Mutex::new(RefCell::new(None));
 
 /// The console's UART ring buffers and reply, in statics rather than in the console task's
-/// future: spawning a task builds its future on the boot task's stack and copies it into the
+/// future: spawning a task builds its future on the boot stack and copies it into the
 /// task's storage, so 4.4 KiB of buffers in the future were 4.4 KiB more boot stack.
 static CONSOLE_TX: ConstStaticCell<[u8; 256]> = ConstStaticCell::new([0; 256]);
 static CONSOLE_RX: ConstStaticCell<[u8; 64]> = ConstStaticCell::new([0; 64]);
@@ -121,12 +121,25 @@ static STORE_REQUESTS: Channel<CriticalSectionRawMutex, StoreRequest, 2> = Chann
 static NOTICES: Channel<CriticalSectionRawMutex, Event, 4> = Channel::new();
 static SAVED: Signal<CriticalSectionRawMutex, Result<u32, StoreError>> = Signal::new();
 
-/// Boot, in steps that each keep their temporaries in their own frame: the boot task's poll
-/// holds only what the steps hand on (the store load is blocking, like the flash). Inlined into one poll, the HAL
-/// bring-up, the store, the controller and the spawned tasks' futures all had slots in one
-/// 9.5 KiB frame (scripts/fw-build prints the bound; BENCHMARKS.md "Stack").
-#[embassy_executor::main]
-async fn main(spawner: Spawner) {
+/// The thread-mode executor: [`boot`] runs before it polls anything and spawns the three tasks.
+static EXECUTOR: StaticCell<Executor> = StaticCell::new();
+
+/// Entry: boot, then run the tasks. Boot awaits nothing (the store is blocking, like the
+/// flash), so it runs as the executor's `init` rather than as a task of its own (what
+/// `#[embassy_executor::main]` makes of it: a task pool, a spawn and a poll; 88 B of flash and
+/// 40 B of RAM more).
+#[cortex_m_rt::entry]
+fn main() -> ! {
+    EXECUTOR.init(Executor::new()).run(boot)
+}
+
+/// Boot, in steps that each keep their temporaries in their own frame: `boot` holds only what
+/// the steps hand on. Inlined into one frame, the HAL bring-up, the store, the controller and
+/// the spawned tasks' futures all had slots in one 9.5 KiB frame (scripts/fw-build prints
+/// the bound; BENCHMARKS.md "Stack"). Out of line, so that the stack bound can tell boot
+/// (which runs once, before any task) from the executor's loop under every task.
+#[inline(never)]
+fn boot(spawner: Spawner) {
     let (board, console, flash, watchdog_reset) = bring_up();
     // Configuration and parked position, before the watchdog runs (a store repair may erase a
     // page: tens of ms). Any failure leaves the factory configuration and an unhomed lift.
@@ -210,7 +223,7 @@ struct Boot {
 }
 
 /// Opens the store and reads the configuration and the parked position (in a frame of its
-/// own: the boot task's holds only the result).
+/// own: `boot`'s holds only the result).
 #[inline(never)]
 fn load_store(flash: Peri<'static, FLASH>) -> Boot {
     let boot = match ConfigStore::new(Flash::new_blocking(flash), STORE_RANGE) {
@@ -289,7 +302,7 @@ fn trusted_position(boot: &Boot) -> Option<i32> {
 /// The board, for the control task. Passed on by reference: a `Board` task argument (with
 /// the drop glue of the HAL's drivers, which reset their peripherals when dropped) linked
 /// that whole destructor for the spawn's failure path (which cannot happen: see [`token`]),
-/// and by value it crossed the boot task's `await` in its future.
+/// and by value it was one more move through boot's frame.
 static BOARD: StaticCell<Board> = StaticCell::new();
 
 /// Spawns the tasks (each spawn builds the task's future on this frame and copies it into
@@ -337,8 +350,8 @@ fn token<S>(spawned: Result<SpawnToken<S>, SpawnError>) -> SpawnToken<S> {
 /// Builds the controller in [`CONTROLLER`] from the running configuration (the factory one if
 /// that is refused) at the parked position, or unhomed.
 ///
-/// Built by value in the boot task, every move of the 2 KiB controller (the constructor's
-/// `Result`, the fallback, the `StaticCell`) took its own slot in the boot task's frame. Here
+/// Built by value in `boot`, every move of the 2 KiB controller (the constructor's
+/// `Result`, the fallback, the `StaticCell`) took its own slot in boot's frame. Here
 /// [`construct`] gets the static's storage: the constructor returns into one temporary in that
 /// function's frame, copied once into the static. (LLVM cannot hand the static to the
 /// constructor as its return slot: that needs a destination it knows to be writable, which a

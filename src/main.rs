@@ -68,8 +68,12 @@ type StoreFlash = Flash<'static, Blocking>;
 static CONTROLLER: StaticCell<Result<Controller, ConfigError>> = StaticCell::new();
 
 /// The controller, shared by the control and console tasks.
-static LIFT: Mutex<CriticalSectionRawMutex, RefCell<Option<&'static mut Controller>>> =
-    Mutex::new(RefCell::new(None));
+type SharedController = Mutex<CriticalSectionRawMutex, RefCell<&'static mut Controller>>;
+
+/// Its storage: filled by boot before any task runs, so the tasks get the controller itself
+/// (an `Option` in a `static` made every access handle a "not installed yet" that cannot
+/// happen).
+static LIFT: StaticCell<SharedController> = StaticCell::new();
 
 /// The console's UART ring buffers and reply, in statics rather than in the console task's
 /// future: spawning a task builds its future on the boot stack and copies it into the
@@ -157,8 +161,8 @@ fn boot(spawner: Spawner) {
         error!("the last reset came from the watchdog: fault latched");
         controller.report_watchdog_reset(Instant(Clock::now().as_micros() as u32));
     }
-    LIFT.lock(|c| c.replace(Some(controller)));
-    spawn_tasks(spawner, board, console, greeting, boot, parked);
+    let lift = LIFT.init(Mutex::new(RefCell::new(controller)));
+    spawn_tasks(spawner, board, lift, console, greeting, boot, parked);
 }
 
 /// A HAL error for the defmt log. embassy-stm32 is built without its `defmt` feature: with
@@ -311,6 +315,7 @@ static BOARD: StaticCell<Board> = StaticCell::new();
 fn spawn_tasks(
     spawner: Spawner,
     board: &'static mut Board,
+    lift: &'static SharedController,
     console: ConsolePins,
     greeting: &'static mut Reply,
     boot: Boot,
@@ -326,9 +331,10 @@ fn spawn_tasks(
         spawner.spawn(token(storage(store)));
     }
     let park = ParkLog::new(parked.map(Parked::At));
-    spawner.spawn(token(control(board, park)));
+    spawner.spawn(token(control(board, lift, park)));
     spawner.spawn(token(console_task(
         console,
+        lift,
         greeting,
         boot.config,
         store_ok,
@@ -386,7 +392,7 @@ fn construct<'a>(
 /// `Ticker` keeps its schedule and runs the missed ticks back to back; each one passes the
 /// real `now`, so the core sees the short intervals as they are.
 #[embassy_executor::task]
-async fn control(board: &'static mut Board, mut park: ParkLog) {
+async fn control(board: &'static mut Board, lift: &'static SharedController, mut park: ParkLog) {
     let mut ticker = Ticker::every(Duration::from_hz(CONTROL_HZ));
     let mut last_bridge = Bridge::Coast;
     let mut ticks: u32 = 0;
@@ -398,23 +404,15 @@ async fn control(board: &'static mut Board, mut park: ParkLog) {
         // Truncation to u32 is the core's wrapping µs clock (71.6 min period).
         let now = Instant(Clock::now().as_micros() as u32);
         let inputs = board.sensors.sample();
-        let stepped = LIFT.lock(|c| {
-            c.borrow_mut().as_mut().map(|ctl| {
-                let outputs = ctl.step(now, &inputs);
-                let status = ctl.status();
-                let record = park
-                    .step(&status)
-                    .map(|p| StoreRequest::Position(p, geometry_stamp(ctl.config())));
-                (outputs, status, record)
-            })
+        let (outputs, status, record) = lift.lock(|c| {
+            let mut ctl = c.borrow_mut();
+            let outputs = ctl.step(now, &inputs);
+            let status = ctl.status();
+            let record = park
+                .step(&status)
+                .map(|p| StoreRequest::Position(p, geometry_stamp(ctl.config())));
+            (outputs, status, record)
         });
-        let Some((outputs, status, record)) = stepped else {
-            // Unreachable by construction (main installs the controller first); coast and
-            // let the watchdog reset the board.
-            board.bridge.apply(Bridge::Coast);
-            board.brake.apply(false);
-            continue;
-        };
         board.bridge.apply(outputs.bridge);
         board.brake.apply(outputs.brake_release);
         if outputs.feed_watchdog {
@@ -535,36 +533,23 @@ fn write_notice(out: &mut dyn core::fmt::Write, e: &Event) -> core::fmt::Result 
 }
 
 /// The console's view of the shared controller: each call locks it briefly.
-struct SharedLift;
+struct SharedLift(&'static SharedController);
 
 impl Lift for SharedLift {
     fn command(&mut self, cmd: Command) -> Result<(), Refusal> {
-        LIFT.lock(|c| {
-            c.borrow_mut()
-                .as_mut()
-                .map_or(Err(Refusal::Faulted), |ctl| ctl.command(cmd))
-        })
+        self.0.lock(|c| c.borrow_mut().command(cmd))
     }
 
     fn status(&self) -> Status {
-        LIFT.lock(|c| {
-            c.borrow()
-                .as_ref()
-                .map(|ctl| ctl.status())
-                .unwrap_or_default()
-        })
+        self.0.lock(|c| c.borrow().status())
     }
 
     fn fault(&self) -> Option<Fault> {
-        LIFT.lock(|c| c.borrow().as_ref().and_then(|ctl| ctl.fault().copied()))
+        self.0.lock(|c| c.borrow().fault().copied())
     }
 
     fn reconfigure(&mut self, cfg: &ControlConfig) -> Result<(), Refusal> {
-        LIFT.lock(|c| {
-            c.borrow_mut()
-                .as_mut()
-                .map_or(Err(Refusal::Faulted), |ctl| ctl.reconfigure(cfg))
-        })
+        self.0.lock(|c| c.borrow_mut().reconfigure(cfg))
     }
 }
 
@@ -572,6 +557,7 @@ impl Lift for SharedLift {
 #[embassy_executor::task]
 async fn console_task(
     pins: ConsolePins,
+    lift: &'static SharedController,
     reply: &'static mut Reply,
     mut running: ValidatedConfig,
     store_ok: bool,
@@ -596,7 +582,7 @@ async fn console_task(
             return;
         }
     };
-    let mut lift = SharedLift;
+    let mut lift = SharedLift(lift);
     // Greeting: protocol version and where the configuration came from (already in `reply`,
     // see `log_source`), whether to home.
     if !lift.status().homed {

@@ -23,7 +23,7 @@ use board::{Board, ConsolePins, CONSOLE_BAUD, STORE_RANGE};
 use core::cell::RefCell;
 use core::mem::MaybeUninit;
 use defmt::{error, info, warn};
-use embassy_executor::{SpawnError, SpawnToken, Spawner};
+use embassy_executor::{Executor, SpawnError, SpawnToken, Spawner};
 use embassy_futures::select::{select, Either};
 use embassy_stm32::flash::{Blocking, Flash};
 use embassy_stm32::peripherals::FLASH;
@@ -68,11 +68,15 @@ type StoreFlash = Flash<'static, Blocking>;
 static CONTROLLER: StaticCell<Result<Controller, ConfigError>> = StaticCell::new();
 
 /// The controller, shared by the control and console tasks.
-static LIFT: Mutex<CriticalSectionRawMutex, RefCell<Option<&'static mut Controller>>> =
-    Mutex::new(RefCell::new(None));
+type SharedController = Mutex<CriticalSectionRawMutex, RefCell<&'static mut Controller>>;
+
+/// Its storage: filled by boot before any task runs, so the tasks get the controller itself
+/// (an `Option` in a `static` made every access handle a "not installed yet" that cannot
+/// happen).
+static LIFT: StaticCell<SharedController> = StaticCell::new();
 
 /// The console's UART ring buffers and reply, in statics rather than in the console task's
-/// future: spawning a task builds its future on the boot task's stack and copies it into the
+/// future: spawning a task builds its future on the boot stack and copies it into the
 /// task's storage, so 4.4 KiB of buffers in the future were 4.4 KiB more boot stack.
 static CONSOLE_TX: ConstStaticCell<[u8; 256]> = ConstStaticCell::new([0; 256]);
 static CONSOLE_RX: ConstStaticCell<[u8; 64]> = ConstStaticCell::new([0; 64]);
@@ -91,7 +95,11 @@ impl core::fmt::Write for Reply {
     }
 
     fn write_char(&mut self, c: char) -> core::fmt::Result {
-        self.write_str(c.encode_utf8(&mut [0; 4]))
+        // The core's replies write only ASCII characters one at a time (a sign, a point, a
+        // digit, a bracket): one byte through `from_utf8` (linked anyway) instead of UTF-8
+        // encoding (72 B less flash); any other character is refused as an overlong reply is.
+        let byte = [u8::try_from(c).map_err(|_| core::fmt::Error)?];
+        self.write_str(core::str::from_utf8(&byte).map_err(|_| core::fmt::Error)?)
     }
 
     fn write_fmt(&mut self, args: core::fmt::Arguments<'_>) -> core::fmt::Result {
@@ -117,16 +125,30 @@ static STORE_REQUESTS: Channel<CriticalSectionRawMutex, StoreRequest, 2> = Chann
 static NOTICES: Channel<CriticalSectionRawMutex, Event, 4> = Channel::new();
 static SAVED: Signal<CriticalSectionRawMutex, Result<u32, StoreError>> = Signal::new();
 
-/// Boot, in steps that each keep their temporaries in their own frame: the boot task's poll
-/// holds only what the steps hand on (the store load is blocking, like the flash). Inlined into one poll, the HAL
-/// bring-up, the store, the controller and the spawned tasks' futures all had slots in one
-/// 9.5 KiB frame (scripts/fw-build prints the bound; BENCHMARKS.md "Stack").
-#[embassy_executor::main]
-async fn main(spawner: Spawner) {
+/// The thread-mode executor: [`boot`] runs before it polls anything and spawns the three tasks.
+static EXECUTOR: StaticCell<Executor> = StaticCell::new();
+
+/// Entry: boot, then run the tasks. Boot awaits nothing (the store is blocking, like the
+/// flash), so it runs as the executor's `init` rather than as a task of its own (what
+/// `#[embassy_executor::main]` makes of it: a task pool, a spawn and a poll; 88 B of flash and
+/// 40 B of RAM more).
+#[cortex_m_rt::entry]
+fn main() -> ! {
+    EXECUTOR.init(Executor::new()).run(boot)
+}
+
+/// Boot, in steps that each keep their temporaries in their own frame: `boot` holds only what
+/// the steps hand on. Inlined into one frame, the HAL bring-up, the store, the controller and
+/// the spawned tasks' futures all had slots in one 9.5 KiB frame (scripts/fw-build prints
+/// the bound; BENCHMARKS.md "Stack"). Out of line, so that the stack bound can tell boot
+/// (which runs once, before any task) from the executor's loop under every task.
+#[inline(never)]
+fn boot(spawner: Spawner) {
     let (board, console, flash, watchdog_reset) = bring_up();
     // Configuration and parked position, before the watchdog runs (a store repair may erase a
     // page: tens of ms). Any failure leaves the factory configuration and an unhomed lift.
     let boot = load_store(flash);
+    let greeting = log_source(&boot.source);
     let parked = trusted_position(&boot);
     let controller = install_controller(boot.config.get(), parked);
     #[cfg(not(feature = "ball-screw"))]
@@ -139,8 +161,8 @@ async fn main(spawner: Spawner) {
         error!("the last reset came from the watchdog: fault latched");
         controller.report_watchdog_reset(Instant(Clock::now().as_micros() as u32));
     }
-    LIFT.lock(|c| c.replace(Some(controller)));
-    spawn_tasks(spawner, board, console, boot, parked);
+    let lift = LIFT.init(Mutex::new(RefCell::new(controller)));
+    spawn_tasks(spawner, board, lift, console, greeting, boot, parked);
 }
 
 /// A HAL error for the defmt log. embassy-stm32 is built without its `defmt` feature: with
@@ -205,7 +227,7 @@ struct Boot {
 }
 
 /// Opens the store and reads the configuration and the parked position (in a frame of its
-/// own: the boot task's holds only the result).
+/// own: `boot`'s holds only the result).
 #[inline(never)]
 fn load_store(flash: Peri<'static, FLASH>) -> Boot {
     let boot = match ConfigStore::new(Flash::new_blocking(flash), STORE_RANGE) {
@@ -236,12 +258,29 @@ fn load_store(flash: Peri<'static, FLASH>) -> Boot {
             ecc
         );
     }
-    if boot.source.is_fallback() {
-        warn!("configuration: {}", boot.source);
-    } else {
-        info!("configuration: {}", boot.source);
-    }
     boot
+}
+
+/// Logs where the configuration came from, with the text the console greets with: the
+/// greeting's first lines (protocol version, the source's message) are written here into the
+/// console's reply buffer, and the log takes the message from there (`{=str}`) instead of a
+/// defmt encoding of [`Source`] (its derived format and those of the errors inside it: flash).
+/// Returns the buffer, for the console task to send.
+#[inline(never)]
+fn log_source(source: &Source) -> &'static mut Reply {
+    use core::fmt::Write as _;
+    let reply = CONSOLE_REPLY.take();
+    let _ = service::write_version(reply);
+    let _ = reply.write_str("\r\n");
+    let start = reply.0.len();
+    let _ = source.write_to(reply);
+    let message = reply.0.get(start..).unwrap_or_default();
+    if source.is_fallback() {
+        warn!("configuration: {=str}", message);
+    } else {
+        info!("configuration: {=str}", message);
+    }
+    reply
 }
 
 /// The parked position, if it can be trusted. A ball screw is not self-locking: with the
@@ -267,7 +306,7 @@ fn trusted_position(boot: &Boot) -> Option<i32> {
 /// The board, for the control task. Passed on by reference: a `Board` task argument (with
 /// the drop glue of the HAL's drivers, which reset their peripherals when dropped) linked
 /// that whole destructor for the spawn's failure path (which cannot happen: see [`token`]),
-/// and by value it crossed the boot task's `await` in its future.
+/// and by value it was one more move through boot's frame.
 static BOARD: StaticCell<Board> = StaticCell::new();
 
 /// Spawns the tasks (each spawn builds the task's future on this frame and copies it into
@@ -276,7 +315,9 @@ static BOARD: StaticCell<Board> = StaticCell::new();
 fn spawn_tasks(
     spawner: Spawner,
     board: &'static mut Board,
+    lift: &'static SharedController,
     console: ConsolePins,
+    greeting: &'static mut Reply,
     boot: Boot,
     parked: Option<i32>,
 ) {
@@ -290,11 +331,12 @@ fn spawn_tasks(
         spawner.spawn(token(storage(store)));
     }
     let park = ParkLog::new(parked.map(Parked::At));
-    spawner.spawn(token(control(board, park)));
+    spawner.spawn(token(control(board, lift, park)));
     spawner.spawn(token(console_task(
         console,
+        lift,
+        greeting,
         boot.config,
-        boot.source,
         store_ok,
     )));
 }
@@ -314,8 +356,8 @@ fn token<S>(spawned: Result<SpawnToken<S>, SpawnError>) -> SpawnToken<S> {
 /// Builds the controller in [`CONTROLLER`] from the running configuration (the factory one if
 /// that is refused) at the parked position, or unhomed.
 ///
-/// Built by value in the boot task, every move of the 2 KiB controller (the constructor's
-/// `Result`, the fallback, the `StaticCell`) took its own slot in the boot task's frame. Here
+/// Built by value in `boot`, every move of the 2 KiB controller (the constructor's
+/// `Result`, the fallback, the `StaticCell`) took its own slot in boot's frame. Here
 /// [`construct`] gets the static's storage: the constructor returns into one temporary in that
 /// function's frame, copied once into the static. (LLVM cannot hand the static to the
 /// constructor as its return slot: that needs a destination it knows to be writable, which a
@@ -350,7 +392,7 @@ fn construct<'a>(
 /// `Ticker` keeps its schedule and runs the missed ticks back to back; each one passes the
 /// real `now`, so the core sees the short intervals as they are.
 #[embassy_executor::task]
-async fn control(board: &'static mut Board, mut park: ParkLog) {
+async fn control(board: &'static mut Board, lift: &'static SharedController, mut park: ParkLog) {
     let mut ticker = Ticker::every(Duration::from_hz(CONTROL_HZ));
     let mut last_bridge = Bridge::Coast;
     let mut ticks: u32 = 0;
@@ -362,23 +404,15 @@ async fn control(board: &'static mut Board, mut park: ParkLog) {
         // Truncation to u32 is the core's wrapping µs clock (71.6 min period).
         let now = Instant(Clock::now().as_micros() as u32);
         let inputs = board.sensors.sample();
-        let stepped = LIFT.lock(|c| {
-            c.borrow_mut().as_mut().map(|ctl| {
-                let outputs = ctl.step(now, &inputs);
-                let status = ctl.status();
-                let record = park
-                    .step(&status)
-                    .map(|p| StoreRequest::Position(p, geometry_stamp(ctl.config())));
-                (outputs, status, record)
-            })
+        let (outputs, status, record) = lift.lock(|c| {
+            let mut ctl = c.borrow_mut();
+            let outputs = ctl.step(now, &inputs);
+            let status = ctl.status();
+            let record = park
+                .step(&status)
+                .map(|p| StoreRequest::Position(p, geometry_stamp(ctl.config())));
+            (outputs, status, record)
         });
-        let Some((outputs, status, record)) = stepped else {
-            // Unreachable by construction (main installs the controller first); coast and
-            // let the watchdog reset the board.
-            board.bridge.apply(Bridge::Coast);
-            board.brake.apply(false);
-            continue;
-        };
         board.bridge.apply(outputs.bridge);
         board.brake.apply(outputs.brake_release);
         if outputs.feed_watchdog {
@@ -499,36 +533,23 @@ fn write_notice(out: &mut dyn core::fmt::Write, e: &Event) -> core::fmt::Result 
 }
 
 /// The console's view of the shared controller: each call locks it briefly.
-struct SharedLift;
+struct SharedLift(&'static SharedController);
 
 impl Lift for SharedLift {
     fn command(&mut self, cmd: Command) -> Result<(), Refusal> {
-        LIFT.lock(|c| {
-            c.borrow_mut()
-                .as_mut()
-                .map_or(Err(Refusal::Faulted), |ctl| ctl.command(cmd))
-        })
+        self.0.lock(|c| c.borrow_mut().command(cmd))
     }
 
     fn status(&self) -> Status {
-        LIFT.lock(|c| {
-            c.borrow()
-                .as_ref()
-                .map(|ctl| ctl.status())
-                .unwrap_or_default()
-        })
+        self.0.lock(|c| c.borrow().status())
     }
 
     fn fault(&self) -> Option<Fault> {
-        LIFT.lock(|c| c.borrow().as_ref().and_then(|ctl| ctl.fault().copied()))
+        self.0.lock(|c| c.borrow().fault().copied())
     }
 
     fn reconfigure(&mut self, cfg: &ControlConfig) -> Result<(), Refusal> {
-        LIFT.lock(|c| {
-            c.borrow_mut()
-                .as_mut()
-                .map_or(Err(Refusal::Faulted), |ctl| ctl.reconfigure(cfg))
-        })
+        self.0.lock(|c| c.borrow_mut().reconfigure(cfg))
     }
 }
 
@@ -536,8 +557,9 @@ impl Lift for SharedLift {
 #[embassy_executor::task]
 async fn console_task(
     pins: ConsolePins,
+    lift: &'static SharedController,
+    reply: &'static mut Reply,
     mut running: ValidatedConfig,
-    source: Source,
     store_ok: bool,
 ) {
     use core::fmt::Write as _;
@@ -560,12 +582,9 @@ async fn console_task(
             return;
         }
     };
-    let reply = CONSOLE_REPLY.take();
-    let mut lift = SharedLift;
-    // Greeting: protocol version, where the configuration came from, whether to home.
-    let _ = service::write_version(reply);
-    let _ = reply.write_str("\r\n");
-    let _ = source.write_to(reply);
+    let mut lift = SharedLift(lift);
+    // Greeting: protocol version and where the configuration came from (already in `reply`,
+    // see `log_source`), whether to home.
     if !lift.status().homed {
         let _ = reply.write_str("\r\n");
         let _ = reply.write_str(Refusal::NotHomed.message());

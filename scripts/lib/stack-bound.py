@@ -3,6 +3,7 @@
 
     stack-bound.py OBJDUMP ELF ROOT_SUBSTRING [ROOT_SUBSTRING...]
     stack-bound.py OBJDUMP ELF --entry MAIN --task POLL [--task POLL ...] [--isr HANDLER ...]
+                   [--once FUNC ...]
 
 `--path` (either form) also prints, indented, the call chain that gives each root its bound
 (frame and bound of every function on it): where to look when a bound grows.
@@ -11,6 +12,9 @@ The second form also prints each task's worst case on the main stack (embassy's 
 executor polls every task on it, one at a time): the entry's bound (main and the executor loop)
 + the task's poll + for each interrupt handler its bound and an exception frame with the FPU
 context (104 B), as if every handler nested once. The stack's worst case is the largest.
+`--once FUNC` (the function's whole name): a function the entry calls before the executor
+polls any task (boot, run as the executor's `init`): left out of the entry's bound and
+counted like a task instead.
 
 For every function: its frame is the sum of every `push`/`stmdb sp!`/`vpush` and
 `sub sp, #N` it contains (an upper bound: a path runs each at most once, and a function that
@@ -87,7 +91,7 @@ def parse(objdump, elf):
     return funcs
 
 
-def bound(funcs, addr, memo, stack, notes):
+def bound(funcs, addr, memo, stack, notes, skip=frozenset()):
     if addr in memo:
         return memo[addr]
     f = funcs.get(addr)
@@ -101,8 +105,8 @@ def bound(funcs, addr, memo, stack, notes):
         notes.add(f"{f['indirect']} indirect call(s) in {f['name'][:80]}")
     deepest = 0
     for c in f["calls"]:
-        if c != addr:
-            deepest = max(deepest, bound(funcs, c, memo, stack, notes))
+        if c != addr and c not in skip:
+            deepest = max(deepest, bound(funcs, c, memo, stack, notes, skip))
     stack.discard(addr)
     memo[addr] = f["frame"] + deepest
     return memo[addr]
@@ -122,9 +126,10 @@ def worst_path(funcs, addr, memo):
     return path
 
 
-def report(funcs, root, show_path=False):
-    """Bound of every function whose name contains `root` (printed); the largest, or None."""
-    hits = [a for a, f in funcs.items() if root in f["name"]]
+def report(funcs, root, show_path=False, skip=frozenset(), exact=False):
+    """Bound of every function whose name contains `root` (is `root`, if `exact`; printed);
+    the largest, or None. Calls into `skip` (addresses) are not followed."""
+    hits = [a for a, f in funcs.items() if (root == f["name"] if exact else root in f["name"])]
     if not hits:
         print(f"stack bound: no function matches '{root}'")
         return None
@@ -132,7 +137,7 @@ def report(funcs, root, show_path=False):
     for a in hits:
         notes = set()
         memo = {}
-        b = bound(funcs, a, memo, set(), notes)
+        b = bound(funcs, a, memo, set(), notes, skip)
         best = max(best, b)
         print(f"stack bound {b} B: {funcs[a]['name'][:110]}")
         if show_path:
@@ -159,7 +164,7 @@ def main():
     funcs = parse(objdump, elf)
     if "--task" not in rest:
         return 0 if all(report(funcs, r, show_path) is not None for r in rest) else 1
-    entry, tasks, isrs = None, [], []
+    entry, tasks, isrs, once = None, [], [], []
     it = iter(rest)
     for flag in it:
         value = next(it, None)
@@ -169,8 +174,12 @@ def main():
             tasks.append(value)
         elif flag == "--isr":
             isrs.append(value)
-    base = [report(funcs, r, show_path) for r in [entry] + isrs if r is not None]
+        elif flag == "--once":
+            once.append(value)
+    skip = frozenset(a for a, f in funcs.items() if f["name"] in once)
+    base = [report(funcs, r, show_path, skip) for r in [entry] + isrs if r is not None]
     polls = [(t, report(funcs, t, show_path)) for t in tasks]
+    polls += [(o, report(funcs, o, show_path, exact=True)) for o in once]
     if any(p is None for p in base) or any(b is None for _, b in polls):
         return 1
     extra = sum(base) + EXCEPTION_FRAME_FPU * len(isrs)

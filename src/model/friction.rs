@@ -372,11 +372,6 @@ impl MuTable {
         (0..MU_SEGMENTS).all(|i| self.segment_is_exact(i))
     }
 
-    /// Whether no segment evaluates the exact law.
-    pub fn none_exact(&self) -> bool {
-        self.exact.iter().all(|&w| w == 0)
-    }
-
     /// μ (Q28 bits, floored at 0, before the contact's clamp) for a law input: interpolated, or
     /// `law` (the law the table was built from) out of line in a segment marked exact.
     #[inline(always)]

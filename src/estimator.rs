@@ -188,9 +188,9 @@ pub struct Estimator {
     geometry: Geometry,
     screw: ScrewModel,
     law: CompiledLaw,
-    /// The law tabulated over |θ̇| where that is exact enough ([`MuTable::build`]); `None`:
-    /// the exact law, out of line.
-    mu_table: Option<MuTable>,
+    /// The law tabulated over |θ̇|, interpolated in the segments where that is exact enough
+    /// and the exact law, out of line, in the others ([`MuTable::build`]).
+    mu_table: MuTable,
     kt: Ratio,
     /// n·η, n/η as factors; η/n, 1/(n·η) as ratios.
     n_eta: Factor,
@@ -414,9 +414,16 @@ impl Estimator {
         &self.law
     }
 
-    /// Whether the model reads μ from the law's table ([`MuTable`]) rather than the exact law.
+    /// Whether the model reads μ from the law's table ([`MuTable`]) in at least one segment
+    /// rather than the exact law everywhere.
     pub fn mu_tabulated(&self) -> bool {
-        self.mu_table.is_some()
+        !self.mu_table.all_exact()
+    }
+
+    /// Whether the model evaluates the exact law (bit for bit) at law input `x` (|θ̇| in Q16)
+    /// rather than interpolating the law's table there.
+    pub fn mu_exact_at(&self, x: u32) -> bool {
+        self.mu_table.is_exact(x)
     }
 
     /// log2 of the pose's node spacing in counts ([`PoseSegment`]); 0: the exact pose at every
@@ -630,13 +637,10 @@ impl Estimator {
         let w = Newtons::from_raw(narrow(
             i64::from(inertial) + i64::from(r_f0) + i64::from(damping),
         ));
-        // μ from the law's table (one product); a law the table cannot follow closely enough
-        // is evaluated exactly, out of line.
+        // μ from the law's table (one product); in a segment the table cannot follow closely
+        // enough the law is evaluated exactly, out of line.
         let x = speed.bits().unsigned_abs();
-        let mu_law = match &self.mu_table {
-            Some(t) => Ratio::from_raw(t.lookup(x)),
-            None => Ratio::from_raw(self.law.mu_unfloored_call(x).max(0)),
-        };
+        let mu_law = Ratio::from_raw(self.mu_table.lookup(&self.law, x));
         let mu = mu_law.min(self.screw.mu_max());
         clamped |= mu != mu_law;
         // |μ| ≤ 4: dir·μ cannot overflow.

@@ -143,11 +143,11 @@ proptest! {
             "law {law_idx} at {speed} rad/s: {got} vs {want} (tabulated: {})", est.mu_tabulated());
     }
 
-    /// Any law the table accepts stays within 0.1 % of the exact fixed-point law at any input,
-    /// not only at the midpoints `MuTable::build` checks, or within two of that law's own steps
-    /// where μ is near 0 (it quantises e^(−y)'s argument to 2^-16: steps of |amp|·2^-16 in μ,
-    /// which the table interpolates through), plus 4 LSB. The laws the table refuses keep the
-    /// exact law, bit for bit. (The exact law against the float64 twin: the preset tests above;
+    /// Any law's table, in every segment it interpolates, stays within 0.1 % of the exact
+    /// fixed-point law at any input, not only at the midpoints `MuTable::build` checks, or within
+    /// two of that law's own steps where μ is near 0 (it quantises e^(−y)'s argument to 2^-16:
+    /// steps of |amp|·2^-16 in μ, which the table interpolates through), plus 4 LSB. The
+    /// segments the table marks exact keep the exact law, bit for bit. (The exact law against the float64 twin: the preset tests above;
     /// for a random law whose terms cancel to μ ≈ 0 its parameters' quantisation, e.g. r_m in
     /// Q24, is not 0.1 % of μ.)
     #[test]
@@ -191,11 +191,11 @@ proptest! {
             let w = RadiansPerSecond::from_raw(x as i32);
             let got = est.estimate(&m, w, RadiansPerSecond2::ZERO, 0).mu.bits();
             let exact = est.law().mu_raw(x).min(mu_max).bits();
-            if est.mu_tabulated() {
+            if est.mu_exact_at(x) {
+                prop_assert_eq!(got, exact, "{:?} at {} (exact segment)", law, x);
+            } else {
                 prop_assert!((got - exact).abs() <= (exact / 1000).max(2 * step + 4),
                     "{law:?} at {x}: {got} vs {exact}");
-            } else {
-                prop_assert_eq!(got, exact);
             }
         }
     }
@@ -340,4 +340,41 @@ fn speed_filter_follows_a_ramp_without_lag() {
     // on average.
     let mean_acc = acc_sum / 500.0;
     assert!((mean_acc - acc).abs() < 2.0, "{mean_acc}");
+}
+
+/// Which segments the presets' tables interpolate: dry and PTFE everywhere (as before the
+/// per-segment fallback), lithium grease everywhere but in the first segment (|θ̇| < 2^-8 rad/s),
+/// where its Stribeck drop (over 0.1 mm/s, i.e. ≈ 23 mrad/s) is too sharp for linear
+/// interpolation and the exact law is kept; its s_max kink (0.47 rad/s) falls on a node.
+#[test]
+fn preset_tables_interpolate_where_expected() {
+    let sweep = || (0..2_000u32).map(|k| (131_072_000f64.powf(f64::from(k) / 2_000.0)) as u32);
+    for l in [FrictionLaw::DRY, FrictionLaw::PTFE] {
+        let est = estimator(l);
+        for x in sweep() {
+            assert!(!est.mu_exact_at(x), "{l:?} exact at {x}");
+        }
+    }
+    let est = estimator(FrictionLaw::LITHIUM);
+    assert!(est.mu_tabulated());
+    for x in sweep().chain([0, 255, 256]) {
+        assert_eq!(est.mu_exact_at(x), x < 256, "lithium at {x}");
+    }
+    let m = Measurements {
+        position_counts: 100_000,
+        motor_current: Amperes::ZERO,
+        load: Kilograms::lit("500"),
+        commanded_dir: 0,
+    };
+    // At lift speeds, through the kink and in the first segment: μ as the law gives it.
+    for speed in [0.001, 0.0039, 0.02, 0.47, 0.5, 5.0, 55.0, 70.0, 400.0] {
+        let w = RadiansPerSecond::from_f64(speed);
+        let x = w.bits().unsigned_abs();
+        let got = est.estimate(&m, w, RadiansPerSecond2::ZERO, 0).mu.bits();
+        let exact = est.law().mu_raw(x).bits();
+        assert!(
+            (got - exact).abs() <= exact / 8192 + 4,
+            "{speed}: {got} vs {exact}"
+        );
+    }
 }

@@ -263,24 +263,30 @@ const MU_TOP: u32 = 27;
 /// Nodes: 0, then 8 per octave from 2^8 to 2^27 (log-spaced, found by a leading-zero count).
 pub const MU_TABLE_LEN: usize = 2 + (((MU_TOP - MU_OCT0) << 3) as usize);
 
+/// Segments of [`MuTable`]: node `i` to node `i + 1` (inputs from 2^27 on clamp into the last).
+const MU_SEGMENTS: usize = MU_TABLE_LEN - 1;
+
 /// A friction law tabulated once over its input (|θ̇| in Q16 for the lead-screw laws) from the
 /// exact fixed-point law ([`CompiledLaw::mu_raw`]) and interpolated linearly in the input between
 /// log-spaced nodes (8 per octave): one leading-zero count, two loads and one product per tick
 /// instead of e^(−y), two scales and a clamp.
 ///
-/// A table is only built where it is exact enough ([`MuTable::build`]): the interpolation
-/// is checked against the exact law at every segment's midpoint and at the viscous term's kink,
-/// within μ/8192 (0.012 %, the T_r budget is 0.2 %) or, where μ is near 0, the exact
-/// law's own step (|amp|·2^-16: it quantises e^(−y)'s argument to 2^-16). The exponential term is smooth
-/// and the viscous term linear between nodes, so the midpoint is where a segment's error peaks
-/// (up to e^(rate·h) times more elsewhere in a segment of width h, where e^(−rate·s) is
-/// already below 10⁻³). The table holds the law before its floor at 0 (clamped to −2…4.25,
-/// beyond μ_max ≤ 4) and the lookup floors the interpolated value, so that the floor is exact.
-/// A law that fails (a kink inside a segment such as lithium grease's s_max, μ beyond the node
-/// clamp) keeps the exact law.
+/// A segment is only interpolated where that is exact enough ([`MuTable::build`]): the
+/// interpolation is checked against the exact law at every segment's midpoint and at the viscous
+/// term's kink (in the segment that holds it), within μ/8192 (0.012 %, the T_r budget is
+/// 0.2 %) or, where μ is near 0, the exact law's own step (|amp|·2^-16: it quantises e^(−y)'s
+/// argument to 2^-16). The exponential term is smooth and the viscous term linear between nodes,
+/// so the midpoint is where a segment's error peaks (up to e^(rate·h) times more elsewhere in a
+/// segment of width h, where e^(−rate·s) is already below 10⁻³). The table holds the law before
+/// its floor at 0 (clamped to −2…4.25, beyond μ_max ≤ 4) and the lookup floors the interpolated
+/// value, so that the floor is exact. A segment that fails (one that holds a kink such as lithium
+/// grease's s_max, a Stribeck drop too sharp for it, a node beyond the clamp) is marked exact (a
+/// bit per segment): inputs in it evaluate the exact law, out of line.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct MuTable {
     nodes: [i32; MU_TABLE_LEN],
+    /// Bit `i % 32` of word `i / 32`: segment `i` evaluates the exact law.
+    exact: [u32; MU_SEGMENTS.div_ceil(32)],
 }
 
 impl MuTable {
@@ -294,63 +300,97 @@ impl MuTable {
         (1 << o) + ((k & 7) << (o - 3))
     }
 
-    /// The table of `law` if linear interpolation reproduces it within μ/8192 (struct docs).
-    /// Configuration time: ≈ 460 evaluations of the law. Out of line, with the law behind one
-    /// call ([`CompiledLaw::mu_unfloored_call`]): flash.
+    /// The table of `law`, each segment interpolated if that reproduces the law within μ/8192
+    /// there and marked exact otherwise (struct docs). Configuration time: ≈ 460 evaluations of
+    /// the law. Out of line, with the law behind one call ([`CompiledLaw::mu_unfloored_call`]):
+    /// flash.
     #[inline(never)]
-    pub fn build(law: &CompiledLaw) -> Option<MuTable> {
+    pub fn build(law: &CompiledLaw) -> MuTable {
         let mut t = MuTable {
             nodes: [0; MU_TABLE_LEN],
+            exact: [0; MU_SEGMENTS.div_ceil(32)],
         };
-        for (i, n) in t.nodes.iter_mut().enumerate() {
-            *n = law.mu_unfloored_call(Self::node_input(i));
-            // Nodes within −2…4.25 (Q28; μ_max ≤ 4): any two differ by less than 2^31. A law
-            // beyond that keeps the exact law.
-            if !(-(1 << 29)..=(1 << 30) + (1 << 28)).contains(n) {
-                return None;
+        // Nodes within −2…4.25 (Q28; μ_max ≤ 4): any two differ by less than 2^31. A node
+        // beyond that is clamped there and both its segments keep the exact law.
+        const LO: i32 = -(1 << 29);
+        const HI: i32 = (1 << 30) + (1 << 28);
+        for i in 0..MU_TABLE_LEN {
+            let n = law.mu_unfloored_call(Self::node_input(i));
+            t.nodes[i] = n.clamp(LO, HI);
+            if n != t.nodes[i] {
+                t.mark(i.saturating_sub(1));
+                t.mark(i.min(MU_SEGMENTS - 1));
             }
         }
         // The nodes are the law (floored at 0 by the lookup as the law floors itself); checked:
-        // the midpoint after each node and, in the slot after the last node, the viscous term's
-        // kink (0, a node, when it has none in range).
-        let kink = if law.in_max < 1 << MU_TOP {
-            law.in_max
-        } else {
-            0
-        };
-        for i in 0..MU_TABLE_LEN {
-            let x = if i + 1 < MU_TABLE_LEN {
-                Self::node_input(i) / 2 + Self::node_input(i + 1) / 2
-            } else {
-                kink
-            };
-            // Before the floor (the floor takes nothing from the bound: it is 1-Lipschitz, and a
-            // floored comparison would hide a segment that crosses 0): within |μ|/8192, or the
-            // exact law's own step where μ is near 0: it quantises e^(−y)'s argument to 2^-16,
-            // i.e. steps of |amp|·2^-16 in μ (and 2 LSB).
-            let exact = law.mu_unfloored_call(x);
-            let step = (law.amp.bits().unsigned_abs() >> 16) as i32 + 2;
-            let err = i64::from(t.lookup_unfloored(x)) - i64::from(exact);
-            if err.abs() > i64::from((exact.unsigned_abs() >> 13) as i32).max(i64::from(step)) {
-                return None;
-            }
+        // each segment's midpoint and the viscous term's kink where it is in range.
+        for i in 0..MU_SEGMENTS {
+            t.check(law, Self::node_input(i) / 2 + Self::node_input(i + 1) / 2);
         }
-        Some(t)
+        if law.in_max < 1 << MU_TOP {
+            t.check(law, law.in_max);
+        }
+        t
     }
 
-    /// μ (Q28 bits, floored at 0, before the contact's clamp) for a law input.
-    #[inline(always)]
-    pub fn lookup(&self, input: u32) -> i32 {
-        self.lookup_unfloored(input).max(0)
+    /// Marks the segment holding input `x` exact unless its interpolation is within |μ|/8192 at
+    /// `x` before the floor (the floor takes nothing from the bound: it is 1-Lipschitz, and a
+    /// floored comparison would hide a segment that crosses 0), or within the exact law's own
+    /// step where μ is near 0: it quantises e^(−y)'s argument to 2^-16, i.e. steps of
+    /// |amp|·2^-16 in μ (and 2 LSB).
+    fn check(&mut self, law: &CompiledLaw, x: u32) {
+        let (i, f) = Self::segment(x);
+        let exact = law.mu_unfloored_call(x);
+        let step = (law.amp.bits().unsigned_abs() >> 16) as i32 + 2;
+        let err = i64::from(self.interpolate(i, f)) - i64::from(exact);
+        if err.abs() > i64::from((exact.unsigned_abs() >> 13) as i32).max(i64::from(step)) {
+            self.mark(i);
+        }
     }
 
-    /// The interpolated law before its floor: the segment from the leading zeros and the next
-    /// three bits, the position in it as a Q32 fraction, one product. Inputs from 2^27 on read
-    /// the last node's value.
+    fn mark(&mut self, i: usize) {
+        if let Some(w) = self.exact.get_mut(i >> 5) {
+            *w |= 1 << (i & 31);
+        }
+    }
+
+    /// Whether input `x` is in a segment that evaluates the exact law.
     #[inline(always)]
-    fn lookup_unfloored(&self, input: u32) -> i32 {
+    pub fn is_exact(&self, x: u32) -> bool {
+        self.segment_is_exact(Self::segment(x).0)
+    }
+
+    #[inline(always)]
+    fn segment_is_exact(&self, i: usize) -> bool {
+        self.exact
+            .get(i >> 5)
+            .is_some_and(|w| (w >> (i & 31)) & 1 != 0)
+    }
+
+    /// Whether every segment evaluates the exact law (no segment is interpolated).
+    pub fn all_exact(&self) -> bool {
+        (0..MU_SEGMENTS).all(|i| self.segment_is_exact(i))
+    }
+
+    /// μ (Q28 bits, floored at 0, before the contact's clamp) for a law input: interpolated, or
+    /// `law` (the law the table was built from) out of line in a segment marked exact.
+    #[inline(always)]
+    pub fn lookup(&self, law: &CompiledLaw, input: u32) -> i32 {
+        let (i, f) = Self::segment(input);
+        if self.segment_is_exact(i) {
+            law.mu_unfloored_call(input).max(0)
+        } else {
+            self.interpolate(i, f).max(0)
+        }
+    }
+
+    /// The segment of an input and the position in it as a Q32 fraction: from the leading
+    /// zeros and the next three bits. Inputs from 2^27 on are clamped into the last segment
+    /// (read at its end).
+    #[inline(always)]
+    fn segment(input: u32) -> (usize, u32) {
         let x = input.min((1 << MU_TOP) - 1);
-        let (i, f) = if x < 1 << MU_OCT0 {
+        if x < 1 << MU_OCT0 {
             (0, x << (32 - MU_OCT0))
         } else {
             // The leading one at bit o = 31 − lz ≥ 8: segment 1 + 8·(o − 8) + the next three
@@ -358,7 +398,12 @@ impl MuTable {
             let lz = x.leading_zeros();
             let seg = (((31 - MU_OCT0 - lz) << 3) | ((x >> (28 - lz)) & 7)) + 1;
             (seg as usize, x << (lz + 4))
-        };
+        }
+    }
+
+    /// The interpolated law before its floor in segment `i` at fraction `f`: one product.
+    #[inline(always)]
+    fn interpolate(&self, i: usize, f: u32) -> i32 {
         match self.nodes.get(i..i + 2) {
             // Between two nodes (each in −2…4.25): |b − a| < 2^31, the sum stays between.
             Some(&[a, b]) => a + ((i64::from(b - a) * i64::from(f >> 1)) >> 31) as i32,

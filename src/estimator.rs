@@ -819,17 +819,26 @@ struct PoseCtx<'a> {
     pose_frac: u32,
 }
 
+/// [`PoseCtx`] of an estimator, built field by field: usable where a method's `&self` could not
+/// be, beside a mutable borrow of the segment state ([`Estimator::enter_segment`],
+/// [`Estimator::prefetch`]).
+macro_rules! pose_ctx {
+    ($e:expr) => {
+        PoseCtx {
+            geometry: &$e.geometry,
+            two_mu_pin: $e.two_mu_pin,
+            damping_lead: &$e.damping_lead,
+            pose_shift: $e.pose_shift,
+            pose_frac: $e.pose_frac,
+        }
+    };
+}
+
 impl Estimator {
     /// The pose segments' view of this estimator.
     #[inline(always)]
     fn pose_ctx(&self) -> PoseCtx<'_> {
-        PoseCtx {
-            geometry: &self.geometry,
-            two_mu_pin: self.two_mu_pin,
-            damping_lead: &self.damping_lead,
-            pose_shift: self.pose_shift,
-            pose_frac: self.pose_frac,
-        }
+        pose_ctx!(self)
     }
 
     /// The state's segment for the count's segment `index`: entered when the count left the
@@ -857,13 +866,7 @@ impl Estimator {
     /// two exact nodes.
     #[inline(always)]
     fn enter_segment(&mut self, index: i32) {
-        let ctx = PoseCtx {
-            geometry: &self.geometry,
-            two_mu_pin: self.two_mu_pin,
-            damping_lead: &self.damping_lead,
-            pose_shift: self.pose_shift,
-            pose_frac: self.pose_frac,
-        };
+        let ctx = pose_ctx!(self);
         let seg = &mut self.segment;
         let was = seg.index;
         let forward = Some(index) == was.checked_add(1) && self.ahead_at == index.wrapping_add(1);
@@ -894,13 +897,7 @@ impl Estimator {
     /// count stays in the segment: one exact node on this step.
     #[inline(always)]
     fn prefetch(&mut self) {
-        let ctx = PoseCtx {
-            geometry: &self.geometry,
-            two_mu_pin: self.two_mu_pin,
-            damping_lead: &self.damping_lead,
-            pose_shift: self.pose_shift,
-            pose_frac: self.pose_frac,
-        };
+        let ctx = pose_ctx!(self);
         // Segment indices are counts >> k (k ≥ 1 here): ± 2 stays in i32.
         let i = self.segment.index;
         let ahead = self.ahead_at != i + 2;

@@ -1191,7 +1191,8 @@ mod tests {
                 let c = (i64::from(top) * i / 4096) as i32;
                 let index = c >> k;
                 let moved = index != est.last_counts >> k;
-                neighbour += usize::from(moved && est.segments[(index & 3) as usize].index == index);
+                neighbour +=
+                    usize::from(moved && est.segments[(index & 3) as usize].index == index);
                 let slot = est.track_segment(index);
                 est.last_counts = c;
                 // Enough calls for both neighbours (two nodes and two fills at most).
@@ -1265,8 +1266,24 @@ mod tests {
                 counts.push(c);
                 c -= 2;
             }
-            counts.extend([b + 7 * seg, b + 7 * seg + 1, -3 * seg, -3 * seg - 1, -seg, 0, 1]);
-            counts.extend([i32::MAX, i32::MAX - 1, i32::MIN, i32::MIN + 1, b, b + seg, b]);
+            counts.extend([
+                b + 7 * seg,
+                b + 7 * seg + 1,
+                -3 * seg,
+                -3 * seg - 1,
+                -seg,
+                0,
+                1,
+            ]);
+            counts.extend([
+                i32::MAX,
+                i32::MAX - 1,
+                i32::MIN,
+                i32::MIN + 1,
+                b,
+                b + seg,
+                b,
+            ]);
             let mut entered = [0usize; 2];
             for (t, &c) in counts.iter().enumerate() {
                 let m = Measurements {
@@ -1292,8 +1309,13 @@ mod tests {
                     let changed = (0..4)
                         .filter(|&s| prepared.segments[s].index != tags.0[s])
                         .count()
-                        + (0..4).filter(|&s| prepared.node_tags[s] != tags.1[s]).count();
-                    assert!(changed <= 1, "k={k} count {c}: {changed} pieces in one call");
+                        + (0..4)
+                            .filter(|&s| prepared.node_tags[s] != tags.1[s])
+                            .count();
+                    assert!(
+                        changed <= 1,
+                        "k={k} count {c}: {changed} pieces in one call"
+                    );
                 }
             }
             // Both directions entered prepared neighbours (k ≥ 1 has neighbours to prepare).

@@ -223,18 +223,20 @@ pub struct Estimator {
     pose_shift: u32,
     /// 2^(32 − `pose_shift`) (unused while it is 0).
     pose_frac: u32,
-    /// The segment of the last step's count (state: refilled when the count leaves it).
-    segment: PoseSegment,
-    /// The nodes beyond the segment's ends, computed ahead on the steps after the count
-    /// entered it (one a step, [`Self::prefetch`]) so that entering a neighbour needs no exact
-    /// pose: `ahead` at boundary `ahead_at` (the segment's index + 2), `behind` at `behind_at`
-    /// (index − 1); a tag that does not match means not (yet) computed.
-    ahead: Node,
-    behind: Node,
-    ahead_at: i32,
-    behind_at: i32,
-    /// A node beyond the segment's ends is still to be computed.
-    prefetch_pending: bool,
+    /// The pose segments, a ring by index: segment `i` in slot `i & 3`, tagged with its
+    /// index ([`PoseSegment::EMPTY`]: none). The step reads the slot of its count's segment
+    /// if the tag matches and refills it from two exact nodes otherwise
+    /// ([`Self::refill_slot`]); [`Self::prepare`] fills the neighbours of the last step's
+    /// segment ahead, so that a count entering one costs the step nothing.
+    segments: [PoseSegment; 4],
+    /// Exact nodes at segment boundaries, a ring by boundary (`b` in slot `b & 3`, tagged in
+    /// `node_tags`, [`NO_NODE`]: none): those of the neighbours, computed one per
+    /// [`Self::prepare`] call.
+    nodes: [Node; 4],
+    node_tags: [i32; 4],
+    /// The segment whose neighbours are both prepared ([`NO_NODE`]: not known): `prepare`
+    /// returns at once while the count stays in it.
+    prepared: i32,
     // Filter state: the last count; position relative to it, speed and acceleration in Q16
     // counts, counts/tick, counts/tick².
     last_counts: i32,
@@ -385,12 +387,10 @@ impl Estimator {
             late_us: cfg.tick_us * 3 / 2,
             pose_shift,
             pose_frac: PoseCtx::frac_for(pose_shift),
-            segment: PoseSegment::EMPTY,
-            ahead: Node::BAD,
-            behind: Node::BAD,
-            ahead_at: NO_NODE,
-            behind_at: NO_NODE,
-            prefetch_pending: false,
+            segments: [PoseSegment::EMPTY; 4],
+            nodes: [Node::BAD; 4],
+            node_tags: [NO_NODE; 4],
+            prepared: NO_NODE,
             last_counts: 0,
             q: 0,
             v: 0,
@@ -436,7 +436,7 @@ impl Estimator {
     /// QEMU harness checks with it that a step it counts entered a new segment).
     #[doc(hidden)]
     pub fn pose_segment_index(&self) -> i32 {
-        self.segment.index
+        self.last_counts >> self.pose_shift
     }
 
     /// Restart the speed filter at a position, at rest (after a fault or a re-home).
@@ -464,9 +464,8 @@ impl Estimator {
     #[inline]
     pub fn step_at(&mut self, now: Instant, m: &Measurements, fraction: u16) -> TickEstimate {
         let (speed, accel, flags) = self.filter(now, m.position_counts, fraction);
-        let index = m.position_counts >> self.pose_shift;
-        self.track_segment(index);
-        let x = self.model(m, &self.segment, speed, accel, flags);
+        let slot = self.track_segment(m.position_counts >> self.pose_shift);
+        let x = self.model(m, &self.segments[slot], speed, accel, flags);
         TickEstimate {
             height: x.height,
             screw_speed: x.speed,
@@ -719,17 +718,16 @@ struct FastPose {
 /// cos α costs accuracy; k is chosen per configuration so that it stays within a tenth of the
 /// budgets ([`PoseCtx::choose_pose_shift`]). A segment that touches the clamp band's edges,
 /// 1/sin α's saturation (below ≈ 7.2°) or a row of Table 1 (where c_x's slope changes) is
-/// `exact`: the exact pose at the count.
+/// `exact`: the exact pose at the count. Only what the step reads: the nodes themselves
+/// (cos α, unusable) serve the classification, when the segment is filled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct PoseSegment {
+    /// The segment's index (count >> k); [`NO_NODE`] in an empty slot.
     index: i32,
-    filled: bool,
     exact: bool,
-    /// The nodes at the segment's start and end (values [`NODE_HEIGHT`], [`NODE_G`],
-    /// [`NODE_PIN`], [`NODE_CXL`] as raw bits; cos α for Table 1's rows; unusable: clamped,
-    /// saturated, or beyond i32 counts), and the values' rise from start to end.
-    n0: Node,
-    n1: Node,
+    /// The values ([`NODE_HEIGHT`], [`NODE_G`], [`NODE_PIN`], [`NODE_CXL`], raw bits) at the
+    /// segment's start, and their rise from start to end.
+    v0: [i32; 4],
     dv: [i32; 4],
 }
 
@@ -743,8 +741,8 @@ const NODE_PIN: usize = 2;
 /// c_x·r_m·tan λ, Q20 N per rad/s.
 const NODE_CXL: usize = 3;
 
-/// An exact node: [`PoseSegment`]'s four values, cos α, whether it is unusable (clamped,
-/// saturated, beyond i32 counts), whether the pose was clamped.
+/// An exact node: [`PoseSegment`]'s four values, cos α (for Table 1's rows), whether it is
+/// unusable (clamped, saturated, beyond i32 counts), whether the pose was clamped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Node {
     v: [i32; 4],
@@ -768,32 +766,21 @@ impl PoseSegment {
     /// being half the rise (1 LSB of rounding).
     #[inline(always)]
     fn at(&self, f: i32, j: usize) -> i32 {
-        self.n0.v[j] + ((((i64::from(self.dv[j]) * i64::from(f)) >> 32) as i32) << 1)
+        self.v0[j] + ((((i64::from(self.dv[j]) * i64::from(f)) >> 32) as i32) << 1)
     }
 
+    /// An empty slot: no segment's index where nodes are used (k ≥ 1: indices are counts >> k).
+    /// With k = 0 the count i32::MIN matches it, and every segment is exact then, as this.
     const EMPTY: PoseSegment = PoseSegment {
-        index: 0,
-        filled: false,
+        index: NO_NODE,
         exact: true,
-        n0: Node::BAD,
-        n1: Node::BAD,
+        v0: [0; 4],
         dv: [0; 4],
     };
-
-    /// `dv` and `exact` for the nodes `n0`, `n1` ([`PoseCtx::classify`]).
-    #[inline(always)]
-    fn finish(&mut self, ctx: &PoseCtx<'_>) {
-        // Nodes within the band: heights ≤ 3 m, |G| ≤ 235.4 (Q23), c_x·r_m·tan λ < 2^30: the
-        // differences of usable nodes fit (an unusable one is never interpolated).
-        for j in 0..4 {
-            self.dv[j] = self.n1.v[j].wrapping_sub(self.n0.v[j]);
-        }
-        self.exact = ctx.classify(self);
-    }
 }
 
-/// The tag of a node not computed ([`Estimator`]'s `ahead_at`, `behind_at`): no segment's
-/// neighbour (indices are counts >> k, k ≥ 1 where nodes are used).
+/// The tag of an empty segment slot or node slot: no segment's index or boundary where nodes
+/// are used (counts >> k, k ≥ 1).
 const NO_NODE: i32 = i32::MIN;
 
 /// Standard gravity in Q16 m/s² (as [`Geometry::weight`]).
@@ -820,8 +807,8 @@ struct PoseCtx<'a> {
 }
 
 /// [`PoseCtx`] of an estimator, built field by field: usable where a method's `&self` could not
-/// be, beside a mutable borrow of the segment state ([`Estimator::enter_segment`],
-/// [`Estimator::prefetch`]).
+/// be, beside a mutable borrow of the segment state ([`Estimator::refill_slot`],
+/// [`Estimator::prepare`]).
 macro_rules! pose_ctx {
     ($e:expr) => {
         PoseCtx {
@@ -841,75 +828,84 @@ impl Estimator {
         pose_ctx!(self)
     }
 
-    /// The state's segment for the count's segment `index`: entered when the count left the
-    /// last one, else one node beyond its ends computed ahead while any is missing.
+    /// The slot of segment `index` (`index & 3`), refilled first unless it holds that segment
+    /// (a neighbour [`Self::prepare`] filled, or the last step's): the step's one check.
     #[inline(always)]
-    fn track_segment(&mut self, index: i32) {
-        if index != self.segment.index || !self.segment.filled || self.prefetch_pending {
-            self.update_segment(index);
+    fn track_segment(&mut self, index: i32) -> usize {
+        let slot = (index & 3) as usize;
+        if self.segments[slot].index != index {
+            self.refill_slot(index);
         }
+        slot
     }
 
-    /// [`Self::enter_segment`] or [`Self::prefetch`]: one out-of-line call for both (flash).
+    /// The segment `index` filled into its slot from its two nodes, those not in the node
+    /// ring computed (exact poses): the step's fallback when the count enters a segment that is
+    /// not prepared (the first step, a jump, `prepare` not called or not done yet).
     #[inline(never)]
-    fn update_segment(&mut self, index: i32) {
-        if index != self.segment.index || !self.segment.filled {
-            self.enter_segment(index);
-        } else {
-            self.prefetch();
-        }
+    fn refill_slot(&mut self, index: i32) {
+        self.prepared = NO_NODE;
+        while !self.fill_piece(index) {}
     }
 
-    /// The state's segment moved to `index`, in place. A neighbour takes the node computed
-    /// ahead beyond the old segment's end (or start) and keeps the one they share: no exact
-    /// pose. Otherwise (a jump, the first step, a node not yet computed) [`PoseCtx::refill`]:
-    /// two exact nodes.
-    #[inline(always)]
-    fn enter_segment(&mut self, index: i32) {
+    /// One piece of filling segment `j`'s slot: a node at its start or end missing from the
+    /// ring computed (false), or both there and the segment filled from them (true; with k = 0
+    /// no nodes: exact). Out of line: the step's refill and `prepare` share it (flash).
+    #[inline(never)]
+    fn fill_piece(&mut self, j: i32) -> bool {
         let ctx = pose_ctx!(self);
-        let seg = &mut self.segment;
-        let was = seg.index;
-        let forward = Some(index) == was.checked_add(1) && self.ahead_at == index.wrapping_add(1);
-        let backward = Some(index) == was.checked_sub(1) && self.behind_at == index;
-        if seg.filled && (forward || backward) {
-            if forward {
-                // The old start is the node behind, the old end the new start, the node
-                // ahead the new end.
-                self.behind = seg.n0;
-                self.behind_at = was;
-                seg.n0 = seg.n1;
-                seg.n1 = self.ahead;
-            } else {
-                self.ahead = seg.n1;
-                self.ahead_at = was.wrapping_add(1);
-                seg.n1 = seg.n0;
-                seg.n0 = self.behind;
-            }
-            seg.index = index;
-            seg.finish(&ctx);
-        } else {
-            ctx.refill(seg, index);
+        let s0 = (j & 3) as usize;
+        if ctx.pose_shift == 0 {
+            ctx.refill(&mut self.segments[s0], j);
+            return true;
         }
-        self.prefetch_pending = self.pose_shift != 0;
-    }
-
-    /// One missing node beyond the segment's ends (the one ahead first), computed while the
-    /// count stays in the segment: one exact node on this step.
-    #[inline(always)]
-    fn prefetch(&mut self) {
-        let ctx = pose_ctx!(self);
-        // Segment indices are counts >> k (k ≥ 1 here): ± 2 stays in i32.
-        let i = self.segment.index;
-        let ahead = self.ahead_at != i + 2;
-        let (node, at, j) = if ahead {
-            (&mut self.ahead, &mut self.ahead_at, i + 2)
+        // k ≥ 1: j + 1 stays in i32.
+        let s1 = ((j + 1) & 3) as usize;
+        let b = if self.node_tags[s0] != j {
+            j
+        } else if self.node_tags[s1] != j + 1 {
+            j + 1
         } else {
-            (&mut self.behind, &mut self.behind_at, i - 1)
+            ctx.fill(&mut self.segments[s0], j, &self.nodes[s0], &self.nodes[s1]);
+            return true;
         };
-        *node = ctx.node_at(j);
-        *at = j;
-        // The one ahead first, then the one behind: done after the second.
-        self.prefetch_pending = ahead && self.behind_at != i - 1;
+        let s = (b & 3) as usize;
+        self.nodes[s] = ctx.node_at(b);
+        self.node_tags[s] = b;
+        false
+    }
+
+    /// One bounded piece of the pose segments' preparation, off the step's path: for the
+    /// segments on either side of the last step's count (the one in the direction of motion
+    /// first), one missing exact node (≈ the cost of one exact pose), or one segment filled from
+    /// its two nodes (differences and classification). Returns at once when both neighbours
+    /// are ready, as it does with k = 0 (no nodes). After it has run on the two or four ticks
+    /// following a crossing, a step whose count enters either neighbour reads it as it reads
+    /// its own segment: no exact pose on the step. Skipping it is safe: the step then refills
+    /// the segment it enters ([`Self::refill_slot`]), the same bits more slowly.
+    ///
+    /// Call it once a tick after the tick's outputs are applied
+    /// ([`crate::control::Controller::finish_tick`]), so that the node work of a crossing does
+    /// not delay them.
+    #[inline(never)]
+    pub fn prepare(&mut self) {
+        let k = self.pose_shift;
+        let i = self.last_counts >> k;
+        if i == self.prepared || k == 0 {
+            return;
+        }
+        // The neighbour in the direction of motion first (k ≥ 1: indices ± 2 stay in i32).
+        let d = if self.v < 0 { -1 } else { 1 };
+        let missing = |e: &Estimator, j: i32| e.segments[(j & 3) as usize].index != j;
+        let j = if missing(self, i + d) {
+            i + d
+        } else if missing(self, i - d) {
+            i - d
+        } else {
+            self.prepared = i;
+            return;
+        };
+        self.fill_piece(j);
     }
 
     /// [`PoseCtx::exact_pose`] for this estimator.
@@ -972,7 +968,7 @@ impl PoseCtx<'_> {
     }
 
     /// The node at segment boundary `i` (count i·2^k); unusable beyond i32 counts. Out of
-    /// line: the fill and the prefetch share it (flash).
+    /// line: the refills and `prepare` share it (flash).
     #[inline(never)]
     fn node_at(&self, i: i32) -> Node {
         // i·2^k in i32 iff shifting back gives i (k ≤ 16): no 64-bit shift.
@@ -984,34 +980,39 @@ impl PoseCtx<'_> {
         }
     }
 
-    /// `seg` filled for the segment `index`, in place: its two exact nodes (a jump, the first
-    /// step, `estimate`, the spacing search; a step entering a neighbour takes a node computed
-    /// ahead, [`Estimator::enter_segment`]). A function of `index` alone: the nodes are exact
-    /// poses at fixed counts.
+    /// `seg` filled for the segment `index`, in place, from two exact nodes computed here
+    /// (`estimate`, the spacing search; the estimator's slots keep their nodes,
+    /// [`Estimator::refill_slot`]). A function of `index` alone: the nodes are exact poses at
+    /// fixed counts.
     #[inline(never)]
     fn refill(&self, seg: &mut PoseSegment, index: i32) {
-        seg.index = index;
-        seg.filled = true;
         if self.pose_shift == 0 {
+            seg.index = index;
             seg.exact = true;
             return;
         }
-        seg.n0 = self.node_at(index);
-        seg.n1 = self.node_at(index.saturating_add(1));
-        seg.finish(self);
+        let n0 = self.node_at(index);
+        let n1 = self.node_at(index.saturating_add(1));
+        self.fill(seg, index, &n0, &n1);
     }
 
-    /// Whether `seg` (its nodes filled) is evaluated exactly: an unusable node, a row of
-    /// Table 1 strictly inside (cos α falls along the segment: c_x's slope changes there),
-    /// or below count 0 (α₀ − 5° … α₀, outside the envelope the spacing is checked over).
+    /// `seg` for the segment `index` between nodes `n0`, `n1`: the start's values, their rise
+    /// and whether it is evaluated exactly: an unusable node, a row of Table 1 strictly inside
+    /// (cos α falls along the segment: c_x's slope changes there), or below count 0 (α₀ − 5° …
+    /// α₀, outside the envelope the spacing is checked over). Out of line: the refill, the
+    /// slot's refill and `prepare` share it (flash).
     #[inline(never)]
-    fn classify(&self, seg: &PoseSegment) -> bool {
-        let (cos0, cos1) = (seg.n0.cos, seg.n1.cos);
+    fn fill(&self, seg: &mut PoseSegment, index: i32, n0: &Node, n1: &Node) {
+        seg.index = index;
+        seg.v0 = n0.v;
+        // Nodes within the band: heights ≤ 3 m, |G| ≤ 235.4 (Q23), c_x·r_m·tan λ < 2^30: the
+        // differences of usable nodes fit (an unusable one is never interpolated).
+        seg.dv = core::array::from_fn(|j| n1.v[j].wrapping_sub(n0.v[j]));
         let kink = self
             .damping_lead
             .iter()
-            .any(|&(c, _, _)| c < cos0 && c > cos1);
-        seg.n0.bad || seg.n1.bad || kink || seg.index < 0
+            .any(|&(c, _, _)| c < n0.cos && c > n1.cos);
+        seg.exact = n0.bad || n1.bad || kink || index < 0;
     }
 
     /// The exact pose's values (segments at the band's edges and Table 1's rows, coarse
@@ -1183,30 +1184,41 @@ mod tests {
             let top = lo as i32;
             let mut interpolated = 0;
             let mut neighbour = 0;
-            // Up the stroke and back down, as the steps track the segment (nodes computed
-            // ahead, neighbours entered from them: counted, and the same bits as a fresh fill).
+            // Up the stroke and back down, as the steps track the segment and `prepare` runs
+            // between them (neighbours entered prepared: counted, and the same bits as a
+            // fresh fill).
             for i in (0..4096i64).chain((0..4096).rev()) {
                 let c = (i64::from(top) * i / 4096) as i32;
                 let index = c >> k;
-                let moved = (index - est.segment.index).abs() == 1 && est.segment.filled;
-                let had = (est.ahead_at, est.behind_at);
-                // Three steps at this count (the nodes beyond the segment's ends computed on
-                // the two after entering it, as in a motion with many ticks per segment).
-                for _ in 0..3 {
-                    est.track_segment(index);
+                let moved = index != est.last_counts >> k;
+                neighbour +=
+                    usize::from(moved && est.segments[(index & 3) as usize].index == index);
+                let slot = est.track_segment(index);
+                est.last_counts = c;
+                // Enough calls for both neighbours (two nodes and two fills at most).
+                for _ in 0..5 {
+                    est.prepare();
                 }
-                // Entering a neighbour from a node computed ahead (the fast path).
-                neighbour += usize::from(moved && (had.0 == index + 1 || had.1 == index));
-                let mut fresh = PoseSegment::EMPTY;
-                est.pose_ctx().refill(&mut fresh, index);
-                assert_eq!(fresh, est.segment, "{c}");
+                let fresh = |j: i32| {
+                    let mut seg = PoseSegment::EMPTY;
+                    est.pose_ctx().refill(&mut seg, j);
+                    seg
+                };
+                assert_eq!(fresh(index), est.segments[slot], "{c}");
+                if k > 0 {
+                    assert_eq!(est.prepared, index, "{c}");
+                    for j in [index - 1, index + 1] {
+                        assert_eq!(fresh(j), est.segments[(j & 3) as usize], "{c} {j}");
+                    }
+                }
+                let seg = est.segments[slot];
                 let exact = est.geometry.pose(c);
                 let (cos, inv) = (exact.cos_alpha.bits(), exact.inv_sin_alpha.bits());
                 let ctx = est.pose_ctx();
                 let (g0, gb) = ctx.g_parts(cos, inv);
                 let tol = (g0 + gb) >> POSE_G_TOL_SHIFT;
                 for dir in [-1i8, 0, 1] {
-                    let got = est.pose_on(&est.segment, c, dir);
+                    let got = est.pose_on(&seg, c, dir);
                     let dh = (got.height.bits() - exact.height.bits()).abs();
                     let dg = (got.g - (g0 + i32::from(dir) * gb)).abs();
                     assert!(dh <= POSE_HEIGHT_TOL + 2, "{k} {c} height {dh}");
@@ -1214,13 +1226,101 @@ mod tests {
                     let dc = (got.cxl - ctx.damping_lead(exact.cos_alpha)).abs();
                     assert!(dc <= 4, "{k} {c} c_x {dc}");
                 }
-                interpolated += usize::from(!est.segment.exact);
+                interpolated += usize::from(!seg.exact);
             }
             // The default lift and the fine encoder interpolate nearly everywhere.
             if k >= 4 {
                 assert!(interpolated > 7800, "{k}: {interpolated}");
                 // Both directions enter neighbours from the nodes computed ahead.
                 assert!(neighbour > 100, "{k}: {neighbour}");
+            }
+        }
+    }
+
+    /// A step whose count enters a neighbour [`Estimator::prepare`] filled returns the bits of
+    /// a step that fills its segment from two fresh exact nodes: up and down the stroke at
+    /// motion speeds, reversals on a boundary, jumps (over segments, below count 0, to the
+    /// clamp band and the ends of i32), for configurations of very different node spacings.
+    /// Each `prepare` does at most one piece (one node, or one segment filled).
+    #[test]
+    fn entering_a_prepared_neighbour_gives_the_bits_of_a_fresh_refill() {
+        for cfg in configs() {
+            let mut prepared = Estimator::new(&cfg).unwrap();
+            let mut fresh = Estimator::new(&cfg).unwrap();
+            let k = prepared.pose_shift();
+            let seg = 1i32 << k;
+            // Counts: a climb at 1…3 counts a tick through several segments, a reversal on a
+            // boundary (back and forth across it), a descent, jumps.
+            let mut counts = Vec::new();
+            let b = 40 * seg;
+            let mut c = b - 5 * seg / 2;
+            while c < b + 3 * seg {
+                counts.push(c);
+                c += 1 + (c & 1) * 2;
+            }
+            for j in 0..12 {
+                counts.push(b - 1 + (j & 1));
+                counts.push(b - 1 + (j & 1));
+            }
+            while c > b - 3 * seg {
+                counts.push(c);
+                c -= 2;
+            }
+            counts.extend([
+                b + 7 * seg,
+                b + 7 * seg + 1,
+                -3 * seg,
+                -3 * seg - 1,
+                -seg,
+                0,
+                1,
+            ]);
+            counts.extend([
+                i32::MAX,
+                i32::MAX - 1,
+                i32::MIN,
+                i32::MIN + 1,
+                b,
+                b + seg,
+                b,
+            ]);
+            let mut entered = [0usize; 2];
+            for (t, &c) in counts.iter().enumerate() {
+                let m = Measurements {
+                    position_counts: c,
+                    motor_current: Amperes::lit("20"),
+                    load: Kilograms::lit("1000"),
+                    commanded_dir: 1,
+                };
+                let now = Instant(1000 * t as u32);
+                let index = c >> k;
+                let was = prepared.last_counts >> k;
+                if t > 0 && index != was && prepared.segments[(index & 3) as usize].index == index {
+                    entered[usize::from(index < was)] += 1;
+                }
+                // The fresh one keeps no segment or node from one step to the next.
+                fresh.segments = [PoseSegment::EMPTY; 4];
+                fresh.node_tags = [NO_NODE; 4];
+                let (p, f) = (prepared.step(now, &m), fresh.step(now, &m));
+                assert_eq!(p, f, "k={k} count {c} (step {t})");
+                for _ in 0..3 {
+                    let tags = (prepared.segments.map(|s| s.index), prepared.node_tags);
+                    prepared.prepare();
+                    let changed = (0..4)
+                        .filter(|&s| prepared.segments[s].index != tags.0[s])
+                        .count()
+                        + (0..4)
+                            .filter(|&s| prepared.node_tags[s] != tags.1[s])
+                            .count();
+                    assert!(
+                        changed <= 1,
+                        "k={k} count {c}: {changed} pieces in one call"
+                    );
+                }
+            }
+            // Both directions entered prepared neighbours (k ≥ 1 has neighbours to prepare).
+            if k > 0 {
+                assert!(entered[0] >= 5 && entered[1] >= 5, "k={k}: {entered:?}");
             }
         }
     }

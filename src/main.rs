@@ -388,9 +388,9 @@ fn construct<'a>(
     slot.write(Controller::new_at(config, parked))
 }
 
-/// The fixed-rate control loop: sample → `step` → apply. If a tick is late, embassy's
-/// `Ticker` keeps its schedule and runs the missed ticks back to back; each one passes the
-/// real `now`, so the core sees the short intervals as they are.
+/// The fixed-rate control loop: sample → `step` → apply → `finish_tick`. If a tick is late,
+/// embassy's `Ticker` keeps its schedule and runs the missed ticks back to back; each one passes
+/// the real `now`, so the core sees the short intervals as they are.
 #[embassy_executor::task]
 async fn control(board: &'static mut Board, lift: &'static SharedController, mut park: ParkLog) {
     let mut ticker = Ticker::every(Duration::from_hz(CONTROL_HZ));
@@ -407,14 +407,18 @@ async fn control(board: &'static mut Board, lift: &'static SharedController, mut
         let (outputs, status, record) = lift.lock(|c| {
             let mut ctl = c.borrow_mut();
             let outputs = ctl.step(now, &inputs);
+            board.bridge.apply(outputs.bridge);
+            board.brake.apply(outputs.brake_release);
+            // The rest of the tick, which the outputs did not wait for (the estimator's next
+            // pose nodes): a tick that crosses into a pose segment drives the bridge as soon as
+            // any other.
+            ctl.finish_tick();
             let status = ctl.status();
             let record = park
                 .step(&status)
                 .map(|p| StoreRequest::Position(p, geometry_stamp(ctl.config())));
             (outputs, status, record)
         });
-        board.bridge.apply(outputs.bridge);
-        board.brake.apply(outputs.brake_release);
         if outputs.feed_watchdog {
             board.watchdog.feed();
         } else {

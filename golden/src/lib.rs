@@ -479,6 +479,9 @@ pub fn evaluate(kind: u8, input: &[u8], out: &mut impl Sink) -> Result<(), Error
                 let t = est.step(now, &m);
                 put_tick(out, &t);
                 put_estimate(out, &est.details(&m, &t));
+                // As the control tick runs it: the steps that enter a segment read one prepared
+                // ahead (the same bits as a refill, replayed on both sides).
+                est.prepare();
             }
         }
         Kind::ProfileSequence => eval_profile(&mut r, out)?,
@@ -1838,6 +1841,7 @@ fn eval_control(r: &mut Reader<'_>, out: &mut impl Sink) -> Result<(), Error> {
             }
         }
         let o = c.step(Instant(t.wrapping_mul(cfg.estimator.tick_us)), &x);
+        c.finish_tick();
         let (tag, duty) = match o.bridge {
             Bridge::Coast => (0, 0),
             Bridge::Brake => (1, 0),

@@ -897,6 +897,8 @@ impl Sim {
             Driver::Paper(_) => return,
             Driver::Core(c) => {
                 let o = c.step(Instant((t * 1e6).round() as u64 as u32), &inputs);
+                // As the firmware's tick: the work the outputs do not wait for.
+                c.finish_tick();
                 (o.bridge, o.brake_release)
             }
             Driver::OpenLoop(o) => (o.command(t, &inputs), true),

@@ -1086,6 +1086,17 @@ impl Controller {
         }
     }
 
+    /// The rest of the tick, which its outputs do not wait for: call once a tick after
+    /// applying [`Self::step`]'s outputs (the firmware's control task does, after the bridge
+    /// and the brake). Bounded: at most one exact pose node of the estimator's next pose
+    /// segments ([`Estimator::prepare`]), so the tick that crosses into a segment decides its
+    /// outputs as fast as any other. Skipping it changes no output, only makes the step that
+    /// enters a new segment slower (it computes the nodes itself).
+    #[inline]
+    pub fn finish_tick(&mut self) {
+        self.est.prepare();
+    }
+
     /// Stick-slip detector step on this tick's measured torque (the current answers the bridge
     /// command of the previous tick, so "driving" is that command) and the reaction.
     fn detect_stick_slip(&mut self) {

@@ -238,6 +238,7 @@ pub fn run(s: &Scenario, mut hook: Hook) -> Run {
         }
         let force = tick.force;
         let mut out = c.step(Instant((t * 1e6).round() as u64 as u32), &inputs);
+        c.finish_tick();
         if let Some(b) = force {
             out.bridge = b;
         }

@@ -1,0 +1,84 @@
+//! The device interrupt vectors, IRQ 0 ..= 38 only (liftfw.x places them after the core's
+//! exception vectors and discards the PAC's table of all 102 STM32G431 interrupts).
+//!
+//! The firmware enables two interrupts: TIM2 (IRQ 28, embassy-time's driver) and USART2
+//! (IRQ 38, the console's `BufferedUart`). A table that stops at USART2 saves 63 entries
+//! (252 B of flash). The entries are the PAC's, in its order (stm32-metapac 21,
+//! `stm32g431cb/pac.rs`), each handler resolved by the linker as before: the function of that
+//! name if one is defined (embassy-stm32's TIM2, `bind_interrupts!`'s USART2), otherwise
+//! `DefaultHandler` (the PAC's `device.x`). liftfw.x fails the link if any later interrupt has a
+//! handler of its own, and the constants below fail the build if the PAC numbers the two
+//! differently.
+
+use embassy_stm32::pac::Interrupt;
+
+/// Entries in the table: up to and including USART2, the highest interrupt the firmware uses.
+const LEN: usize = Interrupt::USART2 as usize + 1;
+const _: () = assert!(LEN == 39 && (Interrupt::TIM2 as usize) < LEN);
+
+/// A vector-table entry: a handler, or a reserved word (zero).
+#[repr(C)]
+pub union Vector {
+    handler: unsafe extern "C" fn(),
+    reserved: u32,
+}
+
+macro_rules! vectors {
+    ($($entry:tt),* $(,)?) => {
+        extern "C" {
+            $(vectors!(@decl $entry);)*
+        }
+
+        /// IRQ 0 ..= 38 (the linker script keeps it: `EXTERN(__LIFTFW_INTERRUPTS)`).
+        #[link_section = ".vector_table.liftfw_interrupts"]
+        #[no_mangle]
+        #[used]
+        pub static __LIFTFW_INTERRUPTS: [Vector; LEN] = [$(vectors!(@entry $entry)),*];
+    };
+    (@decl _) => {};
+    (@decl $name:ident) => { fn $name(); };
+    (@entry _) => { Vector { reserved: 0 } };
+    (@entry $name:ident) => { Vector { handler: $name } };
+}
+
+vectors![
+    WWDG,
+    PVD_PVM,
+    RTC_TAMP_LSECSS,
+    RTC_WKUP,
+    FLASH,
+    RCC,
+    EXTI0,
+    EXTI1,
+    EXTI2,
+    EXTI3,
+    EXTI4,
+    DMA1_CHANNEL1,
+    DMA1_CHANNEL2,
+    DMA1_CHANNEL3,
+    DMA1_CHANNEL4,
+    DMA1_CHANNEL5,
+    DMA1_CHANNEL6,
+    _,
+    ADC1_2,
+    USB_HP,
+    USB_LP,
+    FDCAN1_IT0,
+    FDCAN1_IT1,
+    EXTI9_5,
+    TIM1_BRK_TIM15,
+    TIM1_UP_TIM16,
+    TIM1_TRG_COM_TIM17,
+    TIM1_CC,
+    TIM2,
+    TIM3,
+    TIM4,
+    I2C1_EV,
+    I2C1_ER,
+    I2C2_EV,
+    I2C2_ER,
+    SPI1,
+    SPI2,
+    USART1,
+    USART2,
+];

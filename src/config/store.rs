@@ -519,14 +519,6 @@ where
         let a = self.load_copy(0);
         let b = self.load_copy(1);
         let a_ok = a.is_ok();
-        // Either copy a ball screw's (the newest, or a save the ball-screw firmware did not
-        // finish): never run this image's fallback on that lift.
-        let ball = match (&a, &b) {
-            (Err(e @ Source::NeedsBallScrew(_)), _) | (_, Err(e @ Source::NeedsBallScrew(_))) => {
-                Some(*e)
-            }
-            _ => None,
-        };
         let (config, source) = match (a, b) {
             (Ok((ca, sa)), Ok((cb, sb))) => {
                 // Next save writes the older copy first; equal copies: either.
@@ -540,22 +532,26 @@ where
                 let both_copies = sa == sb && ca == cb;
                 (cfg, Source::Stored { seq, both_copies })
             }
-            (Ok(good), Err(_)) | (Err(_), Ok(good)) => {
+            (Ok(good), Err(e)) | (Err(e), Ok(good)) => {
                 let (cfg, seq) = good;
                 // Next save writes the damaged copy (the one that failed) first.
                 self.first = usize::from(a_ok);
                 self.seq = seq;
-                let both_copies = false;
-                (cfg, Source::Stored { seq, both_copies })
+                if e.needs_ball_screw() {
+                    // A ball screw's record in either copy (the newest, or a save the
+                    // ball-screw firmware did not finish): never run this image's fallback
+                    // on that lift.
+                    (ValidatedConfig::factory(), e)
+                } else {
+                    let both_copies = false;
+                    (cfg, Source::Stored { seq, both_copies })
+                }
             }
+            // The more specific failure; a ball screw's record weighs most (as above).
             (Err(ea), Err(eb)) => {
                 let worst = if eb.weight() > ea.weight() { eb } else { ea };
                 (ValidatedConfig::factory(), worst)
             }
-        };
-        let (config, source) = match ball {
-            Some(e) => (ValidatedConfig::factory(), e),
-            None => (config, source),
         };
         self.locked = source.needs_ball_screw();
         Loaded { config, source }

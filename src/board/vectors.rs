@@ -9,6 +9,12 @@
 //! `DefaultHandler` (the PAC's `device.x`). liftfw.x fails the link if any later interrupt has a
 //! handler of its own, and the constants below fail the build if the PAC numbers the two
 //! differently.
+//!
+//! A handler is not all: embassy-stm32's `init` enables every DMA channel's interrupt in the
+//! NVIC (`dma::init`), DMA2's among them at IRQ 56–60 and 97, past the table. Nothing sets up a
+//! DMA channel to raise one, but were one raised, the CPU would fetch its vector from the code
+//! after the table; [`disable_past_table`] turns every interrupt past the table off in the NVIC
+//! once `init` has run (in the full table they led to `DefaultHandler`).
 
 use embassy_stm32::pac::Interrupt;
 
@@ -82,3 +88,20 @@ vectors![
     USART1,
     USART2,
 ];
+
+/// Disables in the NVIC every interrupt past the table (see the module's documentation); boot
+/// calls it right after `embassy_stm32::init`. Writing 1 to an NVIC_ICERn bit disables that
+/// interrupt; bits of interrupts the chip does not have are ignored.
+pub fn disable_past_table() {
+    // Note(unsafe): the NVIC's registers, written while nothing else uses them (boot, before
+    // any task); write-1-to-clear enable bits, for interrupts nothing uses.
+    let nvic = unsafe { &*cortex_m::peripheral::NVIC::PTR };
+    // The first register holding interrupts past the table: from USART2 + 1 on.
+    let first = LEN / 32;
+    // Note(unsafe): as above.
+    unsafe { nvic.icer[first].write(!0 << (LEN % 32)) };
+    for icer in &nvic.icer[first + 1..=Interrupt::FMAC as usize / 32] {
+        // Note(unsafe): as above.
+        unsafe { icer.write(!0) };
+    }
+}

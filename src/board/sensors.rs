@@ -2,16 +2,13 @@
 //! limit switches and buttons. The board hands over raw codes; scaling is the core's job.
 
 use embassy_stm32::adc::{Adc, AdcChannel, Exten, InjectedAdc, SampleTime};
-use embassy_stm32::gpio::{Input, Pull};
+use embassy_stm32::gpio::{AfType, Flex, Input, Pull};
+use embassy_stm32::pac::timer::regs::ArrCore;
+use embassy_stm32::pac::timer::vals::{CcmrInputCcs, Mms, Sms, Ts, Urs};
+use embassy_stm32::pac::{TIM3, TIM4};
 use embassy_stm32::peripherals::{
-    ADC1, ADC2, PA0, PA1, PA4, PB10, PB11, PB14, PB15, PB5, PB6, PB7, TIM3, TIM4,
+    ADC1, ADC2, PA0, PA1, PA4, PB10, PB11, PB14, PB15, PB5, PB6, PB7, TIM3 as Tim3, TIM4 as Tim4,
 };
-use embassy_stm32::time::Hertz;
-use embassy_stm32::timer::low_level::{
-    InputCaptureMode, InputTISelection, MasterMode, SlaveMode, Timer, TriggerSource,
-};
-use embassy_stm32::timer::qei::{Qei, QeiMode};
-use embassy_stm32::timer::Channel;
 use embassy_stm32::triggers::TIM1_CC4;
 use embassy_stm32::Peri;
 use liftfw::control::{Inputs, Switches};
@@ -24,16 +21,26 @@ const CURRENT_SAMPLE_TIME: SampleTime = SampleTime::CYCLES47_5;
 /// 247.5 cycles = 5.8 µs. Read once per tick, blocking.
 const SUPPLY_SAMPLE_TIME: SampleTime = SampleTime::CYCLES247_5;
 
+/// Alternate function of PB6 (TIM4_CH1) and PB7 (TIM4_CH2).
+const TIM4_AF: u8 = 2;
+
+/// An encoder input: TIM4's alternate function with the pull-up (what `Qei::new` makes of it).
+fn encoder_pin(pin: Peri<'static, impl embassy_stm32::gpio::Pin>) -> Flex<'static> {
+    let mut pin = Flex::new(pin);
+    pin.set_as_af_unchecked(TIM4_AF, AfType::input(Pull::Up));
+    pin
+}
+
 /// The peripherals [`Sensors`] takes over (named for their function, see docs/board.md).
 pub struct SensorPeripherals {
     /// Timer in encoder mode.
-    pub encoder_timer: Peri<'static, TIM4>,
+    pub encoder_timer: Peri<'static, Tim4>,
     /// Encoder channel A.
     pub encoder_a: Peri<'static, PB6>,
     /// Encoder channel B.
     pub encoder_b: Peri<'static, PB7>,
     /// Free-running 1 MHz timer that timestamps every encoder count (no pins).
-    pub edge_timer: Peri<'static, TIM3>,
+    pub edge_timer: Peri<'static, Tim3>,
     /// ADC for current sense (injected conversions triggered by TIM1 CC4).
     pub current_adc: Peri<'static, ADC1>,
     /// BTS7960 R_IS (lifting half-bridge).
@@ -58,8 +65,11 @@ pub struct SensorPeripherals {
 
 /// The board's sensors, sampled once per control tick.
 pub struct Sensors {
-    encoder: Qei<'static, TIM4>,
-    edge_timer: Timer<'static, TIM3>,
+    /// TIM4 in encoder mode and its pins (A, B), configured in [`Sensors::new`] and read
+    /// through the PAC.
+    _encoder: (Peri<'static, Tim4>, Flex<'static>, Flex<'static>),
+    /// TIM3, the edge timer, configured in [`Sensors::new`] and read through the PAC.
+    _edge_timer: Peri<'static, Tim3>,
     current: InjectedAdc<'static, ADC1, 2>,
     supply_adc: Adc<'static, ADC2>,
     /// The supply divider's pin as its own type, not type-erased (`AnyAdcChannel`): the HAL's
@@ -73,36 +83,54 @@ pub struct Sensors {
 impl Sensors {
     /// Configures the encoder timer, both ADCs and the switch inputs.
     pub fn new(p: SensorPeripherals) -> Self {
-        // Mode 3 counts every edge of A and B: 4 counts per encoder line. Pull-ups suit the
-        // open-collector Hall encoders common on 12 V gear motors.
-        let encoder = Qei::new(
-            p.encoder_timer,
-            p.encoder_a,
-            p.encoder_b,
-            embassy_stm32::timer::qei::Config {
-                ch1_pull: Pull::Up,
-                ch2_pull: Pull::Up,
-                mode: QeiMode::Mode3,
-                auto_reload: u16::MAX,
-            },
-        );
+        // The two timers are set up with the register writes of embassy-stm32's `Qei::new` and
+        // of the `Timer` calls that set up the edge timer before, each register written once
+        // right after the RCC reset cleared it: the drivers' read-modify-writes, run-time
+        // prescaler search and drop glue were 0.1 KiB more flash (BENCHMARKS.md, session 7).
+        //
+        // TIM4, encoder mode 3: counts every edge of A and B (4 counts per encoder line), both
+        // channels inputs on their own pins (CCxS = 01, rising polarity), the full 16-bit
+        // range. It puts its encoder clock (one pulse per count, either direction) on TRGO for
+        // the edge timer.
+        embassy_stm32::rcc::enable_and_reset::<Tim4>();
+        TIM4.ccmr_input(0).write(|w| {
+            w.set_ccs(0, CcmrInputCcs::TI4);
+            w.set_ccs(1, CcmrInputCcs::TI4);
+        });
+        TIM4.ccer().write(|w| {
+            w.set_cce(0, true);
+            w.set_cce(1, true);
+        });
+        TIM4.smcr().write(|w| w.set_sms(Sms::ENCODER_MODE_3));
+        TIM4.arr().write_value(ArrCore(u16::MAX.into()));
+        TIM4.cr2().write(|w| w.set_mms(Mms::ENCODER_CLOCK_OUTPUT));
+        TIM4.cr1().write(|w| w.set_cen(true));
+        // PB6, PB7: TIM4_CH1/CH2 (AF2, embassy-stm32's pin table), inputs with pull-ups (they
+        // suit the open-collector Hall encoders common on 12 V gear motors).
+        let encoder_a = encoder_pin(p.encoder_a);
+        let encoder_b = encoder_pin(p.encoder_b);
 
-        // Edge timestamps for the core's sub-count position (`liftfw::control::edges`): TIM4
-        // puts its encoder clock (one pulse per count, either direction) on TRGO; TIM3 counts
-        // free at 1 MHz and captures its counter into CCR1 on that trigger (CC1 input = TRC,
-        // trigger ITR3 = tim4_trgo, RM0440 "TIMx internal trigger connection").
-        embassy_stm32::pac::TIM4
-            .cr2()
-            .modify(|w| w.set_mms(MasterMode::ENCODER_CLOCK_OUTPUT));
-        let mut edge_timer = Timer::new(p.edge_timer);
-        edge_timer.set_tick_freq(Hertz(1_000_000));
-        edge_timer.set_max_compare_value(u16::MAX);
-        edge_timer.set_trigger_source(TriggerSource::ITR3);
-        edge_timer.set_slave_mode(SlaveMode::DISABLED);
-        edge_timer.set_input_ti_selection(Channel::Ch1, InputTISelection::TRC);
-        edge_timer.set_input_capture_mode(Channel::Ch1, InputCaptureMode::Rising);
-        edge_timer.enable_channel(Channel::Ch1, true);
-        edge_timer.start();
+        // Edge timestamps for the core's sub-count position (`liftfw::control::edges`): TIM3
+        // counts free at 1 MHz over the full 16 bits and captures its counter into CCR1 on
+        // TIM4's trigger (CC1 input = TRC, trigger ITR3 = tim4_trgo, RM0440 "TIMx internal
+        // trigger connection"; slave mode off, rising polarity). The prescaler is embassy's
+        // `set_tick_freq`'s: the timer clock (170 MHz) over 1 MHz, minus one.
+        embassy_stm32::rcc::enable_and_reset::<Tim3>();
+        let ticks_per_us = embassy_stm32::rcc::frequency::<Tim3>().0 / 1_000_000;
+        TIM3.psc()
+            .write_value(ticks_per_us.saturating_sub(1) as u16);
+        TIM3.arr().write_value(ArrCore(u16::MAX.into()));
+        TIM3.smcr().write(|w| w.set_ts(Ts::ITR3));
+        TIM3.ccmr_input(0)
+            .write(|w| w.set_ccs(0, CcmrInputCcs::TRC));
+        TIM3.ccer().write(|w| w.set_cce(0, true));
+        // An update event loads the prescaler (URS: without flagging an update), then count.
+        TIM3.cr1().write(|w| w.set_urs(Urs::COUNTER_ONLY));
+        TIM3.egr().write(|w| w.set_ug(true));
+        TIM3.cr1().write(|w| {
+            w.set_urs(Urs::COUNTER_ONLY);
+            w.set_cen(true);
+        });
 
         // Both ADCs before any conversion starts: ADC1 and ADC2 share their clock and reset.
         let current_adc = Adc::new(p.current_adc, Default::default());
@@ -121,8 +149,8 @@ impl Sensors {
         );
 
         Self {
-            encoder,
-            edge_timer,
+            _encoder: (p.encoder_timer, encoder_a, encoder_b),
+            _edge_timer: p.edge_timer,
             current,
             supply_adc,
             supply: p.supply,
@@ -143,14 +171,15 @@ impl Sensors {
         let [right, left] = self.current.read_injected_samples();
         // Count and capture must belong together: an edge between the reads would pair the
         // old count with the new edge time, so read the capture around the count.
+        let capture = || TIM3.ccr(0).read().ccr();
         let (encoder_count, edge) = loop {
-            let edge = self.edge_timer.get_capture_value(Channel::Ch1);
-            let count = self.encoder.count();
-            if self.edge_timer.get_capture_value(Channel::Ch1) == edge {
+            let edge = capture();
+            let count = TIM4.cnt().read().cnt();
+            if capture() == edge {
                 break (count, edge);
             }
         };
-        let now = self.edge_timer.regs_core().cnt().read().cnt();
+        let now = TIM3.cnt().read().cnt();
         Inputs {
             encoder_count,
             encoder_edge_age: now.wrapping_sub(edge),

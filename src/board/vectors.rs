@@ -96,12 +96,13 @@ pub fn disable_past_table() {
     // Note(unsafe): the NVIC's registers, written while nothing else uses them (boot, before
     // any task); write-1-to-clear enable bits, for interrupts nothing uses.
     let nvic = unsafe { &*cortex_m::peripheral::NVIC::PTR };
-    // The first register holding interrupts past the table: from USART2 + 1 on.
-    let first = LEN / 32;
-    // Note(unsafe): as above.
-    unsafe { nvic.icer[first].write(!0 << (LEN % 32)) };
-    for icer in &nvic.icer[first + 1..=Interrupt::FMAC as usize / 32] {
-        // Note(unsafe): as above.
-        unsafe { icer.write(!0) };
+    // Note(unsafe, each): as above. ICER1 holds IRQ 32..=63: the bits from USART2 + 1 on;
+    // ICER2 and ICER3 hold IRQ 64..=127 (the chip's last is FMAC, 101).
+    unsafe {
+        nvic.icer[1].write(!0 << (LEN - 32));
+        nvic.icer[2].write(!0);
+        nvic.icer[3].write(!0);
     }
 }
+
+const _: () = assert!(LEN > 32 && LEN < 64 && (Interrupt::FMAC as usize) < 128);

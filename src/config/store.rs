@@ -14,6 +14,7 @@
 //! [`ValidatedConfig::new`]. docs/config-store.md gives the whole argument.
 
 use crate::config::record::{self, DecodeError, MAX_RECORD_LEN};
+use crate::config::settings::SETTINGS;
 use crate::config::ValidatedConfig;
 use crate::control::config::ControlConfig;
 use crate::ConfigError;
@@ -99,13 +100,36 @@ impl PositionRecord {
 /// (CRC-32 of those settings' raw bits, each as 8 little-endian bytes, in registry order.)
 pub fn geometry_stamp(cfg: &ControlConfig) -> u32 {
     let mut crc = 0xFFFF_FFFF;
-    for s in crate::config::settings::SETTINGS.iter() {
-        if s.key.starts_with("geometry.") || s.key.starts_with("drive.") {
-            crc = record::crc32_update(crc, &s.get(cfg).to_le_bytes());
-        }
+    for s in &SETTINGS[STAMPED.start..STAMPED.end] {
+        crc = record::crc32_update(crc, &s.get(cfg).to_le_bytes());
     }
     crc ^ 0xFFFF_FFFF
 }
+
+/// Whether [`geometry_stamp`] covers a setting: its key starts with `geometry.` or `drive.`.
+const fn stamped(key: &str) -> bool {
+    record::starts_with(key, "geometry.") || record::starts_with(key, "drive.")
+}
+
+/// The settings [`geometry_stamp`] covers, as indices into [`SETTINGS`]: they are neighbours
+/// in the registry (checked here at compile time), so the firmware compares no key strings.
+const STAMPED: Range<usize> = {
+    let mut first = 0;
+    while first < SETTINGS.len() && !stamped(SETTINGS[first].key) {
+        first += 1;
+    }
+    let mut end = first;
+    while end < SETTINGS.len() && stamped(SETTINGS[end].key) {
+        end += 1;
+    }
+    let mut i = end;
+    while i < SETTINGS.len() {
+        assert!(!stamped(SETTINGS[i].key), "the stamped settings must be neighbours");
+        i += 1;
+    }
+    assert!(end > first);
+    first..end
+};
 
 /// Work buffer: key + record, rounded up to the 8-byte program unit of the G4.
 const BUF_LEN: usize = (1 + MAX_RECORD_LEN).div_ceil(8) * 8;

@@ -22,14 +22,11 @@ use embassy_stm32::pac::timer::regs::{ArrCore, Ccr1ch};
 use embassy_stm32::pac::timer::vals::{Ocm, Urs};
 use embassy_stm32::pac::TIM1;
 use embassy_stm32::peripherals::{PA8, PA9, PB12, PB13};
+use embassy_stm32::timer::{Ch1, Ch2, TimerChannel, TimerPin};
 use embassy_stm32::{peripherals, Peri};
 use liftfw::control::Bridge;
 
 use super::PWM_FREQUENCY;
-
-/// Alternate function of PA8 (TIM1_CH1) and PA9 (TIM1_CH2): AF6 (embassy-stm32's pin table
-/// for the STM32G431, `TimerPin<Ch1>`/`TimerPin<Ch2>` of TIM1).
-const TIM1_AF: u8 = 6;
 
 /// The motor H-bridge.
 pub struct HBridge {
@@ -44,15 +41,16 @@ pub struct HBridge {
     full_scale: u32,
 }
 
-/// A PWM pin: low, then TIM1's alternate function (push-pull, very high speed), as
-/// embassy-stm32's `PwmPin::new` sets it up.
-fn pwm_pin(pin: Peri<'static, impl embassy_stm32::gpio::Pin>) -> Flex<'static> {
+/// A PWM pin: low, then TIM1's alternate function for channel `C` (push-pull, very high
+/// speed), as embassy-stm32's `PwmPin::new` sets it up. The `TimerPin` bound keeps the HAL's
+/// compile-time check: a pin without that function does not build (PA8, PA9: AF6).
+fn pwm_pin<C: TimerChannel>(
+    pin: Peri<'static, impl TimerPin<peripherals::TIM1, C>>,
+) -> Flex<'static> {
+    let af = pin.af_num();
     let mut pin = Flex::new(pin);
     pin.set_low();
-    pin.set_as_af_unchecked(
-        TIM1_AF,
-        AfType::output(OutputType::PushPull, Speed::VeryHigh),
-    );
+    pin.set_as_af_unchecked(af, AfType::output(OutputType::PushPull, Speed::VeryHigh));
     pin
 }
 
@@ -75,7 +73,7 @@ impl HBridge {
         // Enables first, low: nothing may conduct while the timer is being configured.
         let enable_right = Output::new(r_en, Level::Low, Speed::Low);
         let enable_left = Output::new(l_en, Level::Low, Speed::Low);
-        let (rpwm, lpwm) = (pwm_pin(rpwm), pwm_pin(lpwm));
+        let (rpwm, lpwm) = (pwm_pin::<Ch1>(rpwm), pwm_pin::<Ch2>(lpwm));
         // Clock on and reset: every TIM1 register at its reset value (0 but ARR).
         embassy_stm32::rcc::enable_and_reset::<peripherals::TIM1>();
         // Period: the timer clock divided by the PWM frequency (170 MHz / 20 kHz = 8 500

@@ -9,6 +9,7 @@ use embassy_stm32::pac::{TIM3, TIM4};
 use embassy_stm32::peripherals::{
     ADC1, ADC2, PA0, PA1, PA4, PB10, PB11, PB14, PB15, PB5, PB6, PB7, TIM3 as Tim3, TIM4 as Tim4,
 };
+use embassy_stm32::timer::{Ch1, Ch2, TimerChannel, TimerPin};
 use embassy_stm32::triggers::TIM1_CC4;
 use embassy_stm32::Peri;
 use liftfw::control::{Inputs, Switches};
@@ -21,13 +22,13 @@ const CURRENT_SAMPLE_TIME: SampleTime = SampleTime::CYCLES47_5;
 /// 247.5 cycles = 5.8 µs. Read once per tick, blocking.
 const SUPPLY_SAMPLE_TIME: SampleTime = SampleTime::CYCLES247_5;
 
-/// Alternate function of PB6 (TIM4_CH1) and PB7 (TIM4_CH2).
-const TIM4_AF: u8 = 2;
-
-/// An encoder input: TIM4's alternate function with the pull-up (what `Qei::new` makes of it).
-fn encoder_pin(pin: Peri<'static, impl embassy_stm32::gpio::Pin>) -> Flex<'static> {
+/// An encoder input: TIM4's alternate function for channel `C` with the pull-up (what
+/// `Qei::new` makes of it). The `TimerPin` bound keeps the HAL's compile-time check: a pin
+/// without that function does not build (PB6, PB7: AF2).
+fn encoder_pin<C: TimerChannel>(pin: Peri<'static, impl TimerPin<Tim4, C>>) -> Flex<'static> {
+    let af = pin.af_num();
     let mut pin = Flex::new(pin);
-    pin.set_as_af_unchecked(TIM4_AF, AfType::input(Pull::Up));
+    pin.set_as_af_unchecked(af, AfType::input(Pull::Up));
     pin
 }
 
@@ -105,10 +106,10 @@ impl Sensors {
         TIM4.arr().write_value(ArrCore(u16::MAX.into()));
         TIM4.cr2().write(|w| w.set_mms(Mms::ENCODER_CLOCK_OUTPUT));
         TIM4.cr1().write(|w| w.set_cen(true));
-        // PB6, PB7: TIM4_CH1/CH2 (AF2, embassy-stm32's pin table), inputs with pull-ups (they
-        // suit the open-collector Hall encoders common on 12 V gear motors).
-        let encoder_a = encoder_pin(p.encoder_a);
-        let encoder_b = encoder_pin(p.encoder_b);
+        // PB6, PB7: TIM4_CH1/CH2, inputs with pull-ups (they suit the open-collector Hall
+        // encoders common on 12 V gear motors).
+        let encoder_a = encoder_pin::<Ch1>(p.encoder_a);
+        let encoder_b = encoder_pin::<Ch2>(p.encoder_b);
 
         // Edge timestamps for the core's sub-count position (`liftfw::control::edges`): TIM3
         // counts free at 1 MHz over the full 16 bits and captures its counter into CCR1 on

@@ -124,7 +124,10 @@ const STAMPED: Range<usize> = {
     }
     let mut i = end;
     while i < SETTINGS.len() {
-        assert!(!stamped(SETTINGS[i].key), "the stamped settings must be neighbours");
+        assert!(
+            !stamped(SETTINGS[i].key),
+            "the stamped settings must be neighbours"
+        );
         i += 1;
     }
     assert!(end > first);

@@ -325,7 +325,7 @@ fn spawn_tasks(
     info!(
         "board up: PWM full scale {} counts, control at {} Hz",
         board.bridge.full_scale(),
-        CONTROL_HZ
+        CONTROL_HZ as u32
     );
     let store_ok = boot.store.is_some();
     if let Some(store) = boot.store {
@@ -456,29 +456,19 @@ async fn control(board: &'static mut Board, lift: &'static SharedController, mut
 /// logging calls were inlined into the control task's poll (issue 5).
 #[inline(never)]
 fn report_event(e: Event) {
-    let notify = match e {
-        Event::Fault(f) => {
-            error!("FAULT {}", f);
-            true
-        }
-        Event::StickSlip { reaction, .. } if reaction != Reaction::Log => {
-            warn!("{}", e);
-            true
-        }
-        Event::Homed { .. } | Event::SwitchStop => {
-            info!("{}", e);
-            true
-        }
+    // Stick-slip with the reactions `warn` and `speed`, and the lubrication warning: warnings.
+    let warning = match e {
+        Event::StickSlip { reaction, .. } => reaction != Reaction::Log,
         #[cfg(feature = "ball-screw")]
-        Event::Lubrication(_) => {
-            warn!("{}", e);
-            true
-        }
-        _ => {
-            info!("{}", e);
-            false
-        }
+        Event::Lubrication(_) => true,
+        _ => false,
     };
+    match e {
+        Event::Fault(f) => error!("FAULT {}", f),
+        _ if warning => warn!("{}", e),
+        _ => info!("{}", e),
+    }
+    let notify = warning || matches!(e, Event::Fault(_) | Event::Homed { .. } | Event::SwitchStop);
     if notify && NOTICES.try_send(e).is_err() {
         warn!("console notice dropped (console behind)");
     }

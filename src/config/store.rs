@@ -608,13 +608,21 @@ where
                 })
             }
         };
-        let (cfg, seq) = record::decode(bytes).map_err(|e| match e {
-            DecodeError::Version { .. } | DecodeError::Schema => Source::Incompatible(e),
-            _ => Source::Corrupt(Corruption::Record(e)),
-        })?;
-        crate::config::settings::check_variant(&cfg).map_err(Source::NeedsBallScrew)?;
-        let cfg = ValidatedConfig::new(cfg).map_err(Source::Rejected)?;
-        Ok((cfg, seq))
+        // Matched rather than `map_err(…)?`: each of those moved the whole configuration.
+        let (cfg, seq) = match record::decode(bytes) {
+            Ok(decoded) => decoded,
+            Err(e @ (DecodeError::Version { .. } | DecodeError::Schema)) => {
+                return Err(Source::Incompatible(e))
+            }
+            Err(e) => return Err(Source::Corrupt(Corruption::Record(e))),
+        };
+        if let Err(e) = crate::config::settings::check_variant(&cfg) {
+            return Err(Source::NeedsBallScrew(e));
+        }
+        match ValidatedConfig::new(cfg) {
+            Ok(cfg) => Ok((cfg, seq)),
+            Err(e) => Err(Source::Rejected(e)),
+        }
     }
 
     /// Append `value` under `key` to `copy` (one routine for both records).

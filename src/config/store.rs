@@ -545,43 +545,50 @@ where
     pub fn load(&mut self) -> Loaded {
         let a = self.load_copy(0);
         let b = self.load_copy(1);
-        let a_ok = a.is_ok();
-        let (config, source) = match (a, b) {
+        // Which copy's configuration runs (`None`: the factory one), decided on references
+        // and copied once (moving the two results through the match copied the configuration
+        // at every step).
+        let (run, source) = match (&a, &b) {
             (Ok((ca, sa)), Ok((cb, sb))) => {
                 // Next save writes the older copy first; equal copies: either.
-                let (cfg, seq, first) = if newer(sb, sa) {
-                    (cb, sb, 0)
+                let (cfg, seq, first) = if newer(*sb, *sa) {
+                    (cb, *sb, 0)
                 } else {
-                    (ca, sa, 1)
+                    (ca, *sa, 1)
                 };
                 self.first = first;
                 self.seq = seq;
                 let both_copies = sa == sb && ca == cb;
-                (cfg, Source::Stored { seq, both_copies })
+                (Some(cfg), Source::Stored { seq, both_copies })
             }
-            (Ok(good), Err(e)) | (Err(e), Ok(good)) => {
-                let (cfg, seq) = good;
+            (Ok((cfg, seq)), Err(e)) | (Err(e), Ok((cfg, seq))) => {
                 // Next save writes the damaged copy (the one that failed) first.
-                self.first = usize::from(a_ok);
-                self.seq = seq;
+                self.first = usize::from(a.is_ok());
+                self.seq = *seq;
                 if e.needs_ball_screw() {
                     // A ball screw's record in either copy (the newest, or a save the
                     // ball-screw firmware did not finish): never run this image's fallback
                     // on that lift.
-                    (ValidatedConfig::factory(), e)
+                    (None, *e)
                 } else {
                     let both_copies = false;
-                    (cfg, Source::Stored { seq, both_copies })
+                    (
+                        Some(cfg),
+                        Source::Stored {
+                            seq: *seq,
+                            both_copies,
+                        },
+                    )
                 }
             }
             // The more specific failure; a ball screw's record weighs most (as above).
-            (Err(ea), Err(eb)) => {
-                let worst = if eb.weight() > ea.weight() { eb } else { ea };
-                (ValidatedConfig::factory(), worst)
-            }
+            (Err(ea), Err(eb)) => (None, if eb.weight() > ea.weight() { *eb } else { *ea }),
         };
         self.locked = source.needs_ball_screw();
-        Loaded { config, source }
+        Loaded {
+            config: run.copied().unwrap_or_else(ValidatedConfig::factory),
+            source,
+        }
     }
 
     /// The newest item under `key` in `copy`, read into the work buffer (one routine for the

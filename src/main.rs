@@ -34,7 +34,7 @@ use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
 use embassy_time::{Duration, Instant as Clock, Ticker};
-use liftfw::config::store::{geometry_stamp, ConfigStore, Parked, Source, StoreError};
+use liftfw::config::store::{geometry_stamp, ConfigStore, Loaded, Parked, Source, StoreError};
 use liftfw::config::ValidatedConfig;
 use liftfw::console::service::{self, Action, Lift};
 use liftfw::console::{Feed, LineBuffer};
@@ -148,11 +148,11 @@ fn boot(spawner: Spawner) {
     // Configuration and parked position, before the watchdog runs (a store repair may erase a
     // page: tens of ms). Any failure leaves the factory configuration and an unhomed lift.
     let boot = load_store(flash);
-    let greeting = log_source(&boot.source);
+    let greeting = log_source(&boot.loaded.source);
     let parked = trusted_position(&boot);
-    let controller = install_controller(boot.config.get(), parked);
+    let controller = install_controller(boot.loaded.config.get(), parked);
     #[cfg(not(feature = "ball-screw"))]
-    if boot.source.needs_ball_screw() {
+    if boot.loaded.source.needs_ball_screw() {
         // A lead-screw image on a ball screw's record: braked and locked, the record kept.
         error!("the stored configuration needs the ball-screw firmware (cargo fw-ball): lift locked, motor braked, record kept");
         controller.report_needs_ball_screw(Instant(Clock::now().as_micros() as u32));
@@ -219,10 +219,9 @@ static STORE: StaticCell<ConfigStore<StoreFlash>> = StaticCell::new();
 struct Boot {
     /// The store, unless it is unusable.
     store: Option<&'static mut ConfigStore<StoreFlash>>,
-    /// The running configuration.
-    config: ValidatedConfig,
-    /// Where it came from.
-    source: Source,
+    /// The running configuration and where it came from (as the store's `load` returns it:
+    /// built in place, not moved field by field).
+    loaded: Loaded,
     /// The parked position in encoder counts, if one is recorded.
     parked: Option<i32>,
 }
@@ -239,16 +238,17 @@ fn load_store(flash: Peri<'static, FLASH>) -> Boot {
             let parked = store.load_position(stamp);
             Boot {
                 store: Some(store),
-                config: loaded.config,
-                source: loaded.source,
+                loaded,
                 parked,
             }
         }
         // Logged below as the configuration's source (`Unreadable`).
         Err(e) => Boot {
             store: None,
-            config: ValidatedConfig::factory(),
-            source: Source::Unreadable(e),
+            loaded: Loaded {
+                config: ValidatedConfig::factory(),
+                source: Source::Unreadable(e),
+            },
             parked: None,
         },
     };
@@ -289,7 +289,7 @@ fn log_source(source: &Source) -> &'static mut Reply {
 /// position is trusted (docs/control.md).
 #[inline(never)]
 fn trusted_position(boot: &Boot) -> Option<i32> {
-    let parked = if boot.config.get().screw.holds_without_power() {
+    let parked = if boot.loaded.config.get().screw.holds_without_power() {
         boot.parked
     } else {
         if boot.parked.is_some() {
@@ -337,7 +337,7 @@ fn spawn_tasks(
         console,
         lift,
         greeting,
-        boot.config,
+        boot.loaded.config,
         store_ok,
     )));
 }

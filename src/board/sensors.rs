@@ -1,11 +1,11 @@
 //! Everything the control tick samples: encoder counter, current sense, supply voltage,
 //! limit switches and buttons. The board hands over raw codes; scaling is the core's job.
 
-use embassy_stm32::adc::{Adc, AdcChannel, Exten, InjectedAdc, SampleTime};
+use embassy_stm32::adc::{Adc, AdcChannel, AnyAdcChannel, Exten, InjectedTrigger, SampleTime};
 use embassy_stm32::gpio::{AfType, Flex, Input, Pull};
 use embassy_stm32::pac::timer::regs::ArrCore;
 use embassy_stm32::pac::timer::vals::{CcmrInputCcs, Mms, Sms, Ts, Urs};
-use embassy_stm32::pac::{TIM3, TIM4};
+use embassy_stm32::pac::{ADC1 as Adc1, TIM3, TIM4};
 use embassy_stm32::peripherals::{
     ADC1, ADC2, PA0, PA1, PA4, PB10, PB11, PB14, PB15, PB5, PB6, PB7, TIM3 as Tim3, TIM4 as Tim4,
 };
@@ -71,7 +71,13 @@ pub struct Sensors {
     _encoder: (Peri<'static, Tim4>, Flex<'static>, Flex<'static>),
     /// TIM3, the edge timer, configured in [`Sensors::new`] and read through the PAC.
     _edge_timer: Peri<'static, Tim3>,
-    current: InjectedAdc<'static, ADC1, 2>,
+    /// ADC1 running R_IS and L_IS as an injected sequence (set up in [`Sensors::new`], read
+    /// through the PAC), and the two pins.
+    _current: (
+        Adc<'static, ADC1>,
+        AnyAdcChannel<'static, ADC1>,
+        AnyAdcChannel<'static, ADC1>,
+    ),
     supply_adc: Adc<'static, ADC2>,
     /// The supply divider's pin as its own type, not type-erased (`AnyAdcChannel`): the HAL's
     /// blocking read then works on a compile-time channel number (112 B less flash). Its
@@ -139,20 +145,33 @@ impl Sensors {
 
         // R_IS and L_IS as one injected sequence, started by TIM1's CC4 event in the middle
         // of every PWM on-phase (20 kHz); the data registers always hold the latest pair.
-        let current = current_adc.setup_injected_conversions(
-            [
-                (p.current_right.degrade_adc(), CURRENT_SAMPLE_TIME),
-                (p.current_left.degrade_adc(), CURRENT_SAMPLE_TIME),
-            ],
-            TIM1_CC4,
-            Exten::RISING_EDGE,
-            false,
-        );
+        // The register writes of embassy-stm32's `setup_injected_conversions` (0.1 KiB less
+        // flash, BENCHMARKS.md session 7): the pins in analog mode (`degrade_adc`), both
+        // sample times, the sequence (two ranks: R_IS, L_IS) with its trigger in one JSQR
+        // write (the injected queue is off, CFGR.JQDIS's reset value, so JSQR takes the value
+        // as written), then JADSTART. (JDISCEN and JEOSIE keep their reset value, off, as
+        // the driver set them; ADC1 is enabled already, by `Adc::new`.)
+        let right = p.current_right.degrade_adc();
+        let left = p.current_left.degrade_adc();
+        let (right_ch, left_ch) = (right.get_hw_channel(), left.get_hw_channel());
+        // Channels 0..=9 have their sample time in SMPR1 (PA0 = IN1, PA1 = IN2).
+        Adc1.smpr().modify(|w| {
+            w.set_smp(usize::from(right_ch), CURRENT_SAMPLE_TIME);
+            w.set_smp(usize::from(left_ch), CURRENT_SAMPLE_TIME);
+        });
+        Adc1.jsqr().write(|w| {
+            w.set_jl(1);
+            w.set_jsq(0, right_ch);
+            w.set_jsq(1, left_ch);
+            w.set_jextsel(InjectedTrigger::<ADC1>::signal(&TIM1_CC4));
+            w.set_jexten(Exten::RISING_EDGE);
+        });
+        Adc1.cr().modify(|w| w.set_jadstart(true));
 
         Self {
             _encoder: (p.encoder_timer, encoder_a, encoder_b),
             _edge_timer: p.edge_timer,
-            current,
+            _current: (current_adc, right, left),
             supply_adc,
             supply: p.supply,
             switches: SwitchInputs {
@@ -169,7 +188,10 @@ impl Sensors {
 
     /// Samples every input for one control tick (≈10 µs, dominated by the supply conversion).
     pub fn sample(&mut self) -> Inputs {
-        let [right, left] = self.current.read_injected_samples();
+        // The injected data registers (JDR1 = R_IS, JDR2 = L_IS), then JEOS cleared (by the
+        // read-modify-write of ADC_ISR that `read_injected_samples` does).
+        let [right, left] = [Adc1.jdr(0).read().jdata(), Adc1.jdr(1).read().jdata()];
+        Adc1.isr().modify(|w| w.set_jeos(true));
         // Count and capture must belong together: an edge between the reads would pair the
         // old count with the new edge time, so read the capture around the count.
         let capture = || TIM3.ccr(0).read().ccr();

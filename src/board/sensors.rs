@@ -1,11 +1,13 @@
 //! Everything the control tick samples: encoder counter, current sense, supply voltage,
 //! limit switches and buttons. The board hands over raw codes; scaling is the core's job.
 
-use embassy_stm32::adc::{Adc, AdcChannel, AnyAdcChannel, Exten, InjectedTrigger, SampleTime};
+use embassy_stm32::adc::{AdcChannel, AnyAdcChannel, Exten, InjectedTrigger, SampleTime};
 use embassy_stm32::gpio::{AfType, Flex, Input, Pull};
+use embassy_stm32::pac::adc::vals::Adcaldif;
+use embassy_stm32::pac::adccommon::vals::Presc;
 use embassy_stm32::pac::timer::regs::ArrCore;
 use embassy_stm32::pac::timer::vals::{CcmrInputCcs, Mms, Sms, Ts, Urs};
-use embassy_stm32::pac::{ADC1 as Adc1, TIM3, TIM4};
+use embassy_stm32::pac::{ADC1 as Adc1, ADC12_COMMON, ADC2 as Adc2, TIM3, TIM4};
 use embassy_stm32::peripherals::{
     ADC1, ADC2, PA0, PA1, PA4, PB10, PB11, PB14, PB15, PB5, PB6, PB7, TIM3 as Tim3, TIM4 as Tim4,
 };
@@ -71,19 +73,15 @@ pub struct Sensors {
     _encoder: (Peri<'static, Tim4>, Flex<'static>, Flex<'static>),
     /// TIM3, the edge timer, configured in [`Sensors::new`] and read through the PAC.
     _edge_timer: Peri<'static, Tim3>,
-    /// ADC1 running R_IS and L_IS as an injected sequence (set up in [`Sensors::new`], read
-    /// through the PAC), and the two pins.
-    _current: (
-        Adc<'static, ADC1>,
-        AnyAdcChannel<'static, ADC1>,
-        AnyAdcChannel<'static, ADC1>,
+    /// ADC1 running R_IS and L_IS as an injected sequence and ADC2 converting the supply
+    /// divider on request (both set up in [`Sensors::new`], read through the PAC), and their
+    /// pins (R_IS, L_IS, supply).
+    _adcs: (
+        Peri<'static, ADC1>,
+        Peri<'static, ADC2>,
+        [AnyAdcChannel<'static, ADC1>; 2],
+        AnyAdcChannel<'static, ADC2>,
     ),
-    supply_adc: Adc<'static, ADC2>,
-    /// The supply divider's pin as its own type, not type-erased (`AnyAdcChannel`): the HAL's
-    /// blocking read then works on a compile-time channel number (112 B less flash). Its
-    /// `setup` puts PA4 in analog mode on every read (one idempotent MODER write; the pin
-    /// leaves reset in analog mode).
-    supply: Peri<'static, PA4>,
     switches: SwitchInputs,
 }
 
@@ -139,18 +137,28 @@ impl Sensors {
             w.set_cen(true);
         });
 
-        // Both ADCs before any conversion starts: ADC1 and ADC2 share their clock and reset.
-        let current_adc = Adc::new(p.current_adc, Default::default());
-        let supply_adc = Adc::new(p.supply_adc, Default::default());
+        // The ADCs at register level, with the register writes of embassy-stm32's drivers
+        // (`Adc::new`, `setup_injected_conversions`, `blocking_read`, `read_injected_samples`;
+        // 0.45 KiB less flash than the drivers, BENCHMARKS.md session 7). Both ADCs before any
+        // conversion starts: ADC1 and ADC2 share their clock and reset (the HAL counts the
+        // users of both: only the first call resets them). Then `Adc::new`'s writes for each
+        // ([`adc_start`]), the common prescaler once.
+        embassy_stm32::rcc::enable_and_reset::<ADC1>();
+        embassy_stm32::rcc::enable_and_reset::<ADC2>();
+        let kernel_hz = embassy_stm32::rcc::frequency::<ADC1>().0;
+        ADC12_COMMON
+            .ccr()
+            .modify(|w| w.set_presc(adc_prescaler(kernel_hz)));
+        adc_start(Adc1);
+        adc_start(Adc2);
 
         // R_IS and L_IS as one injected sequence, started by TIM1's CC4 event in the middle
         // of every PWM on-phase (20 kHz); the data registers always hold the latest pair.
-        // The register writes of embassy-stm32's `setup_injected_conversions` (0.1 KiB less
-        // flash, BENCHMARKS.md session 7): the pins in analog mode (`degrade_adc`), both
-        // sample times, the sequence (two ranks: R_IS, L_IS) with its trigger in one JSQR
-        // write (the injected queue is off, CFGR.JQDIS's reset value, so JSQR takes the value
-        // as written), then JADSTART. (JDISCEN and JEOSIE keep their reset value, off, as
-        // the driver set them; ADC1 is enabled already, by `Adc::new`.)
+        // The register writes of embassy-stm32's `setup_injected_conversions`: the pins in
+        // analog mode (`degrade_adc`), both sample times, the sequence (two ranks: R_IS, L_IS)
+        // with its trigger in one JSQR write (the injected queue is off, CFGR.JQDIS's reset
+        // value, so JSQR takes the value as written), then JADSTART. (JDISCEN and JEOSIE keep
+        // their reset value, off, as the driver set them; ADC1 is enabled already.)
         let right = p.current_right.degrade_adc();
         let left = p.current_left.degrade_adc();
         let (right_ch, left_ch) = (right.get_hw_channel(), left.get_hw_channel());
@@ -168,12 +176,29 @@ impl Sensors {
         });
         Adc1.cr().modify(|w| w.set_jadstart(true));
 
+        // The supply divider on ADC2: one regular conversion of PA4 (IN17, analog mode through
+        // `degrade_adc`) at 247.5 cycles, software-started each tick. The HAL's
+        // `blocking_read` wrote this sequence (SQR1: one rank; the sample time; every other
+        // SMPR/SQR field and DIFSEL zero, their reset values) before every conversion; it is
+        // written once here, as nothing else uses ADC2.
+        let supply = p.supply.degrade_adc();
+        let supply_ch = supply.get_hw_channel();
+        if supply_ch <= 9 {
+            Adc2.smpr()
+                .modify(|w| w.set_smp(usize::from(supply_ch), SUPPLY_SAMPLE_TIME));
+        } else {
+            Adc2.smpr2()
+                .modify(|w| w.set_smp(usize::from(supply_ch - 10), SUPPLY_SAMPLE_TIME));
+        }
+        Adc2.sqr1().write(|w| {
+            w.set_l(0);
+            w.set_sq(0, supply_ch);
+        });
+
         Self {
             _encoder: (p.encoder_timer, encoder_a, encoder_b),
             _edge_timer: p.edge_timer,
-            _current: (current_adc, right, left),
-            supply_adc,
-            supply: p.supply,
+            _adcs: (p.current_adc, p.supply_adc, [right, left], supply),
             switches: SwitchInputs {
                 // Pull-ups everywhere: a cut wire reads as "limit reached" / "STOP pressed"
                 // on the normally-closed inputs, and as "not pressed" on UP/DOWN.
@@ -209,12 +234,73 @@ impl Sensors {
             // Only the conducting high side sources IS current; the idle one reads ≈ 0,
             // so the larger code is the active side's. 12-bit codes, as the core expects.
             current_raw: right.max(left),
-            supply_raw: self
-                .supply_adc
-                .blocking_read(&mut self.supply, SUPPLY_SAMPLE_TIME),
+            supply_raw: read_supply(),
             switches: self.switches.read(),
         }
     }
+}
+
+/// The supply divider's conversion on ADC2 (≈ 6 µs): the HAL's `convert` (EOS and EOC
+/// cleared, ADSTART, wait for EOS) and the data register. A single conversion ends with ADSTART
+/// cleared by the ADC, so no conversion is under way when the next tick starts one (the HAL's
+/// `stop` found none either).
+fn read_supply() -> u16 {
+    Adc2.isr().modify(|w| {
+        w.set_eos(true);
+        w.set_eoc(true);
+    });
+    Adc2.cr().modify(|w| w.set_adstart(true));
+    while !Adc2.isr().read().eos() {}
+    Adc2.dr().read().rdata()
+}
+
+/// ADC12's clock prescaler for a kernel clock of `hz`: the smallest that keeps the ADC clock at
+/// most 60 MHz (embassy-stm32's `from_ker_ck`; 170 MHz → ÷4 = 42.5 MHz).
+fn adc_prescaler(hz: u32) -> Presc {
+    match hz.saturating_sub(1) / 60_000_000 {
+        0 => Presc::DIV1,
+        1 => Presc::DIV2,
+        2..=3 => Presc::DIV4,
+        4..=5 => Presc::DIV6,
+        6..=7 => Presc::DIV8,
+        8..=9 => Presc::DIV10,
+        10..=11 => Presc::DIV12,
+        _ => panic!("ADC kernel clock above 720 MHz"),
+    }
+}
+
+/// Powers up, calibrates and enables one ADC, single conversions on a software start: the
+/// register writes of embassy-stm32's `Adc::new` for the G4 with the default configuration,
+/// one copy for both ADCs. (`Adc::new` also set DIFSEL to all single-ended: its reset value.)
+fn adc_start(adc: embassy_stm32::pac::adc::Adc) {
+    // `Adc::new`'s waits of 20 µs (the HAL's `block_for_us`: core clock cycles) on
+    // embassy-time's 1 MHz clock, whatever the clock tree: 21 ticks from a tick boundary
+    // that may have just passed is at least 20 µs.
+    let wait_20_us = || embassy_time::block_for(embassy_time::Duration::from_micros(21));
+    // Out of deep power-down, the voltage regulator on, and its start-up time.
+    adc.cr().modify(|w| {
+        w.set_deeppwd(false);
+        w.set_advregen(true);
+    });
+    wait_20_us();
+    // Calibrate single-ended, then differential, each followed by the HAL's 20 µs.
+    for mode in [Adcaldif::SINGLE_ENDED, Adcaldif::DIFFERENTIAL] {
+        adc.cr().modify(|w| w.set_adcaldif(mode));
+        adc.cr().modify(|w| w.set_adcal(true));
+        while adc.cr().read().adcal() {}
+        wait_20_us();
+    }
+    // Enable: ADRDY cleared (write 1), ADEN, wait for ADRDY.
+    while adc.cr().read().addis() {}
+    if !adc.cr().read().aden() {
+        adc.isr().modify(|w| w.set_adrdy(true));
+        adc.cr().modify(|w| w.set_aden(true));
+        while !adc.isr().read().adrdy() {}
+    }
+    adc.cfgr().modify(|w| {
+        w.set_cont(false);
+        w.set_exten(Exten::DISABLED);
+    });
 }
 
 /// The five digital inputs, with their wiring polarity resolved here.

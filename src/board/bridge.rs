@@ -61,8 +61,8 @@ impl HBridge {
     /// mode 1 with preload on every channel, auto-reload preload, main output enable, an update
     /// event to load the preloaded values, counter on) and of the channel set-up that followed
     /// it here, written once each to the registers the RCC reset just cleared: the driver's
-    /// frequency search in 64-bit arithmetic, its read-modify-writes and its drop glue were
-    /// 0.2 KiB more flash (BENCHMARKS.md, session 7).
+    /// period search in 64-bit arithmetic, its assertions and its read-modify-writes were
+    /// 0.3 KiB more flash (BENCHMARKS.md, session 7).
     pub fn new(
         tim: Peri<'static, peripherals::TIM1>,
         rpwm: Peri<'static, PA8>,

@@ -90,8 +90,9 @@ impl Sensors {
     pub fn new(p: SensorPeripherals) -> Self {
         // The two timers are set up with the register writes of embassy-stm32's `Qei::new` and
         // of the `Timer` calls that set up the edge timer before, each register written once
-        // right after the RCC reset cleared it: the drivers' read-modify-writes, run-time
-        // prescaler search and drop glue were 0.1 KiB more flash (BENCHMARKS.md, session 7).
+        // right after the RCC reset cleared it: the drivers' read-modify-writes, update events
+        // and run-time prescaler with its assertion were 0.16 KiB more flash (BENCHMARKS.md,
+        // session 7).
         //
         // TIM4, encoder mode 3: counts every edge of A and B (4 counts per encoder line), both
         // channels inputs on their own pins (CCxS = 01, rising polarity), the full 16-bit

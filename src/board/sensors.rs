@@ -140,7 +140,7 @@ impl Sensors {
 
         // The ADCs at register level, with the register writes of embassy-stm32's drivers
         // (`Adc::new`, `setup_injected_conversions`, `blocking_read`, `read_injected_samples`;
-        // 0.45 KiB less flash than the drivers, BENCHMARKS.md session 7). Both ADCs before any
+        // 440 B less flash than the drivers, BENCHMARKS.md session 7). Both ADCs before any
         // conversion starts: ADC1 and ADC2 share their clock and reset (the HAL counts the
         // users of both: only the first call resets them). Then `Adc::new`'s writes for each
         // ([`adc_start`]), the common prescaler once.

@@ -34,7 +34,7 @@ use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
 use embassy_time::{Duration, Instant as Clock, Ticker};
-use liftfw::config::store::{geometry_stamp, ConfigStore, Parked, Source, StoreError};
+use liftfw::config::store::{geometry_stamp, ConfigStore, Loaded, Parked, Source, StoreError};
 use liftfw::config::ValidatedConfig;
 use liftfw::console::service::{self, Action, Lift};
 use liftfw::console::{Feed, LineBuffer};
@@ -148,11 +148,11 @@ fn boot(spawner: Spawner) {
     // Configuration and parked position, before the watchdog runs (a store repair may erase a
     // page: tens of ms). Any failure leaves the factory configuration and an unhomed lift.
     let boot = load_store(flash);
-    let greeting = log_source(&boot.source);
+    let greeting = log_source(&boot.loaded.source);
     let parked = trusted_position(&boot);
-    let controller = install_controller(boot.config.get(), parked);
+    let controller = install_controller(boot.loaded.config.get(), parked);
     #[cfg(not(feature = "ball-screw"))]
-    if boot.source.needs_ball_screw() {
+    if boot.loaded.source.needs_ball_screw() {
         // A lead-screw image on a ball screw's record: braked and locked, the record kept.
         error!("the stored configuration needs the ball-screw firmware (cargo fw-ball): lift locked, motor braked, record kept");
         controller.report_needs_ball_screw(Instant(Clock::now().as_micros() as u32));
@@ -204,6 +204,7 @@ impl defmt::Format for HalError<usart::ConfigError> {
 #[inline(never)]
 fn bring_up() -> (&'static mut Board, ConsolePins, Peri<'static, FLASH>, bool) {
     let p = embassy_stm32::init(board::clock_config());
+    board::vectors::disable_past_table();
     info!("liftfw {} booting", env!("CARGO_PKG_VERSION"));
     let watchdog_reset = board::Watchdog::caused_last_reset();
     let (board, console, flash) = Board::new(p);
@@ -218,10 +219,9 @@ static STORE: StaticCell<ConfigStore<StoreFlash>> = StaticCell::new();
 struct Boot {
     /// The store, unless it is unusable.
     store: Option<&'static mut ConfigStore<StoreFlash>>,
-    /// The running configuration.
-    config: ValidatedConfig,
-    /// Where it came from.
-    source: Source,
+    /// The running configuration and where it came from (as the store's `load` returns it:
+    /// built in place, not moved field by field).
+    loaded: Loaded,
     /// The parked position in encoder counts, if one is recorded.
     parked: Option<i32>,
 }
@@ -238,16 +238,17 @@ fn load_store(flash: Peri<'static, FLASH>) -> Boot {
             let parked = store.load_position(stamp);
             Boot {
                 store: Some(store),
-                config: loaded.config,
-                source: loaded.source,
+                loaded,
                 parked,
             }
         }
         // Logged below as the configuration's source (`Unreadable`).
         Err(e) => Boot {
             store: None,
-            config: ValidatedConfig::factory(),
-            source: Source::Unreadable(e),
+            loaded: Loaded {
+                config: ValidatedConfig::factory(),
+                source: Source::Unreadable(e),
+            },
             parked: None,
         },
     };
@@ -288,7 +289,7 @@ fn log_source(source: &Source) -> &'static mut Reply {
 /// position is trusted (docs/control.md).
 #[inline(never)]
 fn trusted_position(boot: &Boot) -> Option<i32> {
-    let parked = if boot.config.get().screw.holds_without_power() {
+    let parked = if boot.loaded.config.get().screw.holds_without_power() {
         boot.parked
     } else {
         if boot.parked.is_some() {
@@ -324,7 +325,7 @@ fn spawn_tasks(
     info!(
         "board up: PWM full scale {} counts, control at {} Hz",
         board.bridge.full_scale(),
-        CONTROL_HZ
+        CONTROL_HZ as u32
     );
     let store_ok = boot.store.is_some();
     if let Some(store) = boot.store {
@@ -336,7 +337,7 @@ fn spawn_tasks(
         console,
         lift,
         greeting,
-        boot.config,
+        boot.loaded.config,
         store_ok,
     )));
 }
@@ -374,7 +375,11 @@ fn install_controller(config: &ControlConfig, parked: Option<i32>) -> &'static m
     // Note(unsafe): every path above wrote `slot` (`construct` always does).
     match unsafe { slot.assume_init_mut() } {
         Ok(controller) => controller,
-        Err(e) => defmt::panic!("factory configuration refused: {}", e),
+        // Cannot happen: the factory configuration is valid (the core's unit test
+        // `factory_configuration_passes_validation`; host-sim builds its controllers from it).
+        // If it did, a plain panic, as in `token`, rather than `defmt::panic!` with the error
+        // (the message and `ConfigError`'s defmt formatter: 72 B of flash).
+        Err(_) => panic!("factory configuration refused"),
     }
 }
 
@@ -455,29 +460,19 @@ async fn control(board: &'static mut Board, lift: &'static SharedController, mut
 /// logging calls were inlined into the control task's poll (issue 5).
 #[inline(never)]
 fn report_event(e: Event) {
-    let notify = match e {
-        Event::Fault(f) => {
-            error!("FAULT {}", f);
-            true
-        }
-        Event::StickSlip { reaction, .. } if reaction != Reaction::Log => {
-            warn!("{}", e);
-            true
-        }
-        Event::Homed { .. } | Event::SwitchStop => {
-            info!("{}", e);
-            true
-        }
+    // Stick-slip with the reactions `warn` and `speed`, and the lubrication warning: warnings.
+    let warning = match e {
+        Event::StickSlip { reaction, .. } => reaction != Reaction::Log,
         #[cfg(feature = "ball-screw")]
-        Event::Lubrication(_) => {
-            warn!("{}", e);
-            true
-        }
-        _ => {
-            info!("{}", e);
-            false
-        }
+        Event::Lubrication(_) => true,
+        _ => false,
     };
+    match e {
+        Event::Fault(f) => error!("FAULT {}", f),
+        _ if warning => warn!("{}", e),
+        _ => info!("{}", e),
+    }
+    let notify = warning || matches!(e, Event::Fault(_) | Event::Homed { .. } | Event::SwitchStop);
     if notify && NOTICES.try_send(e).is_err() {
         warn!("console notice dropped (console behind)");
     }

@@ -29,6 +29,7 @@
 
 pub mod bridge;
 pub mod sensors;
+pub mod vectors;
 
 use embassy_stm32::peripherals::{FLASH, PA2, PA3, USART2};
 use embassy_stm32::time::Hertz;

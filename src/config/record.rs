@@ -66,7 +66,7 @@ pub(crate) const fn crc32_update(mut crc: u32, data: &[u8]) -> u32 {
 }
 
 /// `key` starts with `prefix` (`str::starts_with` is not `const`).
-const fn starts_with(key: &str, prefix: &str) -> bool {
+pub(crate) const fn starts_with(key: &str, prefix: &str) -> bool {
     let (key, prefix) = (key.as_bytes(), prefix.as_bytes());
     if key.len() < prefix.len() {
         return false;

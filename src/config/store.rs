@@ -14,6 +14,7 @@
 //! [`ValidatedConfig::new`]. docs/config-store.md gives the whole argument.
 
 use crate::config::record::{self, DecodeError, MAX_RECORD_LEN};
+use crate::config::settings::SETTINGS;
 use crate::config::ValidatedConfig;
 use crate::control::config::ControlConfig;
 use crate::ConfigError;
@@ -99,13 +100,39 @@ impl PositionRecord {
 /// (CRC-32 of those settings' raw bits, each as 8 little-endian bytes, in registry order.)
 pub fn geometry_stamp(cfg: &ControlConfig) -> u32 {
     let mut crc = 0xFFFF_FFFF;
-    for s in crate::config::settings::SETTINGS.iter() {
-        if s.key.starts_with("geometry.") || s.key.starts_with("drive.") {
-            crc = record::crc32_update(crc, &s.get(cfg).to_le_bytes());
-        }
+    for s in &SETTINGS[STAMPED.start..STAMPED.end] {
+        crc = record::crc32_update(crc, &s.get(cfg).to_le_bytes());
     }
     crc ^ 0xFFFF_FFFF
 }
+
+/// Whether [`geometry_stamp`] covers a setting: its key starts with `geometry.` or `drive.`.
+const fn stamped(key: &str) -> bool {
+    record::starts_with(key, "geometry.") || record::starts_with(key, "drive.")
+}
+
+/// The settings [`geometry_stamp`] covers, as indices into [`SETTINGS`]: they are neighbours
+/// in the registry (checked here at compile time), so the firmware compares no key strings.
+const STAMPED: Range<usize> = {
+    let mut first = 0;
+    while first < SETTINGS.len() && !stamped(SETTINGS[first].key) {
+        first += 1;
+    }
+    let mut end = first;
+    while end < SETTINGS.len() && stamped(SETTINGS[end].key) {
+        end += 1;
+    }
+    let mut i = end;
+    while i < SETTINGS.len() {
+        assert!(
+            !stamped(SETTINGS[i].key),
+            "the stamped settings must be neighbours"
+        );
+        i += 1;
+    }
+    assert!(end > first);
+    first..end
+};
 
 /// Work buffer: key + record, rounded up to the 8-byte program unit of the G4.
 const BUF_LEN: usize = (1 + MAX_RECORD_LEN).div_ceil(8) * 8;
@@ -518,47 +545,50 @@ where
     pub fn load(&mut self) -> Loaded {
         let a = self.load_copy(0);
         let b = self.load_copy(1);
-        let a_ok = a.is_ok();
-        // Either copy a ball screw's (the newest, or a save the ball-screw firmware did not
-        // finish): never run this image's fallback on that lift.
-        let ball = match (&a, &b) {
-            (Err(e @ Source::NeedsBallScrew(_)), _) | (_, Err(e @ Source::NeedsBallScrew(_))) => {
-                Some(*e)
-            }
-            _ => None,
-        };
-        let (config, source) = match (a, b) {
+        // Which copy's configuration runs (`None`: the factory one), decided on references
+        // and copied once (moving the two results through the match copied the configuration
+        // at every step).
+        let (run, source) = match (&a, &b) {
             (Ok((ca, sa)), Ok((cb, sb))) => {
                 // Next save writes the older copy first; equal copies: either.
-                let (cfg, seq, first) = if newer(sb, sa) {
-                    (cb, sb, 0)
+                let (cfg, seq, first) = if newer(*sb, *sa) {
+                    (cb, *sb, 0)
                 } else {
-                    (ca, sa, 1)
+                    (ca, *sa, 1)
                 };
                 self.first = first;
                 self.seq = seq;
                 let both_copies = sa == sb && ca == cb;
-                (cfg, Source::Stored { seq, both_copies })
+                (Some(cfg), Source::Stored { seq, both_copies })
             }
-            (Ok(good), Err(_)) | (Err(_), Ok(good)) => {
-                let (cfg, seq) = good;
+            (Ok((cfg, seq)), Err(e)) | (Err(e), Ok((cfg, seq))) => {
                 // Next save writes the damaged copy (the one that failed) first.
-                self.first = usize::from(a_ok);
-                self.seq = seq;
-                let both_copies = false;
-                (cfg, Source::Stored { seq, both_copies })
+                self.first = usize::from(a.is_ok());
+                self.seq = *seq;
+                if e.needs_ball_screw() {
+                    // A ball screw's record in either copy (the newest, or a save the
+                    // ball-screw firmware did not finish): never run this image's fallback
+                    // on that lift.
+                    (None, *e)
+                } else {
+                    let both_copies = false;
+                    (
+                        Some(cfg),
+                        Source::Stored {
+                            seq: *seq,
+                            both_copies,
+                        },
+                    )
+                }
             }
-            (Err(ea), Err(eb)) => {
-                let worst = if eb.weight() > ea.weight() { eb } else { ea };
-                (ValidatedConfig::factory(), worst)
-            }
-        };
-        let (config, source) = match ball {
-            Some(e) => (ValidatedConfig::factory(), e),
-            None => (config, source),
+            // The more specific failure; a ball screw's record weighs most (as above).
+            (Err(ea), Err(eb)) => (None, if eb.weight() > ea.weight() { *eb } else { *ea }),
         };
         self.locked = source.needs_ball_screw();
-        Loaded { config, source }
+        Loaded {
+            config: run.copied().unwrap_or_else(ValidatedConfig::factory),
+            source,
+        }
     }
 
     /// The newest item under `key` in `copy`, read into the work buffer (one routine for the
@@ -585,13 +615,21 @@ where
                 })
             }
         };
-        let (cfg, seq) = record::decode(bytes).map_err(|e| match e {
-            DecodeError::Version { .. } | DecodeError::Schema => Source::Incompatible(e),
-            _ => Source::Corrupt(Corruption::Record(e)),
-        })?;
-        crate::config::settings::check_variant(&cfg).map_err(Source::NeedsBallScrew)?;
-        let cfg = ValidatedConfig::new(cfg).map_err(Source::Rejected)?;
-        Ok((cfg, seq))
+        // Matched rather than `map_err(…)?`: each of those moved the whole configuration.
+        let (cfg, seq) = match record::decode(bytes) {
+            Ok(decoded) => decoded,
+            Err(e @ (DecodeError::Version { .. } | DecodeError::Schema)) => {
+                return Err(Source::Incompatible(e))
+            }
+            Err(e) => return Err(Source::Corrupt(Corruption::Record(e))),
+        };
+        if let Err(e) = crate::config::settings::check_variant(&cfg) {
+            return Err(Source::NeedsBallScrew(e));
+        }
+        match ValidatedConfig::new(cfg) {
+            Ok(cfg) => Ok((cfg, seq)),
+            Err(e) => Err(Source::Rejected(e)),
+        }
     }
 
     /// Append `value` under `key` to `copy` (one routine for both records).

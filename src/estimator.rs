@@ -792,12 +792,12 @@ const POSE_HEIGHT_TOL: i32 = 84; // 5·10⁻⁶·2^24
 /// The operating envelope T_r's budget holds over (issue 3, docs/model.md "Pose between
 /// nodes"): |θ̇| ≤ 400 rad/s, |θ̈| ≤ 2000 rad/s² (the twin proptests' range), load ≤
 /// [`LOAD_MAX`] (2× the largest rated load a configuration accepts, 5 t).
-const BUDGET_SPEED: i128 = 400;
-const BUDGET_ACCEL: i128 = 2000;
+const BUDGET_SPEED: u32 = 400;
+const BUDGET_ACCEL: u64 = 2000;
 /// A tenth of T_r's budget: 0.5 mN·m/10 = 5·10⁻⁵ N·m (×2^32, rounded down), and 0.2 %/10 =
 /// 1/5000.
-const TORQUE_FLOOR_TENTH_Q32: i128 = 214_748;
-const REL_TENTH_INV: i128 = 5000;
+const TORQUE_FLOOR_TENTH_Q32: u64 = 214_748;
+const REL_TENTH_INV: u64 = 5000;
 /// Largest node spacing tried, 2^16 counts.
 const POSE_SHIFT_MAX: u32 = 16;
 
@@ -812,55 +812,60 @@ const POSE_SHIFT_MAX: u32 = 16;
 /// (2) e·(5000·A + D) ≤ A·|G(dir)| (for M·e ≤ A the floor holds; for larger M,
 /// |W| ≥ M·|G| − D ≥ (A/e)·|G| − D, and then M·e ≤ |W|/5000).
 struct PoseBudget {
-    /// A in Q32 N.
-    a_q32: i128,
-    /// m·r_m·tan λ·2000 in Q32 N: D's inertial part.
-    inertial_q32: i128,
+    /// A in Q24 N.
+    a: u64,
+    /// The largest e (Q23 N/kg) that passes (1): e·2^-23·`LOAD_MAX` ≤ A.
+    e_abs: u32,
+    /// 5000·A + m·r_m·tan λ·2000 (D's inertial part), Q24 N.
+    c0: u64,
 }
 
 impl PoseBudget {
+    /// In u64 (every quantity below bounded): the configuration-time i128 forms cost 850 B of
+    /// flash.
     fn new(screw: &ScrewModel, law: &CompiledLaw, mass_lead_q32: i32) -> PoseBudget {
         // μ_hi ≥ μ(x) for |θ̇| ≤ 400 rad/s (law input x, Q16): μ = base + amp·e^(−y) +
         // lin(min(x, x_max)) with 0 < e^(−y) ≤ 1 and lin linear, so μ ≤ max(amp, 0) +
         // max(base, μ(x_400) + max(−amp, 0)) (base + lin at either end of the range).
         let given = law.law();
         let amp = i64::from(given.amp.bits());
-        let end = i64::from(law.mu_unfloored_call((BUDGET_SPEED as u32) << 16));
+        let end = i64::from(law.mu_unfloored_call(BUDGET_SPEED << 16));
         let mu_hi = (amp.max(0) + i64::from(given.base.bits()).max(end + (-amp).max(0)))
-            .clamp(0, i64::from(screw.mu_max().bits()));
-        let tan = i64::from(screw.tan_lambda().bits());
+            .clamp(0, i64::from(screw.mu_max().bits())) as u64;
+        let tan = screw.tan_lambda().bits() as u64;
         // K = r_m·num/den (Q24·Q28/Q28); μ_hi·tan λ ≤ 1/3 (`mu_max`): den ≥ ⅔·2^28.
-        let num = i128::from(tan + mu_hi);
-        let den = i128::from((1i64 << 28) - (mu_hi * tan >> 28));
-        let r = i128::from(screw.pitch_radius().bits());
-        // A·2^32 = 5·10⁻⁵·2^32·den/(r_m·num) = 214 748·2^24·den/(r_q24·num): ≤ 2^42 (r_m ≥
-        // 1 mm, tan λ ≥ tan 0.5°).
-        let a_q32 = div128(TORQUE_FLOOR_TENTH_Q32 * den << 24, r * num);
+        let num = tan + mu_hi;
+        let den = (1u64 << 28) - (mu_hi * tan >> 28);
+        let r = screw.pitch_radius().bits() as u64;
+        // A·2^24 = 5·10⁻⁵·2^32·2^16·den/(r_q24·num) (numerator < 2^62): ≤ 2^27 (r_m ≥ 1 mm,
+        // tan λ ≥ tan 0.5°), ≥ 2^11 (r_m ≤ 5 cm, μ_hi ≤ 4).
+        let a = (TORQUE_FLOOR_TENTH_Q32 << 16) * den / (r * num);
+        let load_max = u64::from(LOAD_MAX.bits() as u32 >> 12);
         PoseBudget {
-            a_q32,
-            inertial_q32: i128::from(mass_lead_q32) * BUDGET_ACCEL,
+            a,
+            e_abs: (a / (2 * load_max)) as u32,
+            // mass_lead ≥ 0 (Q32 → Q24): < 2^34; 5000·A < 2^40.
+            c0: REL_TENTH_INV * a + (u64::from(mass_lead_q32 as u32) * BUDGET_ACCEL >> 8),
         }
     }
 
-    /// Whether interpolation errors `e` of G(dir) (Q23 N/kg) at a pose whose G(dir) is `g`
-    /// and c_x·r_m·tan λ is `cxl` (Q20 N per rad/s) keep T_r within a tenth of its budget.
+    /// Whether an interpolation error `e` of G(dir) (Q23 N/kg) at a pose whose G(dir) is `g`
+    /// and c_x·r_m·tan λ is `cxl` (Q20 N per rad/s) keeps T_r within a tenth of its budget.
     fn holds(&self, e: i32, g: i32, cxl: i32) -> bool {
-        let (e, g) = (i128::from(e.unsigned_abs()), i128::from(g.unsigned_abs()));
-        let load_max = i128::from(LOAD_MAX.bits() >> 12);
-        // (1): e·2^-23·M·2^32 ≤ A_q32.
-        if e * load_max << 9 <= self.a_q32 {
+        let e = e.unsigned_abs();
+        if e <= self.e_abs {
             return true;
         }
-        // (2), in Q23·Q32: D = c_x·lead·400 (Q20 → Q32) + the inertial part.
-        let d = (i128::from(cxl.unsigned_abs()) * BUDGET_SPEED << 12) + self.inertial_q32;
-        e * (REL_TENTH_INV * self.a_q32 + d) <= self.a_q32 * g
+        // (2) fails beyond |G|/5000 < 2^19; below 2^20 the products fit: D = c_x·lead·400
+        // (Q20 → Q24) < 2^43, c0 < 2^41, A·|G| < 2^58.
+        let d = u64::from(cxl.unsigned_abs()) * u64::from(BUDGET_SPEED) << 4;
+        e < 1 << 20 && u64::from(e) * (self.c0 + d) <= self.a * u64::from(g.unsigned_abs())
     }
 
     /// Whether G's error bound `e` (|ΔG₀| + |ΔG_b|, falling as α grows) passes (1): then every
     /// segment above passes.
     fn absolute_holds(&self, e: i32) -> bool {
-        let load_max = i128::from(LOAD_MAX.bits() >> 12);
-        i128::from(e.unsigned_abs()) * load_max << 9 <= self.a_q32
+        e.unsigned_abs() <= self.e_abs
     }
 }
 

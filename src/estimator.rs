@@ -798,6 +798,9 @@ const BUDGET_ACCEL: u64 = 2000;
 /// 1/5000.
 const TORQUE_FLOOR_TENTH_Q32: u64 = 214_748;
 const REL_TENTH_INV: u64 = 5000;
+/// Most segments the spacing search walks over all the spacings it tries (the default lift: 630;
+/// ≤ 3·8192 poses, ≈ 5 M instructions at configuration time).
+const POSE_WALK_MAX: u32 = 8192;
 /// Largest node spacing tried, 2^16 counts.
 const POSE_SHIFT_MAX: u32 = 16;
 
@@ -1121,12 +1124,14 @@ impl PoseCtx<'_> {
     /// (1/sin³ α; 3 cos α/sin⁵ α; (1 + 2 cos² α)/sin⁵ α) fall as α grows, and cos α is linear
     /// in the count, so every segment above passes (1) and the height. 0 if none passes.
     /// Configuration time: three poses per segment walked (the default lift: 621 segments for
-    /// the k it takes, ≈ 1 860 poses; a few for each larger k, which fail at α₀). Carrying the
+    /// the k it takes, ≈ 1 860 poses; a few for each larger k, which fail at α₀), at most
+    /// [`POSE_WALK_MAX`] segments in all, beyond which it returns 0. Carrying the
     /// end node to the next segment saves a third of them but cost 100 B of flash and 320 B of
     /// the console task's stack. Out of line: its frame is not on `new`'s while the law's table
     /// is built.
     #[inline(never)]
     fn choose_pose_shift(&mut self, budget: &PoseBudget) -> u32 {
+        let mut walk = POSE_WALK_MAX;
         'k: for k in (1..=POSE_SHIFT_MAX).rev() {
             self.pose_shift = k;
             self.pose_frac = Self::frac_for(k);
@@ -1136,6 +1141,12 @@ impl PoseCtx<'_> {
             let mut checked = 0;
             let mut index = 0i32;
             while index < i32::MAX >> k {
+                // Configuration time stays bounded whatever the configuration: past the walk's
+                // allowance, the exact pose at every count (always within the budgets).
+                walk -= 1;
+                if walk == 0 {
+                    return 0;
+                }
                 self.refill(&mut seg, index);
                 if seg.exact && self.node_at(index).bad {
                     break;

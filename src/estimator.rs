@@ -313,8 +313,12 @@ impl Estimator {
             let dc = i64::from(damping_lead[i + 1].1 - damping_lead[i].1);
             damping_lead[i].2 = ((dc << 24) / dcos) as i32;
         }
+        // m·r_m·tan λ (Q12·Q24·Q28 = value·2^64 → Q32; ≤ 5·0.05·0.364·2^32).
+        let mass_lead_q32 =
+            (i128::from(cfg.mechanics.nut_mass.bits()) * r_bits * tan_bits >> 32) as i32;
         // The pose segments' node spacing, from the configuration alone ([`PoseCtx`]).
         let two_mu_pin = Ratio::from_raw(cfg.geometry.mu_pin.bits() * 2);
+        let budget = PoseBudget::new(&screw, &law, mass_lead_q32);
         let pose_shift = PoseCtx {
             geometry: &geometry,
             two_mu_pin,
@@ -322,7 +326,7 @@ impl Estimator {
             pose_shift: 0,
             pose_frac: 0,
         }
-        .choose_pose_shift();
+        .choose_pose_shift(&budget);
         let n = i128::from(cfg.drive.gear_ratio.to_bits()); // Q16
         let eta = i128::from(m.gear_efficiency.bits()); // Q28
                                                         // n·η in i64 (two i32 factors: it fits), once.
@@ -372,11 +376,7 @@ impl Estimator {
             inv_n_eta,
             rest_speed: cfg.rest_speed,
             two_mu_pin,
-            mass_lead_q32: {
-                // m (Q12)·r_m (Q24)·tan λ (Q28) = value·2^64 → Q32; ≤ 5·0.05·0.364·2^32.
-                let m = i128::from(cfg.mechanics.nut_mass.bits());
-                (m * r_bits * tan_bits >> 32) as i32
-            },
+            mass_lead_q32,
             inertia_q32: ((i64::from(cfg.mechanics.inertia_ukgm2) << 32) / 1_000_000) as i32,
             damping_q30: ((i64::from(cfg.mechanics.damping_unms) << 30) / 1_000_000) as i32,
             damping_lead,
@@ -554,7 +554,7 @@ impl Estimator {
         let x = self.model(m, &segment, speed, accel, flags);
         // The pose's diagnostics exact, its height the model's (interpolated between exact
         // nodes, as in the step); R and F₀ from the exact pose (W's interpolated R + F₀·dir is
-        // within 2.4·10⁻⁴ of them, docs/model.md "Pose between nodes").
+        // within [`PoseBudget`]'s error of them, docs/model.md "Pose between nodes").
         let exact = self.geometry.pose(m.position_counts);
         let pose = Pose {
             height: x.height,
@@ -786,13 +786,91 @@ const NO_NODE: i32 = i32::MIN;
 /// Standard gravity in Q16 m/s² (as [`Geometry::weight`]).
 const G_N_Q16: i64 = 642_689;
 
-/// Interpolation error allowed between nodes, a tenth of the budgets (docs/model.md): height
-/// 5 µm (Q24 m), R + F₀·dir 2.4·10⁻⁴ of R + F₀ (T_r's budget is 0.2 %: W is proportional
-/// to R + F₀·dir).
+/// Interpolation error of the height allowed between nodes, a tenth of its budget
+/// (docs/model.md): 5 µm (Q24 m). R + F₀·dir: [`PoseBudget`].
 const POSE_HEIGHT_TOL: i32 = 84; // 5·10⁻⁶·2^24
-const POSE_G_TOL_SHIFT: u32 = 12; // 2.4·10⁻⁴
+/// The operating envelope T_r's budget holds over (issue 3, docs/model.md "Pose between
+/// nodes"): |θ̇| ≤ 400 rad/s, |θ̈| ≤ 2000 rad/s² (the twin proptests' range), load ≤
+/// [`LOAD_MAX`] (2× the largest rated load a configuration accepts, 5 t).
+const BUDGET_SPEED: u32 = 400;
+const BUDGET_ACCEL: u64 = 2000;
+/// A tenth of T_r's budget: 0.5 mN·m/10 = 5·10⁻⁵ N·m (×2^32, rounded down), and 0.2 %/10 =
+/// 1/5000.
+const TORQUE_FLOOR_TENTH_Q32: u64 = 214_748;
+const REL_TENTH_INV: u64 = 5000;
+/// Most segments the spacing search walks over all the spacings it tries (the default lift: 630;
+/// ≤ 3·8192 poses, ≈ 5 M instructions at configuration time).
+const POSE_WALK_MAX: u32 = 8192;
 /// Largest node spacing tried, 2^16 counts.
 const POSE_SHIFT_MAX: u32 = 16;
+
+/// What the error of W's pose term may be, so that T_r (and the thread torque) stays within a
+/// tenth of its budget, max(0.2 %·|T_r|, 0.5 mN·m), over the operating envelope (docs/model.md
+/// "Pose between nodes"). W = M·G(dir) + D with G(dir) = R + F₀·dir per kilogram (the
+/// interpolated term) and |D| ≤ c_x·r_m·tan λ·400 + m·r_m·tan λ·2000 (damping and inertia at the
+/// envelope's bounds); T_r and the thread torque move by at most K·ΔW, K = r_m·(tan λ + μ_hi)/
+/// (1 − μ_hi·tan λ) with μ_hi the law's largest μ over the envelope's speeds. An error e of
+/// G(dir) per kilogram is within a tenth of the budget for every load M ≤ [`LOAD_MAX`] if
+/// (1) e·LOAD_MAX ≤ A = 5·10⁻⁵ N·m/K (the absolute floor's tenth, at the heaviest load), or
+/// (2) e·(5000·A + D) ≤ A·|G(dir)| (for M·e ≤ A the floor holds; for larger M,
+/// |W| ≥ M·|G| − D ≥ (A/e)·|G| − D, and then M·e ≤ |W|/5000).
+struct PoseBudget {
+    /// A in Q24 N.
+    a: u64,
+    /// The largest e (Q23 N/kg) that passes (1): e·2^-23·`LOAD_MAX` ≤ A.
+    e_abs: u32,
+    /// 5000·A + m·r_m·tan λ·2000 (D's inertial part), Q24 N.
+    c0: u64,
+}
+
+impl PoseBudget {
+    /// In u64 (every quantity below bounded): the configuration-time i128 forms cost 850 B of
+    /// flash.
+    fn new(screw: &ScrewModel, law: &CompiledLaw, mass_lead_q32: i32) -> PoseBudget {
+        // μ_hi ≥ μ(x) for |θ̇| ≤ 400 rad/s (law input x, Q16): μ = base + amp·e^(−y) +
+        // lin(min(x, x_max)) with 0 < e^(−y) ≤ 1 and lin linear, so μ ≤ max(amp, 0) +
+        // max(base, μ(x_400) + max(−amp, 0)) (base + lin at either end of the range).
+        let given = law.law();
+        let amp = i64::from(given.amp.bits());
+        let end = i64::from(law.mu_unfloored_call(BUDGET_SPEED << 16));
+        let mu_hi = (amp.max(0) + i64::from(given.base.bits()).max(end + (-amp).max(0)))
+            .clamp(0, i64::from(screw.mu_max().bits())) as u64;
+        let tan = screw.tan_lambda().bits() as u64;
+        // K = r_m·num/den (Q24·Q28/Q28); μ_hi·tan λ ≤ 1/3 (`mu_max`): den ≥ ⅔·2^28.
+        let num = tan + mu_hi;
+        let den = (1u64 << 28) - (mu_hi * tan >> 28);
+        let r = screw.pitch_radius().bits() as u64;
+        // A·2^24 = 5·10⁻⁵·2^32·2^16·den/(r_q24·num) (numerator < 2^62): ≤ 2^27 (r_m ≥ 1 mm,
+        // tan λ ≥ tan 0.5°), ≥ 2^11 (r_m ≤ 5 cm, μ_hi ≤ 4).
+        let a = (TORQUE_FLOOR_TENTH_Q32 << 16) * den / (r * num);
+        let load_max = u64::from(LOAD_MAX.bits() as u32 >> 12);
+        PoseBudget {
+            a,
+            e_abs: (a / (2 * load_max)) as u32,
+            // mass_lead ≥ 0 (Q32 → Q24): < 2^34; 5000·A < 2^40.
+            c0: REL_TENTH_INV * a + (u64::from(mass_lead_q32 as u32) * BUDGET_ACCEL >> 8),
+        }
+    }
+
+    /// Whether an interpolation error `e` of G(dir) (Q23 N/kg) at a pose whose G(dir) is `g`
+    /// and c_x·r_m·tan λ is `cxl` (Q20 N per rad/s) keeps T_r within a tenth of its budget.
+    fn holds(&self, e: i32, g: i32, cxl: i32) -> bool {
+        let e = e.unsigned_abs();
+        if e <= self.e_abs {
+            return true;
+        }
+        // (2) fails beyond |G|/5000 < 2^19; below 2^20 the products fit: D = c_x·lead·400
+        // (Q20 → Q24) < 2^43, c0 < 2^41, A·|G| < 2^58.
+        let d = u64::from(cxl.unsigned_abs()) * u64::from(BUDGET_SPEED) << 4;
+        e < 1 << 20 && u64::from(e) * (self.c0 + d) <= self.a * u64::from(g.unsigned_abs())
+    }
+
+    /// Whether G's error bound `e` (|ΔG₀| + |ΔG_b|, falling as α grows) passes (1): then every
+    /// segment above passes.
+    fn absolute_holds(&self, e: i32) -> bool {
+        e.unsigned_abs() <= self.e_abs
+    }
+}
 
 /// What the pose segments need of the estimator's configuration (borrowed): also usable
 /// while `Estimator::new` is still choosing the node spacing, so that the estimator is built
@@ -1038,41 +1116,60 @@ impl PoseCtx<'_> {
         }
     }
 
-    /// The largest node spacing 2^k (k ≤ [`POSE_SHIFT_MAX`]) whose interpolation stays within
-    /// [`POSE_HEIGHT_TOL`] and g's tolerance ([`POSE_G_TOL_SHIFT`]) at the midpoint of each of the
-    /// four lowest usable segments from α₀ (count 0) up, where the curvature of h and g
-    /// in cos α (1/sin³ α; (1 + 2μ_b cos α)/sin³ α + 3 cos α (cos α + 2μ_b)/sin⁵ α, and less
-    /// for −μ_b) is largest: they fall as α grows,
-    /// and cos α is linear in the count, so every segment above is closer. 0 if none passes.
-    /// Configuration time: ≤ 140 poses per spacing tried. Out of
-    /// line: its frame is not on `new`'s while the law's table is built.
+    /// The largest node spacing 2^k (k ≤ [`POSE_SHIFT_MAX`]) whose interpolation keeps the
+    /// height within [`POSE_HEIGHT_TOL`] and T_r within a tenth of its budget ([`PoseBudget`]),
+    /// checked at the midpoint of every usable segment from α₀ (count 0) up, where a segment's
+    /// interpolation error peaks, for dir −1, 0, +1, until the error bound |ΔG₀| + |ΔG_b| passes
+    /// the absolute test (1) on at least four segments. The curvatures of h, G₀ and G_b in cos α
+    /// (1/sin³ α; 3 cos α/sin⁵ α; (1 + 2 cos² α)/sin⁵ α) fall as α grows, and cos α is linear
+    /// in the count, so every segment above passes (1) and the height. 0 if none passes.
+    /// Configuration time: three poses per segment walked (the default lift: 621 segments for
+    /// the k it takes, ≈ 1 860 poses; a few for each larger k, which fail at α₀), at most
+    /// [`POSE_WALK_MAX`] segments in all, beyond which it returns 0. Carrying the
+    /// end node to the next segment saves a third of them but cost 100 B of flash and 320 B of
+    /// the console task's stack. Out of line: its frame is not on `new`'s while the law's table
+    /// is built.
     #[inline(never)]
-    fn choose_pose_shift(&mut self) -> u32 {
+    fn choose_pose_shift(&mut self, budget: &PoseBudget) -> u32 {
+        let mut walk = POSE_WALK_MAX;
         'k: for k in (1..=POSE_SHIFT_MAX).rev() {
             self.pose_shift = k;
             self.pose_frac = Self::frac_for(k);
             // From the segment at α₀ (count 0; those below are exact), past any exact ones
-            // (Table 1's rows): indices ≤ 68, counts ≤ 69·2^16, no wrap.
-            let mut index = 0i32;
+            // (Table 1's rows), up to the band's top (indices < 2^31 >> k: no wrap).
             let mut seg = PoseSegment::EMPTY;
             let mut checked = 0;
-            for _ in 0..68 {
+            let mut index = 0i32;
+            while index < i32::MAX >> k {
+                // Configuration time stays bounded whatever the configuration: past the walk's
+                // allowance, the exact pose at every count (always within the budgets).
+                walk -= 1;
+                if walk == 0 {
+                    return 0;
+                }
                 self.refill(&mut seg, index);
+                if seg.exact && self.node_at(index).bad {
+                    break;
+                }
                 if !seg.exact {
-                    // The midpoint, where a segment's interpolation error peaks: h, and
-                    // G(±1) = G₀ ± G_b through |ΔG₀| + |ΔG_b|, against G₀ + G_b (R + F₀).
+                    // The midpoint, where a segment's interpolation error peaks.
                     let c = (index << k) + (1 << (k - 1));
                     let want = self.pose_node(c).v;
                     let f = fraction(self.pose_frac, c);
-                    let err = |j: usize| (seg.at(f, j) - want[j]).abs();
-                    if err(NODE_HEIGHT) > POSE_HEIGHT_TOL
-                        || err(NODE_G) + err(NODE_PIN)
-                            > (want[NODE_G] + want[NODE_PIN]) >> POSE_G_TOL_SHIFT
-                    {
+                    let err = |j: usize| seg.at(f, j) - want[j];
+                    if err(NODE_HEIGHT).abs() > POSE_HEIGHT_TOL {
                         continue 'k;
                     }
+                    for dir in [-1, 0, 1] {
+                        let e = err(NODE_G) + dir * err(NODE_PIN);
+                        if !budget.holds(e, want[NODE_G] + dir * want[NODE_PIN], want[NODE_CXL]) {
+                            continue 'k;
+                        }
+                    }
                     checked += 1;
-                    if checked == 4 {
+                    if checked >= 4
+                        && budget.absolute_holds(err(NODE_G).abs() + err(NODE_PIN).abs())
+                    {
                         break;
                     }
                 }
@@ -1171,6 +1268,7 @@ mod tests {
         for cfg in configs() {
             let mut est = Estimator::new(&cfg).unwrap();
             let k = est.pose_shift();
+            let budget = PoseBudget::new(&est.screw, &est.law, est.mass_lead_q32);
             // The band's top: the first clamped count above 0.
             let (mut lo, mut hi) = (0i64, i64::from(i32::MAX));
             while hi - lo > 1 {
@@ -1216,14 +1314,16 @@ mod tests {
                 let (cos, inv) = (exact.cos_alpha.bits(), exact.inv_sin_alpha.bits());
                 let ctx = est.pose_ctx();
                 let (g0, gb) = ctx.g_parts(cos, inv);
-                let tol = (g0 + gb) >> POSE_G_TOL_SHIFT;
+                let cxl = ctx.damping_lead(exact.cos_alpha);
                 for dir in [-1i8, 0, 1] {
                     let got = est.pose_on(&seg, c, dir);
                     let dh = (got.height.bits() - exact.height.bits()).abs();
-                    let dg = (got.g - (g0 + i32::from(dir) * gb)).abs();
+                    let g = g0 + i32::from(dir) * gb;
+                    // The budget's test, with 4 LSB of rounding to spare.
+                    let dg = ((got.g - g).abs() - 4).max(0);
                     assert!(dh <= POSE_HEIGHT_TOL + 2, "{k} {c} height {dh}");
-                    assert!(dg <= tol + 4, "{k} {c} g {dg} > {tol}");
-                    let dc = (got.cxl - ctx.damping_lead(exact.cos_alpha)).abs();
+                    assert!(budget.holds(dg, g, cxl), "{k} {c} g {dg} at {g}");
+                    let dc = (got.cxl - cxl).abs();
                     assert!(dc <= 4, "{k} {c} c_x {dc}");
                 }
                 interpolated += usize::from(!seg.exact);

@@ -4,10 +4,16 @@
 //! height within 0.05 mm. Extreme and nonsensical inputs must not panic or wrap.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+use fixed::types::{I16F16, I32F32};
 use host_sim::physics::{self, friction::FrictionLaw as FLaw, geometry::structure_damping_cos};
-use liftfw::estimator::{EstimateFlags, Estimator, EstimatorConfig, Measurements};
-use liftfw::model::friction::FrictionLaw;
-use liftfw::units::{Amperes, Instant, Kilograms, RadiansPerSecond, RadiansPerSecond2, Ratio, Q};
+use liftfw::estimator::{EstimateFlags, Estimator, EstimatorConfig, Measurements, MotorConfig};
+use liftfw::model::friction::{FrictionLaw, LawVariable};
+use liftfw::model::geometry::{DriveConfig, GeometryConfig};
+use liftfw::model::screw::MechanicsConfig;
+use liftfw::units::{
+    Amperes, Instant, Kilograms, Metres, NewtonMetres, RadiansPerSecond, RadiansPerSecond2, Ratio,
+    Q,
+};
 use proptest::prelude::*;
 
 const RATED_KG: f64 = 1000.0;
@@ -42,6 +48,7 @@ struct TwinPoint {
     friction_torque: f64,
     screw_torque: f64,
     normal: f64,
+    r_plus_f0: f64,
 }
 
 fn twin_point(
@@ -67,6 +74,7 @@ fn twin_point(
         friction_torque: c.friction_torque,
         screw_torque: t.screw.required_torque(speed, accel, dir, &c),
         normal: c.normal,
+        r_plus_f0: r + f0,
     }
 }
 
@@ -80,6 +88,35 @@ fn estimator(law: FrictionLaw) -> Estimator {
         ..EstimatorConfig::DEFAULT
     })
     .unwrap()
+}
+
+/// The error the pose segments' spacing allows in W (docs/model.md "Pose between nodes",
+/// `PoseBudget` in src/estimator.rs), and N's divisor's least value: A = 5·10⁻⁵ N·m/K,
+/// K = r_m·(tan λ + μ_hi)/(1 − μ_hi·tan λ), with μ_hi ≥ the law's μ over |θ̇| ≤ 400 rad/s
+/// (base + amp·e^(−y) + slope·min(s, s_max), bounded termwise), so that T_r and the thread
+/// torque move by at most a tenth of 0.5 mN·m; for larger |W|, within |W|/5000.
+fn w_pose_floor(law: &FLaw, r_m: f64, lambda: f64) -> (f64, f64) {
+    let end = law.mu_at_rate(400.0, r_m, lambda);
+    let mu_hi = law.amp.max(0.0) + law.base.max(end + (-law.amp).max(0.0));
+    let t = lambda.tan();
+    (
+        5e-5 * (1.0 - mu_hi * t) / (r_m * (t + mu_hi)),
+        lambda.cos() - mu_hi * lambda.sin(),
+    )
+}
+
+/// W's other error, rounding: its three terms each floored to Q8 newtons (3 LSB), and the exact
+/// pose's cos α (a few Q28 LSB, which G = g_n·cot α amplifies by 1/(cos α·sin² α), ≈ 16 at
+/// α₀ = 15°): 2^−22 of R + F₀.
+fn w_rounding(r_plus_f0: f64) -> f64 {
+    3.0 / 256.0 + r_plus_f0.abs() / f64::from(1 << 22)
+}
+
+/// N's bound: N = W/(cos λ ∓ μ_s·sin λ), so its error is W's over that divisor: 0.2 % of N, or
+/// W's designed floor ([`w_pose_floor`]) plus its rounding ([`w_rounding`]) over the divisor's
+/// least value, plus N's own two floored products (2 LSB) — derived, not fitted to what passes.
+fn normal_bound(normal: f64, (w_floor, divisor): (f64, f64), r_plus_f0: f64) -> f64 {
+    (2e-3 * normal.abs()).max((w_floor + w_rounding(r_plus_f0)) / divisor + 2.0 / 256.0)
 }
 
 fn torque_ok(got: f64, want: f64) -> bool {
@@ -117,8 +154,10 @@ proptest! {
             "T_r {} vs {}", e.contact.friction_torque.to_f64(), tw.friction_torque);
         prop_assert!(torque_ok(e.model_screw_torque.to_f64(), tw.screw_torque),
             "screw torque {} vs {}", e.model_screw_torque.to_f64(), tw.screw_torque);
-        prop_assert!((e.contact.normal.to_f64() - tw.normal).abs() <= (2e-3 * tw.normal.abs()).max(0.1),
-            "N {} vs {}", e.contact.normal.to_f64(), tw.normal);
+        let floor = w_pose_floor(&float_law, t.screw.r_m, t.screw.lambda);
+        let bound = normal_bound(tw.normal, floor, tw.r_plus_f0);
+        prop_assert!((e.contact.normal.to_f64() - tw.normal).abs() <= bound,
+            "N {} vs {} (bound {bound})", e.contact.normal.to_f64(), tw.normal);
     }
 
     /// μ as the model evaluates it (the law's table where it has one, `MuTable`) against the
@@ -377,4 +416,404 @@ fn preset_tables_interpolate_where_expected() {
             "{speed}: {got} vs {exact}"
         );
     }
+}
+
+/// The float64 twin of any configuration (the tests above use the paper's, [`twin`]).
+struct CfgTwin {
+    geo: physics::Geometry,
+    screw: physics::Screw,
+    law: FLaw,
+    metres_per_count: f64,
+}
+
+fn cfg_twin(cfg: &EstimatorConfig) -> CfgTwin {
+    use host_sim::physics::friction::Variable;
+    let g = &cfg.geometry;
+    let d = &cfg.drive;
+    let m = &cfg.mechanics;
+    let geo = physics::Geometry {
+        length: g.length.to_f64(),
+        alpha0: g.alpha0_deg.to_num::<f64>().to_radians(),
+        alpha_max: g.alpha_max_deg.to_num::<f64>().to_radians(),
+        h0: g.h0.to_f64(),
+        mu_pin: g.mu_pin.to_f64(),
+    };
+    let screw = physics::Screw {
+        r_m: d.pitch_radius.to_f64(),
+        lambda: d.lead_angle_deg.to_num::<f64>().to_radians(),
+        inertia: f64::from(m.inertia_ukgm2) * 1e-6,
+        damping: f64::from(m.damping_unms) * 1e-6,
+        support_torque: m.support_torque.to_f64(),
+        nut_mass: m.nut_mass.to_f64(),
+        ..physics::Screw::paper()
+    };
+    let l = &cfg.law;
+    let law = FLaw {
+        base: l.base.to_f64(),
+        amp: l.amp.to_f64(),
+        rate: l.rate.to_num::<f64>(),
+        slope: l.slope.to_num::<f64>(),
+        s_max: if l.s_max == fixed::types::I32F32::MAX {
+            f64::INFINITY
+        } else {
+            l.s_max.to_num::<f64>()
+        },
+        variable: match l.variable {
+            LawVariable::ScrewRate => Variable::ScrewRate,
+            LawVariable::SlidingSpeed => Variable::SlidingSpeed,
+            LawVariable::Lubrication => Variable::Lubrication,
+        },
+    };
+    let metres_per_count = screw.lead_per_rad() * 2.0 * std::f64::consts::PI
+        / (f64::from(d.counts_per_rev) * d.gear_ratio.to_num::<f64>());
+    CfgTwin {
+        geo,
+        screw,
+        law,
+        metres_per_count,
+    }
+}
+
+/// The worst of a cancellation search, as multiples of each bound.
+#[derive(Default, Debug)]
+struct Worst {
+    /// |ΔT_r| / T_r's budget (max(0.2 %·|T_r|, 0.5 mN·m)), and where.
+    tr: (f64, String),
+    /// |ΔN| / N's bound ([`normal_bound`]).
+    n: (f64, String),
+    /// |ΔW| in newtons, and as a multiple of W's designed error, max(A, |W|/5000) plus rounding
+    /// ([`w_pose_floor`], [`w_rounding`]).
+    w_abs: (f64, String),
+    w_design: (f64, String),
+    points: usize,
+}
+
+fn note(slot: &mut (f64, String), v: f64, at: impl FnOnce() -> String) {
+    if v > slot.0 {
+        *slot = (v, at());
+    }
+}
+
+/// Where the axial demand W = m·lead·θ̈ + R + F₀·dir + c_x·lead·θ̇ cancels (R + F₀·dir against
+/// the damping while lowering, or the inertia), the fixed-point estimate against the twin: the
+/// pose segments of the configuration from α₀ to 89° (the first 64 from α₀, where the curvature
+/// is largest, then ≈ 600 spread over the stroke) at three fractions (the interpolation error
+/// peaks at the midpoint), loads 50 kg…2× rated, θ̈ of 0 and ±2000 rad/s², the speed solved for
+/// W = 0 (within ±400 rad/s, outside the rest band) and a quarter newton either way; and, at
+/// speeds over the envelope, the load solved for W = 0.
+fn cancellation_search(cfg: &EstimatorConfig) -> Worst {
+    let est = Estimator::new(cfg).unwrap();
+    let t = cfg_twin(cfg);
+    let k = est.pose_shift();
+    let top_alpha = 89f64.to_radians().min(t.geo.alpha_max + 5f64.to_radians());
+    let top = (t.geo.travel(top_alpha) / t.metres_per_count).floor() as i64;
+    let seg = 1i64 << k;
+    let segments = (top / seg).max(1);
+    // At most ≈ 600 segments, every one near α₀ (where the curvature is largest).
+    let stride = (segments / 600).max(1);
+    let lead = t.screw.lead_per_rad();
+    let mut worst = Worst::default();
+    let rest = cfg.rest_speed.to_f64();
+    let floor = w_pose_floor(&t.law, t.screw.r_m, t.screw.lambda);
+    let eval = |counts: i32, load: Kilograms, speed: f64, accel: f64, worst: &mut Worst| {
+        let w = RadiansPerSecond::from_f64(speed);
+        let a = RadiansPerSecond2::from_f64(accel);
+        let m = Measurements {
+            position_counts: counts,
+            motor_current: Amperes::ZERO,
+            load,
+            commanded_dir: 0,
+        };
+        let e = est.estimate(&m, w, a, 0);
+        if e.flags.has(EstimateFlags::POSE_CLAMPED) || e.flags.has(EstimateFlags::SATURATED) {
+            return;
+        }
+        let dir = if e.flags.has(EstimateFlags::AT_REST) {
+            0.0
+        } else {
+            w.to_f64().signum()
+        };
+        let (speed, accel) = (w.to_f64(), a.to_f64());
+        let x = f64::from(counts) * t.metres_per_count;
+        let alpha = t.geo.alpha(x);
+        let mass = load.to_f64();
+        let r = t.geo.axial_load(mass, alpha);
+        let f0 = t.geo.pin_friction(mass, alpha);
+        let cx = structure_damping_cos(alpha.cos());
+        let mu = t.law.mu_at_rate(speed, t.screw.r_m, t.screw.lambda);
+        let tw_w = t.screw.axial_demand(speed, accel, dir, r, f0, cx);
+        let c = t.screw.contact(mu, dir, tw_w);
+        worst.points += 1;
+        let at = || {
+            format!(
+                "counts {counts} (α {:.3}°), load {mass:.1} kg, θ̇ {speed:.4}, θ̈ {accel}: \
+                 W {:.4} vs {tw_w:.4}, N {:.4} vs {:.4}, T_r {:.6} vs {:.6}",
+                alpha.to_degrees(),
+                e.contact.axial.to_f64(),
+                e.contact.normal.to_f64(),
+                c.normal,
+                e.contact.friction_torque.to_f64(),
+                c.friction_torque
+            )
+        };
+        let tr = e.contact.friction_torque.to_f64();
+        let tr_budget = (0.002 * c.friction_torque.abs()).max(0.5e-3);
+        note(
+            &mut worst.tr,
+            (tr - c.friction_torque).abs() / tr_budget,
+            at,
+        );
+        let n = e.contact.normal.to_f64();
+        note(
+            &mut worst.n,
+            (n - c.normal).abs() / normal_bound(c.normal, floor, r + f0),
+            at,
+        );
+        let dw = (e.contact.axial.to_f64() - tw_w).abs();
+        note(&mut worst.w_abs, dw, at);
+        let design = floor.0.max(tw_w.abs() / 5000.0) + w_rounding(r + f0);
+        note(&mut worst.w_design, dw / design, at);
+    };
+    let loads = [0.05, 0.1, 0.25, 0.5, 1.0, 1.5, 2.0].map(|f| f * RATED_KG);
+    let accels = [0.0, -2000.0, 2000.0];
+    let mut i = 0i64;
+    while i < segments {
+        for frac in [1, 2, 3] {
+            let c = i * seg + frac * seg / 4;
+            let Ok(counts) = i32::try_from(c) else {
+                continue;
+            };
+            let alpha = t.geo.alpha(f64::from(counts) * t.metres_per_count);
+            let cx = structure_damping_cos(alpha.cos());
+            for &accel in &accels {
+                let inertial = t.screw.nut_mass * lead * accel;
+                // The speed where W = 0 for each load and direction.
+                for &mass in &loads {
+                    let load = Kilograms::from_f64(mass);
+                    let mass = load.to_f64();
+                    for dir in [-1.0, 1.0] {
+                        let rf =
+                            t.geo.axial_load(mass, alpha) + dir * t.geo.pin_friction(mass, alpha);
+                        let s = -(inertial + rf) / (cx * lead);
+                        if s * dir > rest && s.abs() <= 400.0 {
+                            // W = 0 and a quarter newton either side.
+                            for dw in [-0.25, 0.0, 0.25] {
+                                let s = s + dw / (cx * lead);
+                                if s * dir > rest && s.abs() <= 400.0 {
+                                    eval(counts, load, s, accel, &mut worst);
+                                }
+                            }
+                        }
+                    }
+                }
+                // The load where W = 0 at speeds over the envelope.
+                for speed in [
+                    -400.0, -300.0, -200.0, -100.0, -50.0, -20.0, -5.0, 5.0, 50.0, 400.0,
+                ] {
+                    let dir: f64 = if speed > 0.0 { 1.0 } else { -1.0 };
+                    let per_kg =
+                        t.geo.axial_load(1.0, alpha) + dir * t.geo.pin_friction(1.0, alpha);
+                    let mass = -(inertial + cx * lead * speed) / per_kg;
+                    if (0.0..=2.0 * RATED_KG).contains(&mass) {
+                        eval(counts, Kilograms::from_f64(mass), speed, accel, &mut worst);
+                    }
+                }
+            }
+        }
+        i += if i < 64 { 1 } else { stride };
+    }
+    worst
+}
+
+/// The configurations the cancellation search covers: the paper's lift with every preset law,
+/// heavy pin friction, a long lift at a low α₀ with a fine encoder, and the envelope tests'
+/// corners of the validated ranges (tests/estimator_envelope.rs).
+fn search_configs() -> Vec<(String, EstimatorConfig)> {
+    let d = EstimatorConfig::DEFAULT;
+    let mut v = Vec::new();
+    for (name, law) in [
+        ("dry", FrictionLaw::DRY),
+        ("ptfe", FrictionLaw::PTFE),
+        ("lithium", FrictionLaw::LITHIUM),
+    ] {
+        v.push((format!("paper/{name}"), EstimatorConfig { law, ..d }));
+        let mut fine = EstimatorConfig { law, ..d };
+        fine.geometry.length = Metres::lit("2");
+        fine.geometry.alpha0_deg = I16F16::lit("12");
+        fine.geometry.alpha_max_deg = I16F16::lit("89");
+        fine.drive.counts_per_rev = 4096;
+        fine.drive.gear_ratio = I16F16::lit("100");
+        v.push((format!("fine/{name}"), fine));
+        let mut pins = EstimatorConfig { law, ..d };
+        pins.geometry.mu_pin = Ratio::lit("0.1");
+        v.push((format!("pins0.1/{name}"), pins));
+        let mut coarse = EstimatorConfig { law, ..d };
+        coarse.geometry.length = Metres::lit("0.05");
+        coarse.geometry.alpha0_deg = I16F16::lit("60");
+        coarse.geometry.alpha_max_deg = I16F16::lit("89");
+        coarse.drive.counts_per_rev = 4;
+        coarse.drive.gear_ratio = I16F16::ONE;
+        coarse.drive.pitch_radius = Metres::lit("0.05");
+        coarse.drive.lead_angle_deg = I16F16::lit("20");
+        v.push((format!("coarse/{name}"), coarse));
+        v.push((
+            format!("forces/{name}"),
+            EstimatorConfig { law, ..forces() },
+        ));
+        // The envelope's largest screw and lead on the paper's lift and encoder, pins 0.3:
+        // W cancels at every α, and T_r is twelve times as sensitive to it.
+        let mut big = EstimatorConfig { law, ..d };
+        big.drive.pitch_radius = Metres::lit("0.05");
+        big.drive.lead_angle_deg = I16F16::lit("20");
+        v.push((format!("bigscrew/{name}"), big));
+    }
+    let high_law = FrictionLaw {
+        base: Ratio::ONE,
+        amp: Ratio::ONE,
+        rate: I32F32::lit("1000000"),
+        slope: I32F32::lit("1000"),
+        s_max: I32F32::MAX,
+        variable: LawVariable::SlidingSpeed,
+    };
+    v.push((
+        "forces/high".into(),
+        EstimatorConfig {
+            law: high_law,
+            ..forces()
+        },
+    ));
+    let upper = EstimatorConfig {
+        geometry: GeometryConfig {
+            length: Metres::lit("2"),
+            alpha0_deg: I16F16::lit("60"),
+            alpha_max_deg: I16F16::lit("89"),
+            h0: Metres::lit("1"),
+            mu_pin: Ratio::ONE,
+        },
+        drive: DriveConfig {
+            counts_per_rev: 65_536,
+            gear_ratio: I16F16::lit("1000"),
+            pitch_radius: Metres::lit("0.05"),
+            lead_angle_deg: I16F16::lit("20"),
+        },
+        mechanics: big_mech(),
+        law: high_law,
+        motor: MotorConfig {
+            torque_constant: Ratio::ONE,
+            gear_efficiency: Ratio::lit("0.1"),
+            ..MotorConfig::DEFAULT
+        },
+        tick_us: 100,
+        speed_bandwidth_hz: 1000,
+        rest_speed: RadiansPerSecond::lit("50"),
+    };
+    v.push(("upper/high".into(), upper));
+    v.push((
+        "upper/dry".into(),
+        EstimatorConfig {
+            law: FrictionLaw::DRY,
+            ..upper
+        },
+    ));
+    let lower = EstimatorConfig {
+        geometry: GeometryConfig {
+            length: Metres::lit("0.05"),
+            alpha0_deg: I16F16::lit("12"),
+            alpha_max_deg: I16F16::lit("17"),
+            h0: Metres::ZERO,
+            mu_pin: Ratio::ZERO,
+        },
+        drive: DriveConfig {
+            counts_per_rev: 4,
+            gear_ratio: I16F16::ONE,
+            pitch_radius: Metres::lit("0.001"),
+            lead_angle_deg: I16F16::lit("0.5"),
+        },
+        mechanics: MechanicsConfig {
+            inertia_ukgm2: 0,
+            damping_unms: 0,
+            support_torque: NewtonMetres::ZERO,
+            nut_mass: Kilograms::ZERO,
+            ..MechanicsConfig::DEFAULT
+        },
+        law: FrictionLaw::DRY,
+        motor: MotorConfig {
+            torque_constant: Ratio::lit("0.001"),
+            gear_efficiency: Ratio::ONE,
+            ..MotorConfig::DEFAULT
+        },
+        tick_us: 10_000,
+        speed_bandwidth_hz: 1,
+        rest_speed: RadiansPerSecond::ZERO,
+    };
+    v.push(("lower/dry".into(), lower));
+    v
+}
+
+/// The envelope tests' heaviest mechanics (tests/estimator_envelope.rs).
+fn big_mech() -> MechanicsConfig {
+    MechanicsConfig {
+        inertia_ukgm2: 100_000,
+        damping_unms: 1_000_000,
+        support_torque: NewtonMetres::lit("10"),
+        nut_mass: Kilograms::lit("5"),
+        ..MechanicsConfig::DEFAULT
+    }
+}
+
+/// The envelope tests' configuration that maximises the forces: steepest arms, largest screw
+/// and lead, heaviest nut, μ_b = 1 (tests/estimator_envelope.rs).
+fn forces() -> EstimatorConfig {
+    EstimatorConfig {
+        geometry: GeometryConfig {
+            alpha0_deg: I16F16::lit("12"),
+            mu_pin: Ratio::ONE,
+            ..GeometryConfig::DEFAULT
+        },
+        drive: DriveConfig {
+            counts_per_rev: 4,
+            gear_ratio: I16F16::lit("1.25002"),
+            pitch_radius: Metres::lit("0.05"),
+            lead_angle_deg: I16F16::lit("20"),
+        },
+        mechanics: big_mech(),
+        motor: MotorConfig {
+            torque_constant: Ratio::ONE,
+            gear_efficiency: Ratio::lit("0.1"),
+            ..MotorConfig::DEFAULT
+        },
+        ..EstimatorConfig::DEFAULT
+    }
+}
+
+#[test]
+fn torque_stays_within_budget_where_the_axial_demand_cancels() {
+    let mut failed = Vec::new();
+    for (name, cfg) in search_configs() {
+        let k = Estimator::new(&cfg).unwrap().pose_shift();
+        let w = cancellation_search(&cfg);
+        eprintln!(
+            "{name} (k = {k}): {} points; T_r {:.3} of budget ({}); N {:.3} of bound ({}); \
+             |ΔW| {:.4} N ({}); ΔW {:.3} of design ({})",
+            w.points,
+            w.tr.0,
+            w.tr.1,
+            w.n.0,
+            w.n.1,
+            w.w_abs.0,
+            w.w_abs.1,
+            w.w_design.0,
+            w.w_design.1
+        );
+        if w.tr.0 > 1.0 || w.n.0 > 1.0 || w.w_design.0 > 1.0 {
+            failed.push(name.clone());
+        }
+        // W cancels in the envelope unless R − F₀ < 0 throughout (μ_b = 1, or α₀ = 60° with
+        // μ_b = 0.3: cos α < 2μ_b), where lowering's damping adds to it.
+        let cancels = !["forces/", "upper/", "coarse/"]
+            .iter()
+            .any(|p| name.starts_with(p));
+        assert_eq!(w.points > 1000, cancels, "{name}: {} points", w.points);
+    }
+    assert!(failed.is_empty(), "{failed:?}");
 }

@@ -96,10 +96,12 @@ impl core::fmt::Write for Reply {
 
     fn write_char(&mut self, c: char) -> core::fmt::Result {
         // The core's replies write only ASCII characters one at a time (a sign, a point, a
-        // digit, a bracket): one byte through `from_utf8` (linked anyway) instead of UTF-8
-        // encoding (72 B less flash); any other character is refused as an overlong reply is.
-        let byte = [u8::try_from(c).map_err(|_| core::fmt::Error)?];
-        self.write_str(core::str::from_utf8(&byte).map_err(|_| core::fmt::Error)?)
+        // bracket): pushed as one byte (an ASCII char needs no UTF-8 encoding, and no
+        // `from_utf8` is linked); any other character is refused as an overlong reply is.
+        if !c.is_ascii() {
+            return Err(core::fmt::Error);
+        }
+        self.0.push(c).map_err(|_| core::fmt::Error)
     }
 
     fn write_fmt(&mut self, args: core::fmt::Arguments<'_>) -> core::fmt::Result {

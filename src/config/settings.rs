@@ -310,11 +310,16 @@ impl SettingId {
     }
 }
 
-/// The setting with this key (ASCII case-insensitive).
-pub fn find(key: &str) -> Option<SettingId> {
+/// The setting with this key (ASCII case-insensitive), given as text or bytes (the console
+/// parses lines as bytes).
+pub fn find(key: &(impl AsRef<[u8]> + ?Sized)) -> Option<SettingId> {
+    find_bytes(key.as_ref())
+}
+
+fn find_bytes(key: &[u8]) -> Option<SettingId> {
     SETTINGS
         .iter()
-        .position(|s| s.key.eq_ignore_ascii_case(key))
+        .position(|s| s.key.as_bytes().eq_ignore_ascii_case(key))
         .map(|i| SettingId(i as u8))
 }
 
@@ -370,9 +375,8 @@ pub fn check_variant(cfg: &ControlConfig) -> Result<(), ConfigError> {
 /// The console's message template for a key [`find`] does not know (`\x01`: the key, then the
 /// pointer to `help keys`): without the `ball-screw` feature a `ballscrew.*` key is not unknown
 /// but needs the other image.
-pub fn unknown_key_template(key: &str) -> &'static str {
+pub fn unknown_key_template(key: &[u8]) -> &'static str {
     let ball = key
-        .as_bytes()
         .get(..BALL_PREFIX.len())
         .is_some_and(|p| p.eq_ignore_ascii_case(BALL_PREFIX.as_bytes()));
     if ball && !cfg!(feature = "ball-screw") {
@@ -1121,7 +1125,7 @@ mod tests {
         // The feature's checks are off.
         assert_eq!(check_variant(&cfg), Ok(()));
         assert_eq!(
-            unknown_key_template("ballscrew.x"),
+            unknown_key_template(b"ballscrew.x"),
             "unknown key '\x01'\x01"
         );
     }

@@ -407,10 +407,10 @@ const LEN: Kind = Kind::Number {
 };
 
 /// The configuration fields as the registry reaches them, and [`Slot`]'s two directions.
-/// (`q32` names the 32-bit fixed-point types, `choice` the enum and bool fields' types with a
-/// variant name each.)
+/// (`q32` names the 32-bit fixed-point types, `choice` the fieldless enum and bool fields'
+/// types and `preset` the other chosen ones, with a variant name each.)
 macro_rules! slots {
-    (q32: $($q:ident),*; choice: $($c:ident($ct:ty)),* $(,)?) => {
+    (q32: $($q:ident),*; choice: $($c:ident($ct:ty)),*; preset: $($p:ident($pt:ty)),* $(,)?) => {
         /// A configuration field as the registry reaches it: a mutable reference typed by how
         /// its raw bits read and write (a choice with its values in registry order). [`slot`]
         /// maps a setting's index to its field once for both directions: on the board each
@@ -423,6 +423,7 @@ macro_rules! slots {
             U32(&'a mut u32),
             U16(&'a mut u16),
             $($c(&'a mut $ct, &'static [$ct]),)*
+            $($p(&'a mut $pt, &'static [$pt]),)*
         }
 
         $(impl<'a> From<&'a mut $q> for Slot<'a> {
@@ -437,6 +438,12 @@ macro_rules! slots {
             }
         })*
 
+        $(impl ChoiceValue for $pt {
+            fn slot<'a>(f: &'a mut Self, values: &'static [Self]) -> Slot<'a> {
+                Slot::$p(f, values)
+            }
+        })*
+
         impl Slot<'_> {
             /// The raw bits (a choice whose value is none of its list's: −1).
             fn read(&self) -> i64 {
@@ -446,7 +453,11 @@ macro_rules! slots {
                     Slot::I32(f) => i64::from(**f),
                     Slot::U32(f) => i64::from(**f),
                     Slot::U16(f) => i64::from(**f),
-                    $(Slot::$c(f, values) => index_of(&**f, values),)*
+                    // A choice's list is its type's values in declaration order (`field_slot!`
+                    // checks it at compile time): the position is the value's discriminant,
+                    // one load for every choice type instead of a search loop each.
+                    $(Slot::$c(f, _) => i64::from(**f as u8),)*
+                    $(Slot::$p(f, values) => index_of(&**f, values),)*
                 }
             }
 
@@ -463,6 +474,7 @@ macro_rules! slots {
                     Slot::U32(f) => put(f, raw),
                     Slot::U16(f) => put(f, raw),
                     $(Slot::$c(f, values) => choose(f, values, raw),)*
+                    $(Slot::$p(f, values) => choose(f, values, raw),)*
                 }
             }
         }
@@ -473,7 +485,8 @@ slots! {
     q32: Metres, Ratio, Amperes, Volts, Kilograms, NewtonMetres, RadiansPerSecond, Newtons,
         I16F16;
     choice: Ramp(RampShape), Buttons(ButtonMode), Screw(ScrewKind), Flag(bool),
-        Law(FrictionLaw), Variable(LawVariable), Reaction(Reaction),
+        Variable(LawVariable), Reaction(Reaction);
+    preset: Law(FrictionLaw),
 }
 
 impl<'a> From<&'a mut I32F32> for Slot<'a> {
@@ -534,7 +547,19 @@ fn choose<T: Copy>(f: &mut T, values: &[T], raw: i64) -> bool {
 /// - `preset path = ARRAY`: like `choice`, but derived (not in the flash record; reads −1 when
 ///   the field matches no preset).
 macro_rules! field_slot {
-    ($c:ident, choice $($f:ident).+ = $values:expr) => { ChoiceValue::slot(&mut $c.$($f).+, &$values) };
+    ($c:ident, choice $($f:ident).+ = $values:expr) => {{
+        // Every value of the type, in declaration order: `Slot::read` takes the position to be
+        // the discriminant.
+        const {
+            let values = $values;
+            let mut i = 0;
+            while i < values.len() {
+                assert!(values[i] as usize == i, "a choice lists its type's values in order");
+                i += 1;
+            }
+        }
+        ChoiceValue::slot(&mut $c.$($f).+, &$values)
+    }};
     ($c:ident, preset $($f:ident).+ = $values:expr) => { ChoiceValue::slot(&mut $c.$($f).+, &$values) };
     ($c:ident, int $t:ty, $($f:ident).+) => { Slot::from(&mut $c.$($f).+) };
     ($c:ident, $form:ident $($f:ident).+) => { Slot::from(&mut $c.$($f).+) };
@@ -946,6 +971,80 @@ mod tests {
             );
         }
         assert_eq!(find("limits.middle"), None);
+    }
+
+    /// A choice setting's list holds every value of its type (`Slot::read` takes a value's
+    /// discriminant for its position, `field_slot!` checks the order): each type's values from
+    /// an exhaustive `match` (a new variant breaks this test's build until it is listed) read
+    /// back as their positions, and every position writes and reads back.
+    #[test]
+    fn choice_lists_hold_every_value_of_their_type() {
+        fn ramp(v: RampShape) -> i64 {
+            match v {
+                RampShape::Trapezoid => 0,
+                RampShape::SCurve => 1,
+            }
+        }
+        fn buttons(v: ButtonMode) -> i64 {
+            match v {
+                ButtonMode::HoldToRun => 0,
+                ButtonMode::Latched => 1,
+            }
+        }
+        fn screw(v: ScrewKind) -> i64 {
+            match v {
+                ScrewKind::Lead => 0,
+                ScrewKind::Ball => 1,
+            }
+        }
+        fn variable(v: LawVariable) -> i64 {
+            match v {
+                LawVariable::ScrewRate => 0,
+                LawVariable::SlidingSpeed => 1,
+                LawVariable::Lubrication => 2,
+            }
+        }
+        fn reaction(v: Reaction) -> i64 {
+            match v {
+                Reaction::Log => 0,
+                Reaction::Warn => 1,
+                Reaction::ChangeSpeed => 2,
+            }
+        }
+        let mut c = ControlConfig::DEFAULT;
+        let mut seen = 0;
+        for s in SETTINGS.iter() {
+            let Kind::Choice(names) = s.kind else {
+                continue;
+            };
+            if s.key == "friction.law" {
+                continue; // a preset (`Slot` searches its list)
+            }
+            for raw in 0..names.len() as i64 {
+                assert!(s.set(&mut c, raw), "{} {raw}", s.key);
+                assert_eq!(s.get(&c), raw, "{}", s.key);
+                // The value written is the one at that position of its type.
+                let at = match s.key {
+                    "motion.ramp_shape" => ramp(c.motion.ramp_shape),
+                    "motion.buttons" => buttons(c.motion.buttons),
+                    "drive.screw" => screw(c.screw),
+                    "drive.brake" => i64::from(c.brake.present),
+                    "friction.variable" => variable(c.estimator.law.variable),
+                    "stickslip.reaction" => reaction(c.stick_slip.reaction),
+                    k => panic!("a choice setting this test does not know: {k}"),
+                };
+                assert_eq!(at, raw, "{}", s.key);
+            }
+            // As many names as the type has values.
+            let count = match s.key {
+                "friction.variable" | "stickslip.reaction" => 3,
+                _ => 2,
+            };
+            assert_eq!(names.len(), count, "{}", s.key);
+            assert!(!s.set(&mut c, count as i64), "{}", s.key);
+            seen += 1;
+        }
+        assert_eq!(seen, 6);
     }
 
     /// Compile-time guard: this destructuring lists every field of the configuration without

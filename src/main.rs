@@ -637,10 +637,14 @@ async fn console_task(
                 }
             }
             if outcome.reply.is_err() {
-                // The reply outgrew the buffer: say so rather than cut it silently.
-                while reply.0.len() > REPLY_LEN - 24 {
-                    reply.0.pop();
+                // The reply outgrew the buffer: say so rather than cut it silently. Cut at the
+                // last char boundary within REPLY_LEN − 24 bytes (what popping chars until it
+                // fits leaves, without decoding chars backwards: 0.1 KiB less flash).
+                let mut cut = reply.0.len().min(REPLY_LEN - 24);
+                while !reply.0.is_char_boundary(cut) {
+                    cut -= 1;
                 }
+                reply.0.truncate(cut);
                 let _ = reply.write_str(" ... (reply cut)");
             }
             continue;

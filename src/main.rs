@@ -100,12 +100,6 @@ impl core::fmt::Write for Reply {
 
     #[inline(never)]
     fn write_char(&mut self, c: char) -> core::fmt::Result {
-        // The core's replies write only ASCII characters one at a time (a sign, a point, a
-        // bracket): pushed as one byte (an ASCII char needs no UTF-8 encoding, and no
-        // `from_utf8` is linked); any other character is refused as an overlong reply is.
-        if !c.is_ascii() {
-            return Err(core::fmt::Error);
-        }
         self.0.push(c).map_err(|_| core::fmt::Error)
     }
 

@@ -357,7 +357,7 @@ fn clip(out: &mut dyn Write, s: Words<'_>) -> fmt::Result {
         if n == 24 {
             return out.write_str("...");
         }
-        out.write_str(c.encode_utf8(&mut [0; 4]))?;
+        out.write_char(c)?;
         n += 1;
         rest = tail;
     }

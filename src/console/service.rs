@@ -27,6 +27,7 @@ use crate::config::{record, settings, ValidatedConfig};
 use crate::control::config::ControlConfig;
 use crate::control::{Command, Controller, Fault, Refusal, Status};
 use crate::text;
+use crate::units::Metres;
 use core::fmt::{self, Write};
 
 /// The console protocol version `version` reports. Bump it when a reply a host tool parses
@@ -217,23 +218,20 @@ fn write_set_ok(
 }
 
 fn motion<L: Lift + ?Sized>(out: &mut dyn Write, lift: &mut L, cmd: Command) -> fmt::Result {
-    let word = match cmd {
-        Command::Up => "up",
-        Command::Down => "down",
-        Command::Stop => "stop",
-        Command::GoTo(_) => "goto",
-        Command::ClearFault => "fault clear",
+    // The command's word for a refusal and its whole reply when accepted (one `fill` each way).
+    let (word, ok) = match cmd {
+        Command::Up => ("up", "ok: lifting to limits.upper"),
+        Command::Down => ("down", "ok: lowering to limits.lower"),
+        Command::Stop => ("stop", "ok: stop"),
+        Command::GoTo(_) => ("goto", "ok: going to \x01 mm"),
+        Command::ClearFault => ("fault clear", "ok: fault clear"),
+    };
+    let target = match cmd {
+        Command::GoTo(h) => h,
+        _ => Metres::ZERO,
     };
     match lift.command(cmd) {
-        Ok(()) => {
-            out.write_str("ok: ")?;
-            match cmd {
-                Command::Up => out.write_str("lifting to limits.upper"),
-                Command::Down => out.write_str("lowering to limits.lower"),
-                Command::GoTo(h) => fill(out, "going to \x01 mm", &[Arg::Mm(h)]),
-                Command::Stop | Command::ClearFault => out.write_str(word),
-            }
-        }
+        Ok(()) => fill(out, ok, &[Arg::Mm(target)]),
         Err(r) => fill(
             out,
             "error: \x01 \x01",

@@ -243,11 +243,19 @@ fn motion<L: Lift + ?Sized>(out: &mut dyn Write, lift: &mut L, cmd: Command) -> 
 /// The reply to `version`: `liftfw console v1 firmware=0.1.0 schema=1a2b3c4d` (the schema is
 /// the flash record's fingerprint of the settings list, [`record::schema`]).
 pub fn write_version(out: &mut dyn Write) -> fmt::Result {
-    out.write_str(VERSION_PREFIX)?;
-    text::uint(out, u64::from(PROTOCOL_VERSION))?;
-    out.write_str(concat!(" firmware=", env!("CARGO_PKG_VERSION"), " schema="))?;
+    out.write_str(VERSION_HEAD)?;
     text::hex8(out, record::schema())
 }
+
+/// The `version` reply up to the schema, one text: [`VERSION_PREFIX`], [`PROTOCOL_VERSION`]
+/// and the firmware's version (a test checks it against the two constants).
+const VERSION_HEAD: &str = concat!(
+    "liftfw console v",
+    "1",
+    " firmware=",
+    env!("CARGO_PKG_VERSION"),
+    " schema="
+);
 
 /// The reply to `fault`, `key=value` like `status`: `fault=none`, or the fault and the state
 /// of the lift when it tripped: `fault=over-current t=12.345s state=lifting height=212.4mm
@@ -291,5 +299,26 @@ pub fn write_saved(out: &mut dyn Write, result: Result<u32, StoreError>) -> fmt:
              never a mix; the running settings are unchanged",
             &[Arg::Str(e.message())],
         ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    extern crate std;
+    use std::format;
+    use std::string::String;
+
+    /// The `version` reply's one text spells the two constants host tools read it by.
+    #[test]
+    fn the_version_reply_spells_the_protocol_constants() {
+        let mut s = String::new();
+        write_version(&mut s).unwrap();
+        let head = format!(
+            "{VERSION_PREFIX}{PROTOCOL_VERSION} firmware={} schema=",
+            env!("CARGO_PKG_VERSION")
+        );
+        assert_eq!(VERSION_HEAD, head);
+        assert_eq!(s, format!("{head}{:08x}", record::schema()));
     }
 }

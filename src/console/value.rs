@@ -72,6 +72,16 @@ pub(crate) fn ten_to(k: u32) -> Option<u64> {
     Some(p)
 }
 
+/// `m·10^k`, `None` if it exceeds `u64` (checked steps of ×10: for `m ≥ 1` at most 20 rounds
+/// before it overflows).
+fn times_ten_to(m: u64, k: u32) -> Option<u64> {
+    let mut v = m;
+    for _ in 0..k {
+        v = v.checked_mul(10)?;
+    }
+    Some(v)
+}
+
 /// Split `text` into a decimal and the unit text after it.
 fn parse_decimal(text: &[u8]) -> Result<(Decimal, &[u8]), ValueError> {
     let b = text;
@@ -193,8 +203,8 @@ fn to_raw(m: u64, k: i32, frac: u32) -> Option<(u64, bool)> {
         return Some((0, true));
     }
     if k >= 0 {
-        let p = ten_to(k.unsigned_abs())?;
-        let v = m.checked_mul(p)?;
+        // m ≥ 1: past 10^19 this overflows as `ten_to` did.
+        let v = times_ten_to(m, k.unsigned_abs())?;
         // `v·2^frac` fits when no set bit is shifted out.
         if frac >= 64 || v.leading_zeros() < frac {
             return None;
@@ -303,10 +313,12 @@ pub fn format(out: &mut dyn Write, kind: &Kind, raw: i64) -> fmt::Result {
 /// `e = −rem/10^(n+pow10)` (down) or `(2^frac − rem)/10^(n+pow10)` (up), and the parser's
 /// rounding returns `|raw|` exactly when `−½ ≤ e < ½`.
 fn write_shortest(out: &mut dyn Write, raw: i64, frac: u32, pow10: i32) -> fmt::Result {
+    // |raw|·10^pow10 by checked steps of ×10 (a 64-bit multiply by a variable with its
+    // overflow check is ≈ 60 B more on the board); `ten_to`'s limit, 10^19, kept.
     let Some(s) = u32::try_from(pow10)
         .ok()
-        .and_then(ten_to)
-        .and_then(|p| raw.unsigned_abs().checked_mul(p))
+        .filter(|&k| k < 20)
+        .and_then(|k| times_ten_to(raw.unsigned_abs(), k))
         .filter(|_| frac <= 40)
     else {
         // No registry kind gets here (pow10 ≥ 0, small values): the tests cover every key.

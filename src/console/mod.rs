@@ -315,16 +315,13 @@ pub fn write_parse_error(out: &mut dyn Write, e: &ParseError<'_>) -> fmt::Result
             settings::unknown_key_template(k.as_bytes()),
             &[Arg::Clip(*k), Arg::Str(KEYS)],
         ),
-        ParseError::MissingValue(id) => {
-            fill(out, "`set \x01` needs a value: ", &[Arg::Str(id.key())])?;
-            return write_expected(out, *id);
-        }
-        ParseError::BadValue(id, v) => {
-            fill(
-                out,
-                "bad value for \x01: \x01; ",
-                &[Arg::Str(id.key()), Arg::Str(v.message())],
-            )?;
+        // Both end with what the key takes (one `fill` and one `write_expected` for both).
+        ParseError::MissingValue(id) | ParseError::BadValue(id, _) => {
+            let (template, why) = match e {
+                ParseError::BadValue(_, v) => ("bad value for \x01: \x01; ", v.message()),
+                _ => ("`set \x01` needs a value: ", ""),
+            };
+            fill(out, template, &[Arg::Str(id.key()), Arg::Str(why)])?;
             return write_expected(out, *id);
         }
         ParseError::BadHeight(v) => (

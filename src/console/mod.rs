@@ -303,17 +303,18 @@ pub fn write_parse_error(out: &mut dyn Write, e: &ParseError<'_>) -> fmt::Result
             "line longer than \x01 characters, ignored; type `help`",
             &[Arg::Uint(MAX_LINE as u32)],
         ),
-        ParseError::UnknownCommand(c) => (
-            "unknown command '\x01'\x01",
-            &[Arg::Clip(*c), Arg::Str(COMMANDS)],
-        ),
+        // The user's words and a pointer to `help` (one argument list for the three).
+        ParseError::UnknownCommand(w) | ParseError::UnknownKey(w) | ParseError::Trailing(w) => {
+            let (template, ending) = match e {
+                ParseError::UnknownCommand(_) => ("unknown command '\x01'\x01", COMMANDS),
+                ParseError::UnknownKey(_) => (settings::unknown_key_template(w.as_bytes()), KEYS),
+                _ => ("unexpected '\x01'\x01", COMMANDS),
+            };
+            return fill(out, template, &[Arg::Clip(*w), Arg::Str(ending)]);
+        }
         ParseError::MissingKey(cmd) => (
             "`\x01` needs a key, e.g. `\x01 limits.upper`\x01",
             &[Arg::Str(cmd), Arg::Str(cmd), Arg::Str(KEYS)],
-        ),
-        ParseError::UnknownKey(k) => (
-            settings::unknown_key_template(k.as_bytes()),
-            &[Arg::Clip(*k), Arg::Str(KEYS)],
         ),
         // Both end with what the key takes (one `fill` and one `write_expected` for both).
         ParseError::MissingValue(id) | ParseError::BadValue(id, _) => {
@@ -327,10 +328,6 @@ pub fn write_parse_error(out: &mut dyn Write, e: &ParseError<'_>) -> fmt::Result
         ParseError::BadHeight(v) => (
             "bad height for goto: \x01; expected a length in mm (or m, cm), e.g. `goto 300mm`",
             &[Arg::Str(v.message())],
-        ),
-        ParseError::Trailing(t) => (
-            "unexpected '\x01'\x01",
-            &[Arg::Clip(*t), Arg::Str(COMMANDS)],
         ),
     };
     fill(out, template, args)

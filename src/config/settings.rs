@@ -27,8 +27,9 @@ pub struct Unit {
 }
 
 impl Unit {
-    /// The spec's `|`-separated parts.
-    fn parts(&self) -> Parts {
+    /// The spec's `|`-separated parts: the display unit, what it measures, then each accepted
+    /// suffix as `suffix=power`.
+    pub(crate) fn parts(&self) -> Parts {
         Parts(Some(self.spec))
     }
 
@@ -59,7 +60,7 @@ impl Unit {
 }
 
 /// The `|`-separated parts of a [`Unit`]'s spec (an empty part included).
-struct Parts(Option<&'static str>);
+pub(crate) struct Parts(Option<&'static str>);
 
 impl Iterator for Parts {
     type Item = &'static str;

@@ -263,15 +263,24 @@ fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {
         Kind::Number {
             unit, none_at_max, ..
         } => {
-            out.write_str(unit.what())?;
-            let display = unit.display();
+            // The spec's parts in one pass: display unit, what it is, `suffix=power`s.
+            let mut parts = unit.parts();
+            let display = parts.next().unwrap_or("");
+            out.write_str(parts.next().unwrap_or(""))?;
             if !display.is_empty() {
                 out.write_str(" in ")?;
                 out.write_str(display)?;
             }
-            // The other ASCII spellings, once each (`accepts` has no display unit).
+            // The other ASCII spellings, once each (the accepted suffixes repeat no display
+            // unit).
             let mut n = 0;
-            for (s, _) in unit.accepts() {
+            for a in parts {
+                // The suffix: the part before its `=` (ASCII, so a char boundary).
+                let s = a
+                    .bytes()
+                    .position(|b| b == b'=')
+                    .and_then(|i| a.get(..i))
+                    .unwrap_or(a);
                 // (One byte test for both: `is_ascii`'s word-wise loop is ≈ 60 B of its own.)
                 if s.bytes().any(|b| !b.is_ascii() || b == b'*') {
                     continue;
@@ -1061,6 +1070,49 @@ mod tests {
         assert_eq!(text(-12.34), "-12.3");
         assert_eq!(text(0.04), "0.0");
         assert_eq!(text(416.44), "416.4");
+    }
+
+    /// A number's unit text (one pass over the unit's spec) is the one its `Unit` accessors
+    /// spell, for every setting and the goto height.
+    #[test]
+    fn unit_texts_are_those_of_the_unit_accessors() {
+        fn twin(kind: &Kind) -> String {
+            let Kind::Number {
+                unit, none_at_max, ..
+            } = kind
+            else {
+                unreachable!()
+            };
+            let mut t = String::from(unit.what());
+            if !unit.display().is_empty() {
+                t += " in ";
+                t += unit.display();
+            }
+            let others: Vec<&str> = unit
+                .accepts()
+                .map(|(s, _)| s)
+                .filter(|s| s.is_ascii() && !s.contains('*'))
+                .collect();
+            if !others.is_empty() {
+                t += &format!(" (or {})", others.join(", "));
+            }
+            if *none_at_max {
+                t += ", or none";
+            }
+            t
+        }
+        let kinds = settings::all()
+            .map(|id| &id.setting().kind)
+            .chain([&HEIGHT])
+            .filter(|k| matches!(k, Kind::Number { .. }));
+        let mut n = 0;
+        for kind in kinds {
+            let mut got = String::new();
+            write_unit(&mut got, kind).unwrap();
+            assert_eq!(got, twin(kind));
+            n += 1;
+        }
+        assert!(n > 40);
     }
 
     /// Each choice setting's names (by their id in the registry) are the ones its range

@@ -100,7 +100,7 @@ impl core::fmt::Write for Reply {
 
     #[inline(never)]
     fn write_char(&mut self, c: char) -> core::fmt::Result {
-        self.0.push(c).map_err(|_| core::fmt::Error)
+        self.write_str(c.encode_utf8(&mut [0; 4]))
     }
 
     fn write_fmt(&mut self, args: core::fmt::Arguments<'_>) -> core::fmt::Result {

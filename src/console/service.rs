@@ -264,8 +264,6 @@ pub fn write_fault(out: &mut dyn Write, fault: Option<&Fault>) -> fmt::Result {
     let Some(f) = fault else {
         return out.write_str("fault=none");
     };
-    // Duty Q15 → per mille, rounded (|duty| ≤ 32768, so no overflow in i32).
-    let permille = (i32::from(f.duty) * 1000 + if f.duty < 0 { -16384 } else { 16384 }) / 32768;
     // Milliseconds since boot: at most 2^32 µs / 1000, an i32.
     let ms = (f.at.0 / 1000) as i32;
     // The fault's name may contain spaces; `-` keeps the line `key=value`.
@@ -281,7 +279,9 @@ pub fn write_fault(out: &mut dyn Write, fault: Option<&Fault>) -> fmt::Result {
             Arg::Fixed(f.screw_speed.to_bits(), 16, 2),
             Arg::Fixed(f.current.to_bits(), 16, 2),
             Arg::Fixed(f.supply.to_bits(), 16, 2),
-            Arg::Deci(permille, 1),
+            // Duty Q15 in percent with one decimal: duty·100 with 15 fractional bits, rounded
+            // half away from zero (|duty| ≤ 32768: no overflow in i32).
+            Arg::Fixed(i32::from(f.duty) * 100, 15, 1),
             Arg::Fixed(f.measured_torque.to_bits(), 16, 3),
             Arg::Fixed(f.model_torque.to_bits(), 16, 3),
         ],
@@ -308,6 +308,19 @@ mod tests {
     extern crate std;
     use std::format;
     use std::string::String;
+
+    /// A fault's duty (Q15) shows as the percentage rounded half away from zero to one
+    /// decimal: the same text as the per-mille integer formula it replaced, for every duty.
+    #[test]
+    fn duty_percent_is_the_rounded_per_mille_for_every_duty() {
+        for d in i16::MIN..=i16::MAX {
+            let permille = (i32::from(d) * 1000 + if d < 0 { -16384 } else { 16384 }) / 32768;
+            let (mut got, mut want) = (String::new(), String::new());
+            fill(&mut got, "\x01", &[Arg::Fixed(i32::from(d) * 100, 15, 1)]).unwrap();
+            fill(&mut want, "\x01", &[Arg::Deci(permille, 1)]).unwrap();
+            assert_eq!(got, want, "{d}");
+        }
+    }
 
     /// The `version` reply's one text spells the two constants host tools read it by.
     #[test]

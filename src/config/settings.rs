@@ -411,20 +411,23 @@ const LEN: Kind = Kind::Number {
 /// (`q32` names the 32-bit fixed-point types, `choice` the fieldless enum and bool fields'
 /// types and `preset` the other chosen ones, with a variant name each.)
 macro_rules! slots {
-    (q32: $($q:ident),*; choice: $($c:ident($ct:ty)),*; preset: $($p:ident($pt:ty)),* $(,)?) => {
+    (q32: $($q:ident),*;
+     choice: $($c:ident($ct:ty) = $cv:expr),*;
+     preset: $($p:ident($pt:ty) = $pv:expr),* $(,)?) => {
         /// A configuration field as the registry reaches it: a mutable reference typed by how
-        /// its raw bits read and write (a choice with its values in registry order). [`slot`]
-        /// maps a setting's index to its field once for both directions: on the board each
-        /// setting costs one address and tag in one `match`, instead of a load in a reading
-        /// and a store in a writing one.
+        /// its raw bits read and write (a choice by its type's list of values,
+        /// [`ChoiceValue::VALUES`]). [`slot`] maps a setting's index to its field once for both
+        /// directions: on the board each setting costs one address and tag in one `match`,
+        /// instead of a load in a reading and a store in a writing one. (A reference and a tag
+        /// only: 8 bytes, returned in registers.)
         enum Slot<'a> {
             $($q(&'a mut $q),)*
             Q64(&'a mut I32F32),
             I32(&'a mut i32),
             U32(&'a mut u32),
             U16(&'a mut u16),
-            $($c(&'a mut $ct, &'static [$ct]),)*
-            $($p(&'a mut $pt, &'static [$pt]),)*
+            $($c(&'a mut $ct),)*
+            $($p(&'a mut $pt),)*
         }
 
         $(impl<'a> From<&'a mut $q> for Slot<'a> {
@@ -434,16 +437,37 @@ macro_rules! slots {
         })*
 
         $(impl ChoiceValue for $ct {
-            fn slot<'a>(f: &'a mut Self, values: &'static [Self]) -> Slot<'a> {
-                Slot::$c(f, values)
+            const VALUES: &'static [Self] = &$cv;
+        }
+
+        impl<'a> From<&'a mut $ct> for Slot<'a> {
+            fn from(f: &'a mut $ct) -> Self {
+                Slot::$c(f)
             }
         })*
 
         $(impl ChoiceValue for $pt {
-            fn slot<'a>(f: &'a mut Self, values: &'static [Self]) -> Slot<'a> {
-                Slot::$p(f, values)
+            const VALUES: &'static [Self] = &$pv;
+        }
+
+        impl<'a> From<&'a mut $pt> for Slot<'a> {
+            fn from(f: &'a mut $pt) -> Self {
+                Slot::$p(f)
             }
         })*
+
+        // A choice type's list is its values in declaration order: `Slot::read` takes the
+        // position to be the discriminant.
+        const _: () = {
+            $({
+                let values = <$ct as ChoiceValue>::VALUES;
+                let mut i = 0;
+                while i < values.len() {
+                    assert!(values[i] as usize == i, "a choice lists its type's values in order");
+                    i += 1;
+                }
+            })*
+        };
 
         impl Slot<'_> {
             /// The raw bits (a choice whose value is none of its list's: −1).
@@ -454,11 +478,11 @@ macro_rules! slots {
                     Slot::I32(f) => i64::from(**f),
                     Slot::U32(f) => i64::from(**f),
                     Slot::U16(f) => i64::from(**f),
-                    // A choice's list is its type's values in declaration order (`field_slot!`
-                    // checks it at compile time): the position is the value's discriminant,
-                    // one load for every choice type instead of a search loop each.
-                    $(Slot::$c(f, _) => i64::from(**f as u8),)*
-                    $(Slot::$p(f, values) => index_of(&**f, values),)*
+                    // A choice's list is its type's values in declaration order (checked at
+                    // compile time): the position is the value's discriminant, one load for
+                    // every choice type instead of a search loop each.
+                    $(Slot::$c(f) => i64::from(**f as u8),)*
+                    $(Slot::$p(f) => index_of(&**f, <$pt as ChoiceValue>::VALUES),)*
                 }
             }
 
@@ -474,8 +498,8 @@ macro_rules! slots {
                     Slot::I32(f) => put(f, raw),
                     Slot::U32(f) => put(f, raw),
                     Slot::U16(f) => put(f, raw),
-                    $(Slot::$c(f, values) => choose(f, values, raw),)*
-                    $(Slot::$p(f, values) => choose(f, values, raw),)*
+                    $(Slot::$c(f) => choose(f, <$ct as ChoiceValue>::VALUES, raw),)*
+                    $(Slot::$p(f) => choose(f, <$pt as ChoiceValue>::VALUES, raw),)*
                 }
             }
         }
@@ -485,9 +509,14 @@ macro_rules! slots {
 slots! {
     q32: Metres, Ratio, Amperes, Volts, Kilograms, NewtonMetres, RadiansPerSecond, Newtons,
         I16F16;
-    choice: Ramp(RampShape), Buttons(ButtonMode), Screw(ScrewKind), Flag(bool),
-        Variable(LawVariable), Reaction(Reaction);
-    preset: Law(FrictionLaw),
+    choice: Ramp(RampShape) = [RampShape::Trapezoid, RampShape::SCurve],
+        Buttons(ButtonMode) = [ButtonMode::HoldToRun, ButtonMode::Latched],
+        Screw(ScrewKind) = [ScrewKind::Lead, ScrewKind::Ball],
+        Flag(bool) = [false, true],
+        Variable(LawVariable) =
+            [LawVariable::ScrewRate, LawVariable::SlidingSpeed, LawVariable::Lubrication],
+        Reaction(Reaction) = [Reaction::Log, Reaction::Warn, Reaction::ChangeSpeed];
+    preset: Law(FrictionLaw) = LAW_PRESETS,
 }
 
 impl<'a> From<&'a mut I32F32> for Slot<'a> {
@@ -514,9 +543,10 @@ impl<'a> From<&'a mut u16> for Slot<'a> {
     }
 }
 
-/// An enum (or bool) field's type: its [`Slot`] with the setting's list of values.
+/// An enum (or bool) field's type, or a preset's: the values its setting chooses from, in
+/// choice order (one setting per type).
 trait ChoiceValue: Sized + 'static {
-    fn slot<'a>(f: &'a mut Self, values: &'static [Self]) -> Slot<'a>;
+    const VALUES: &'static [Self];
 }
 
 /// An integer field takes `raw` if its type holds it.
@@ -544,24 +574,13 @@ fn choose<T: Copy>(f: &mut T, values: &[T], raw: i64) -> bool {
 /// - `q32 path`: a fixed-point field stored as its 32 raw bits;
 /// - `q64 path`: an I32F32 field stored as its 64 raw bits;
 /// - `int T, path`: an integer field of type `T`;
-/// - `choice path = [V0, V1, …]`: an enum (or bool) field stored as the index of its value;
-/// - `preset path = ARRAY`: like `choice`, but derived (not in the flash record; reads −1 when
-///   the field matches no preset).
+/// - `choice path`: an enum (or bool) field stored as the index of its value in its type's
+///   list (`slots!`);
+/// - `preset path`: like `choice`, but derived (not in the flash record; reads −1 when the
+///   field matches no preset of its type's list).
 macro_rules! field_slot {
-    ($c:ident, choice $($f:ident).+ = $values:expr) => {{
-        // Every value of the type, in declaration order: `Slot::read` takes the position to be
-        // the discriminant.
-        const {
-            let values = $values;
-            let mut i = 0;
-            while i < values.len() {
-                assert!(values[i] as usize == i, "a choice lists its type's values in order");
-                i += 1;
-            }
-        }
-        ChoiceValue::slot(&mut $c.$($f).+, &$values)
-    }};
-    ($c:ident, preset $($f:ident).+ = $values:expr) => { ChoiceValue::slot(&mut $c.$($f).+, &$values) };
+    ($c:ident, choice $($f:ident).+) => { Slot::from(&mut $c.$($f).+) };
+    ($c:ident, preset $($f:ident).+) => { Slot::from(&mut $c.$($f).+) };
     ($c:ident, int $t:ty, $($f:ident).+) => { Slot::from(&mut $c.$($f).+) };
     ($c:ident, $form:ident $($f:ident).+) => { Slot::from(&mut $c.$($f).+) };
 }
@@ -758,10 +777,10 @@ registry! {
         [int u32, motion.ramp_ms];
     6 => "motion.ramp_shape", Kind::Choice(ChoiceId(0)), "trapezoid or scurve",
         "speed ramp: constant acceleration or jerk-limited",
-        [choice motion.ramp_shape = [RampShape::Trapezoid, RampShape::SCurve]];
+        [choice motion.ramp_shape];
     7 => "motion.buttons", Kind::Choice(ChoiceId(1)), "hold or latched",
         "UP/DOWN buttons: hold-to-run or latched until STOP",
-        [choice motion.buttons = [ButtonMode::HoldToRun, ButtonMode::Latched]];
+        [choice motion.buttons];
     8 => "protect.overcurrent", num(16, AMPS), "1..60 A",
         "motor current that trips the over-current fault",
         [q32 protection.overcurrent];
@@ -836,10 +855,10 @@ registry! {
         [q32 estimator.drive.lead_angle_deg];
     32 => "drive.screw", Kind::Choice(ChoiceId(2)), "lead or ball",
         "screw type: lead (self-locking) or ball (held actively at rest)",
-        [choice screw = [ScrewKind::Lead, ScrewKind::Ball]];
+        [choice screw];
     33 => "drive.brake", Kind::Choice(ChoiceId(3)), "none or spring",
         "holding brake: none, or spring-applied (engaged unless the brake output is on)",
-        [choice brake.present = [false, true]];
+        [choice brake.present];
     34 => "drive.brake_ms", num(0, MILLIS), "5..1000 ms",
         "time the brake takes to release or engage",
         [int u32, brake.delay_ms];
@@ -860,10 +879,10 @@ registry! {
         [q32 estimator.mechanics.coupling_stiffness];
     40 => "friction.law", Kind::Choice(ChoiceId(4)), "dry, ptfe, lithium or ball",
         "load a preset friction law (shows `custom` after edits)",
-        [preset estimator.law = LAW_PRESETS];
+        [preset estimator.law];
     41 => "friction.variable", Kind::Choice(ChoiceId(5)), "rate, speed or tau",
         "law variable: screw rate |w| rad/s, sliding speed m/s, or tau",
-        [choice estimator.law.variable = [LawVariable::ScrewRate, LawVariable::SlidingSpeed, LawVariable::Lubrication]];
+        [choice estimator.law.variable];
     42 => "friction.base", num(28, RATIO), "0..1",
         "law: constant term",
         [q32 estimator.law.base];
@@ -899,7 +918,7 @@ registry! {
         [q32 estimator.rest_speed];
     53 => "stickslip.reaction", Kind::Choice(ChoiceId(6)), "log, warn or speed",
         "on stick-slip: log it, also warn on the console, or also change to the escape speed",
-        [choice stick_slip.reaction = [Reaction::Log, Reaction::Warn, Reaction::ChangeSpeed]];
+        [choice stick_slip.reaction];
     54 => "stickslip.drop", num(16, NEWTON_METRES), "0.2..50 Nm",
         "smallest fall of the measured screw torque that counts as a slip",
         [q32 stick_slip.drop_threshold];

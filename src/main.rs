@@ -100,6 +100,7 @@ impl core::fmt::Write for Reply {
 
     #[inline(never)]
     fn write_char(&mut self, c: char) -> core::fmt::Result {
+        // Any char (the user's words echoed in error replies go out char by char).
         self.write_str(c.encode_utf8(&mut [0; 4]))
     }
 

@@ -994,7 +994,7 @@ mod tests {
     }
 
     /// A choice setting's list holds every value of its type (`Slot::read` takes a value's
-    /// discriminant for its position, `field_slot!` checks the order): each type's values from
+    /// discriminant for its position, `slots!` checks the order): each type's values from
     /// an exhaustive `match` (a new variant breaks this test's build until it is listed) read
     /// back as their positions, and every position writes and reads back.
     #[test]

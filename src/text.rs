@@ -79,9 +79,57 @@ pub fn hex8(out: &mut dyn Write, v: u32) -> fmt::Result {
     ascii(out, &buf)
 }
 
-/// ASCII text (digits) as it is.
+/// ASCII text (digits, at most 20) as it is, in one `write_str` (a sink that is full takes
+/// none of it). Copied char by char into a string rather than checked by `core::str::from_utf8`:
+/// the firmware links no `from_utf8` (≈ 0.6 KiB with its table; see [`is_utf8`]).
 pub(crate) fn ascii(out: &mut dyn Write, digits: &[u8]) -> fmt::Result {
-    out.write_str(core::str::from_utf8(digits).map_err(|_| fmt::Error)?)
+    let mut s = heapless::String::<20>::new();
+    for &d in digits {
+        // Masked to ASCII, so each char is one byte (no UTF-8 encoding linked).
+        s.push(char::from(d & 0x7F)).map_err(|_| fmt::Error)?;
+    }
+    out.write_str(&s)
+}
+
+/// The first char of `b` and the bytes after it, if `b` starts with a well-formed UTF-8
+/// sequence, by the rules `core::str::from_utf8` checks (no overlong form, no surrogate, at
+/// most U+10FFFF; the tests compare the two on every short sequence).
+pub fn next_char(b: &[u8]) -> Option<(char, &[u8])> {
+    let (&first, mut rest) = b.split_first()?;
+    // Continuation bytes after the first, and the least value that needs that many.
+    let (n, min) = match first {
+        0x00..=0x7F => return Some((char::from(first), rest)),
+        0xC2..=0xDF => (1, 0x80),
+        0xE0..=0xEF => (2, 0x800),
+        0xF0..=0xF4 => (3, 0x1_0000),
+        _ => return None,
+    };
+    let mut v = u32::from(first) & (0x3F >> n);
+    for _ in 0..n {
+        let (&c, tail) = rest.split_first()?;
+        if c & 0xC0 != 0x80 {
+            return None;
+        }
+        v = v << 6 | u32::from(c & 0x3F);
+        rest = tail;
+    }
+    if v < min {
+        return None;
+    }
+    // Refuses surrogates and values above U+10FFFF.
+    char::from_u32(v).map(|c| (c, rest))
+}
+
+/// Whether `b` is valid UTF-8 (`core::str::from_utf8(b).is_ok()`, without linking it: the
+/// console checks its lines with this and parses them as bytes).
+pub fn is_utf8(mut b: &[u8]) -> bool {
+    while !b.is_empty() {
+        match next_char(b) {
+            Some((_, rest)) => b = rest,
+            None => return false,
+        }
+    }
+    true
 }
 
 #[cfg(test)]
@@ -137,6 +185,71 @@ mod tests {
             assert_eq!(text(|o| hex8(o, h)), format!("{h:08x}"));
         }
         assert_eq!(text(|o| int(o, i64::MIN)), format!("{}", i64::MIN));
+    }
+
+    /// Every sequence of up to three bytes, and many longer ones, is judged as
+    /// `core::str::from_utf8` judges it; `next_char` decodes what `chars` decodes.
+    #[test]
+    fn utf8_is_checked_as_core_checks_it() {
+        let check = |b: &[u8]| {
+            let want = core::str::from_utf8(b);
+            assert_eq!(is_utf8(b), want.is_ok(), "{b:02x?}");
+            if let Ok(s) = want {
+                let mut rest = b;
+                for c in s.chars() {
+                    let (got, tail) = next_char(rest).unwrap();
+                    assert_eq!(got, c);
+                    rest = tail;
+                }
+                assert!(rest.is_empty());
+            }
+        };
+        check(&[]);
+        for x in 0..=0xFFFFu16 {
+            let [a, b] = x.to_be_bytes();
+            check(&[b]);
+            check(&[a, b]);
+        }
+        // Longer sequences: every non-ASCII lead byte with every second byte and the bytes
+        // where the continuation ranges change after it, and a pseudo-random spread of lines.
+        let edges = [
+            0x00, 0x41, 0x7F, 0x80, 0x8F, 0x90, 0x9F, 0xA0, 0xBF, 0xC0, 0xFF,
+        ];
+        for a in 0x80..=0xFFu8 {
+            for b in 0..=0xFFu8 {
+                for &c in &edges {
+                    check(&[a, b, c]);
+                }
+            }
+        }
+        for a in 0xE0..=0xFFu8 {
+            for &b in &edges {
+                for &c in &edges {
+                    for &d in &edges {
+                        check(&[a, b, c, d]);
+                    }
+                }
+            }
+        }
+        let mut x = 0x2545_F491_4F6C_DD1Du64;
+        for _ in 0..20_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let len = (x % 9) as usize;
+            let bytes: std::vec::Vec<u8> = (0..len)
+                .map(|i| {
+                    let v = (x >> (8 * i)) as u8;
+                    // Mostly ASCII and lead/continuation bytes.
+                    if v & 1 == 0 {
+                        v | 0x80
+                    } else {
+                        v >> 1
+                    }
+                })
+                .collect();
+            check(&bytes);
+        }
     }
 
     #[test]

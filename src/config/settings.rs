@@ -27,8 +27,9 @@ pub struct Unit {
 }
 
 impl Unit {
-    /// The spec's `|`-separated parts.
-    fn parts(&self) -> Parts {
+    /// The spec's `|`-separated parts: the display unit, what it measures, then each accepted
+    /// suffix as `suffix=power`.
+    pub(crate) fn parts(&self) -> Parts {
         Parts(Some(self.spec))
     }
 
@@ -59,7 +60,7 @@ impl Unit {
 }
 
 /// The `|`-separated parts of a [`Unit`]'s spec (an empty part included).
-struct Parts(Option<&'static str>);
+pub(crate) struct Parts(Option<&'static str>);
 
 impl Iterator for Parts {
     type Item = &'static str;
@@ -310,11 +311,16 @@ impl SettingId {
     }
 }
 
-/// The setting with this key (ASCII case-insensitive).
-pub fn find(key: &str) -> Option<SettingId> {
+/// The setting with this key (ASCII case-insensitive), given as text or bytes (the console
+/// parses lines as bytes).
+pub fn find(key: &(impl AsRef<[u8]> + ?Sized)) -> Option<SettingId> {
+    find_bytes(key.as_ref())
+}
+
+fn find_bytes(key: &[u8]) -> Option<SettingId> {
     SETTINGS
         .iter()
-        .position(|s| s.key.eq_ignore_ascii_case(key))
+        .position(|s| s.key.as_bytes().eq_ignore_ascii_case(key))
         .map(|i| SettingId(i as u8))
 }
 
@@ -370,9 +376,8 @@ pub fn check_variant(cfg: &ControlConfig) -> Result<(), ConfigError> {
 /// The console's message template for a key [`find`] does not know (`\x01`: the key, then the
 /// pointer to `help keys`): without the `ball-screw` feature a `ballscrew.*` key is not unknown
 /// but needs the other image.
-pub fn unknown_key_template(key: &str) -> &'static str {
+pub fn unknown_key_template(key: &[u8]) -> &'static str {
     let ball = key
-        .as_bytes()
         .get(..BALL_PREFIX.len())
         .is_some_and(|p| p.eq_ignore_ascii_case(BALL_PREFIX.as_bytes()));
     if ball && !cfg!(feature = "ball-screw") {
@@ -403,22 +408,26 @@ const LEN: Kind = Kind::Number {
 };
 
 /// The configuration fields as the registry reaches them, and [`Slot`]'s two directions.
-/// (`q32` names the 32-bit fixed-point types, `choice` the enum and bool fields' types with a
-/// variant name each.)
+/// (`q32` names the 32-bit fixed-point types, `choice` the fieldless enum and bool fields'
+/// types and `preset` the other chosen ones, with a variant name each.)
 macro_rules! slots {
-    (q32: $($q:ident),*; choice: $($c:ident($ct:ty)),* $(,)?) => {
+    (q32: $($q:ident),*;
+     choice: $($c:ident($ct:ty) = $cv:expr),*;
+     preset: $($p:ident($pt:ty) = $pv:expr),* $(,)?) => {
         /// A configuration field as the registry reaches it: a mutable reference typed by how
-        /// its raw bits read and write (a choice with its values in registry order). [`slot`]
-        /// maps a setting's index to its field once for both directions: on the board each
-        /// setting costs one address and tag in one `match`, instead of a load in a reading
-        /// and a store in a writing one.
+        /// its raw bits read and write (a choice by its type's list of values,
+        /// [`ChoiceValue::VALUES`]). [`slot`] maps a setting's index to its field once for both
+        /// directions: on the board each setting costs one address and tag in one `match`,
+        /// instead of a load in a reading and a store in a writing one. (A reference and a tag
+        /// only: 8 bytes, returned in registers.)
         enum Slot<'a> {
             $($q(&'a mut $q),)*
             Q64(&'a mut I32F32),
             I32(&'a mut i32),
             U32(&'a mut u32),
             U16(&'a mut u16),
-            $($c(&'a mut $ct, &'static [$ct]),)*
+            $($c(&'a mut $ct),)*
+            $($p(&'a mut $pt),)*
         }
 
         $(impl<'a> From<&'a mut $q> for Slot<'a> {
@@ -428,10 +437,37 @@ macro_rules! slots {
         })*
 
         $(impl ChoiceValue for $ct {
-            fn slot<'a>(f: &'a mut Self, values: &'static [Self]) -> Slot<'a> {
-                Slot::$c(f, values)
+            const VALUES: &'static [Self] = &$cv;
+        }
+
+        impl<'a> From<&'a mut $ct> for Slot<'a> {
+            fn from(f: &'a mut $ct) -> Self {
+                Slot::$c(f)
             }
         })*
+
+        $(impl ChoiceValue for $pt {
+            const VALUES: &'static [Self] = &$pv;
+        }
+
+        impl<'a> From<&'a mut $pt> for Slot<'a> {
+            fn from(f: &'a mut $pt) -> Self {
+                Slot::$p(f)
+            }
+        })*
+
+        // A choice type's list is its values in declaration order: `Slot::read` takes the
+        // position to be the discriminant.
+        const _: () = {
+            $({
+                let values = <$ct as ChoiceValue>::VALUES;
+                let mut i = 0;
+                while i < values.len() {
+                    assert!(values[i] as usize == i, "a choice lists its type's values in order");
+                    i += 1;
+                }
+            })*
+        };
 
         impl Slot<'_> {
             /// The raw bits (a choice whose value is none of its list's: −1).
@@ -442,7 +478,11 @@ macro_rules! slots {
                     Slot::I32(f) => i64::from(**f),
                     Slot::U32(f) => i64::from(**f),
                     Slot::U16(f) => i64::from(**f),
-                    $(Slot::$c(f, values) => index_of(&**f, values),)*
+                    // A choice's list is its type's values in declaration order (checked at
+                    // compile time): the position is the value's discriminant, one load for
+                    // every choice type instead of a search loop each.
+                    $(Slot::$c(f) => i64::from(**f as u8),)*
+                    $(Slot::$p(f) => index_of(&**f, <$pt as ChoiceValue>::VALUES),)*
                 }
             }
 
@@ -458,7 +498,8 @@ macro_rules! slots {
                     Slot::I32(f) => put(f, raw),
                     Slot::U32(f) => put(f, raw),
                     Slot::U16(f) => put(f, raw),
-                    $(Slot::$c(f, values) => choose(f, values, raw),)*
+                    $(Slot::$c(f) => choose(f, <$ct as ChoiceValue>::VALUES, raw),)*
+                    $(Slot::$p(f) => choose(f, <$pt as ChoiceValue>::VALUES, raw),)*
                 }
             }
         }
@@ -468,8 +509,14 @@ macro_rules! slots {
 slots! {
     q32: Metres, Ratio, Amperes, Volts, Kilograms, NewtonMetres, RadiansPerSecond, Newtons,
         I16F16;
-    choice: Ramp(RampShape), Buttons(ButtonMode), Screw(ScrewKind), Flag(bool),
-        Law(FrictionLaw), Variable(LawVariable), Reaction(Reaction),
+    choice: Ramp(RampShape) = [RampShape::Trapezoid, RampShape::SCurve],
+        Buttons(ButtonMode) = [ButtonMode::HoldToRun, ButtonMode::Latched],
+        Screw(ScrewKind) = [ScrewKind::Lead, ScrewKind::Ball],
+        Flag(bool) = [false, true],
+        Variable(LawVariable) =
+            [LawVariable::ScrewRate, LawVariable::SlidingSpeed, LawVariable::Lubrication],
+        Reaction(Reaction) = [Reaction::Log, Reaction::Warn, Reaction::ChangeSpeed];
+    preset: Law(FrictionLaw) = LAW_PRESETS,
 }
 
 impl<'a> From<&'a mut I32F32> for Slot<'a> {
@@ -496,9 +543,10 @@ impl<'a> From<&'a mut u16> for Slot<'a> {
     }
 }
 
-/// An enum (or bool) field's type: its [`Slot`] with the setting's list of values.
+/// An enum (or bool) field's type, or a preset's: the values its setting chooses from, in
+/// choice order (one setting per type).
 trait ChoiceValue: Sized + 'static {
-    fn slot<'a>(f: &'a mut Self, values: &'static [Self]) -> Slot<'a>;
+    const VALUES: &'static [Self];
 }
 
 /// An integer field takes `raw` if its type holds it.
@@ -526,12 +574,13 @@ fn choose<T: Copy>(f: &mut T, values: &[T], raw: i64) -> bool {
 /// - `q32 path`: a fixed-point field stored as its 32 raw bits;
 /// - `q64 path`: an I32F32 field stored as its 64 raw bits;
 /// - `int T, path`: an integer field of type `T`;
-/// - `choice path = [V0, V1, …]`: an enum (or bool) field stored as the index of its value;
-/// - `preset path = ARRAY`: like `choice`, but derived (not in the flash record; reads −1 when
-///   the field matches no preset).
+/// - `choice path`: an enum (or bool) field stored as the index of its value in its type's
+///   list (`slots!`);
+/// - `preset path`: like `choice`, but derived (not in the flash record; reads −1 when the
+///   field matches no preset of its type's list).
 macro_rules! field_slot {
-    ($c:ident, choice $($f:ident).+ = $values:expr) => { ChoiceValue::slot(&mut $c.$($f).+, &$values) };
-    ($c:ident, preset $($f:ident).+ = $values:expr) => { ChoiceValue::slot(&mut $c.$($f).+, &$values) };
+    ($c:ident, choice $($f:ident).+) => { Slot::from(&mut $c.$($f).+) };
+    ($c:ident, preset $($f:ident).+) => { Slot::from(&mut $c.$($f).+) };
     ($c:ident, int $t:ty, $($f:ident).+) => { Slot::from(&mut $c.$($f).+) };
     ($c:ident, $form:ident $($f:ident).+) => { Slot::from(&mut $c.$($f).+) };
 }
@@ -728,10 +777,10 @@ registry! {
         [int u32, motion.ramp_ms];
     6 => "motion.ramp_shape", Kind::Choice(ChoiceId(0)), "trapezoid or scurve",
         "speed ramp: constant acceleration or jerk-limited",
-        [choice motion.ramp_shape = [RampShape::Trapezoid, RampShape::SCurve]];
+        [choice motion.ramp_shape];
     7 => "motion.buttons", Kind::Choice(ChoiceId(1)), "hold or latched",
         "UP/DOWN buttons: hold-to-run or latched until STOP",
-        [choice motion.buttons = [ButtonMode::HoldToRun, ButtonMode::Latched]];
+        [choice motion.buttons];
     8 => "protect.overcurrent", num(16, AMPS), "1..60 A",
         "motor current that trips the over-current fault",
         [q32 protection.overcurrent];
@@ -806,10 +855,10 @@ registry! {
         [q32 estimator.drive.lead_angle_deg];
     32 => "drive.screw", Kind::Choice(ChoiceId(2)), "lead or ball",
         "screw type: lead (self-locking) or ball (held actively at rest)",
-        [choice screw = [ScrewKind::Lead, ScrewKind::Ball]];
+        [choice screw];
     33 => "drive.brake", Kind::Choice(ChoiceId(3)), "none or spring",
         "holding brake: none, or spring-applied (engaged unless the brake output is on)",
-        [choice brake.present = [false, true]];
+        [choice brake.present];
     34 => "drive.brake_ms", num(0, MILLIS), "5..1000 ms",
         "time the brake takes to release or engage",
         [int u32, brake.delay_ms];
@@ -830,10 +879,10 @@ registry! {
         [q32 estimator.mechanics.coupling_stiffness];
     40 => "friction.law", Kind::Choice(ChoiceId(4)), "dry, ptfe, lithium or ball",
         "load a preset friction law (shows `custom` after edits)",
-        [preset estimator.law = LAW_PRESETS];
+        [preset estimator.law];
     41 => "friction.variable", Kind::Choice(ChoiceId(5)), "rate, speed or tau",
         "law variable: screw rate |w| rad/s, sliding speed m/s, or tau",
-        [choice estimator.law.variable = [LawVariable::ScrewRate, LawVariable::SlidingSpeed, LawVariable::Lubrication]];
+        [choice estimator.law.variable];
     42 => "friction.base", num(28, RATIO), "0..1",
         "law: constant term",
         [q32 estimator.law.base];
@@ -869,7 +918,7 @@ registry! {
         [q32 estimator.rest_speed];
     53 => "stickslip.reaction", Kind::Choice(ChoiceId(6)), "log, warn or speed",
         "on stick-slip: log it, also warn on the console, or also change to the escape speed",
-        [choice stick_slip.reaction = [Reaction::Log, Reaction::Warn, Reaction::ChangeSpeed]];
+        [choice stick_slip.reaction];
     54 => "stickslip.drop", num(16, NEWTON_METRES), "0.2..50 Nm",
         "smallest fall of the measured screw torque that counts as a slip",
         [q32 stick_slip.drop_threshold];
@@ -942,6 +991,80 @@ mod tests {
             );
         }
         assert_eq!(find("limits.middle"), None);
+    }
+
+    /// A choice setting's list holds every value of its type (`Slot::read` takes a value's
+    /// discriminant for its position, `slots!` checks the order): each type's values from
+    /// an exhaustive `match` (a new variant breaks this test's build until it is listed) read
+    /// back as their positions, and every position writes and reads back.
+    #[test]
+    fn choice_lists_hold_every_value_of_their_type() {
+        fn ramp(v: RampShape) -> i64 {
+            match v {
+                RampShape::Trapezoid => 0,
+                RampShape::SCurve => 1,
+            }
+        }
+        fn buttons(v: ButtonMode) -> i64 {
+            match v {
+                ButtonMode::HoldToRun => 0,
+                ButtonMode::Latched => 1,
+            }
+        }
+        fn screw(v: ScrewKind) -> i64 {
+            match v {
+                ScrewKind::Lead => 0,
+                ScrewKind::Ball => 1,
+            }
+        }
+        fn variable(v: LawVariable) -> i64 {
+            match v {
+                LawVariable::ScrewRate => 0,
+                LawVariable::SlidingSpeed => 1,
+                LawVariable::Lubrication => 2,
+            }
+        }
+        fn reaction(v: Reaction) -> i64 {
+            match v {
+                Reaction::Log => 0,
+                Reaction::Warn => 1,
+                Reaction::ChangeSpeed => 2,
+            }
+        }
+        let mut c = ControlConfig::DEFAULT;
+        let mut seen = 0;
+        for s in SETTINGS.iter() {
+            let Kind::Choice(names) = s.kind else {
+                continue;
+            };
+            if s.key == "friction.law" {
+                continue; // a preset (`Slot` searches its list)
+            }
+            for raw in 0..names.len() as i64 {
+                assert!(s.set(&mut c, raw), "{} {raw}", s.key);
+                assert_eq!(s.get(&c), raw, "{}", s.key);
+                // The value written is the one at that position of its type.
+                let at = match s.key {
+                    "motion.ramp_shape" => ramp(c.motion.ramp_shape),
+                    "motion.buttons" => buttons(c.motion.buttons),
+                    "drive.screw" => screw(c.screw),
+                    "drive.brake" => i64::from(c.brake.present),
+                    "friction.variable" => variable(c.estimator.law.variable),
+                    "stickslip.reaction" => reaction(c.stick_slip.reaction),
+                    k => panic!("a choice setting this test does not know: {k}"),
+                };
+                assert_eq!(at, raw, "{}", s.key);
+            }
+            // As many names as the type has values.
+            let count = match s.key {
+                "friction.variable" | "stickslip.reaction" => 3,
+                _ => 2,
+            };
+            assert_eq!(names.len(), count, "{}", s.key);
+            assert!(!s.set(&mut c, count as i64), "{}", s.key);
+            seen += 1;
+        }
+        assert_eq!(seen, 6);
     }
 
     /// Compile-time guard: this destructuring lists every field of the configuration without
@@ -1121,7 +1244,7 @@ mod tests {
         // The feature's checks are off.
         assert_eq!(check_variant(&cfg), Ok(()));
         assert_eq!(
-            unknown_key_template("ballscrew.x"),
+            unknown_key_template(b"ballscrew.x"),
             "unknown key '\x01'\x01"
         );
     }

@@ -71,6 +71,36 @@ pub enum HelpTopic {
     Key(SettingId),
 }
 
+/// Words of a line as the user typed them, for messages: UTF-8 kept as bytes. [`parse`] checks a
+/// line with [`text::is_utf8`] and then works on its bytes, so the firmware links no
+/// `core::str::from_utf8` (≈ 0.6 KiB of flash with its table). Made only from a checked line or
+/// a `&str` (`From`), so it is always valid UTF-8; `Debug` shows it as the `&str` it is.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub struct Words<'a>(&'a [u8]);
+
+impl<'a> Words<'a> {
+    /// The bytes (valid UTF-8).
+    pub fn as_bytes(self) -> &'a [u8] {
+        self.0
+    }
+}
+
+impl<'a> From<&'a str> for Words<'a> {
+    fn from(s: &'a str) -> Self {
+        Words(s.as_bytes())
+    }
+}
+
+impl fmt::Debug for Words<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match core::str::from_utf8(self.0) {
+            Ok(s) => fmt::Debug::fmt(s, f),
+            // Not made by this module (its words are checked): shown as bytes.
+            Err(_) => fmt::Debug::fmt(self.0, f),
+        }
+    }
+}
+
 /// Why a line was not understood.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ParseError<'a> {
@@ -79,11 +109,11 @@ pub enum ParseError<'a> {
     /// Longer than [`MAX_LINE`].
     TooLong,
     /// The first word is no command.
-    UnknownCommand(&'a str),
+    UnknownCommand(Words<'a>),
     /// A command that needs a key got none.
     MissingKey(&'static str),
     /// No setting has this key.
-    UnknownKey(&'a str),
+    UnknownKey(Words<'a>),
     /// `set <key>` without a value.
     MissingValue(SettingId),
     /// The value for a key was not understood.
@@ -91,7 +121,7 @@ pub enum ParseError<'a> {
     /// `goto` without a height or with a bad one.
     BadHeight(ValueError),
     /// Words left over after a complete command.
-    Trailing(&'a str),
+    Trailing(Words<'a>),
 }
 
 /// The unit and range the `goto` height takes.
@@ -104,36 +134,36 @@ const HEIGHT: Kind = Kind::Number {
 
 /// Split off the first word (ASCII whitespace separated; all trimming here is ASCII: a
 /// person's terminal sends no other whitespace, and Unicode's would link its 0.5 KiB table).
-fn word(s: &str) -> (&str, &str) {
+/// An ASCII byte never splits a UTF-8 sequence: both parts stay valid UTF-8.
+fn word(s: &[u8]) -> (&[u8], &[u8]) {
     let s = s.trim_ascii_start();
-    match s.bytes().position(|b| b.is_ascii_whitespace()) {
-        // `split_at_checked`, not `[..i]`: an ASCII byte is a char boundary, and the firmware
-        // then links no slicing panic (whose message formatting costs ≈ 2 KiB of flash).
-        Some(i) => match s.split_at_checked(i) {
-            Some((w, rest)) => (w, rest.trim_ascii_start()),
-            None => (s, ""),
-        },
-        None => (s, ""),
+    match s
+        .iter()
+        .position(|b| b.is_ascii_whitespace())
+        .and_then(|i| s.split_at_checked(i))
+    {
+        Some((w, rest)) => (w, rest.trim_ascii_start()),
+        None => (s, &[]),
     }
 }
 
-fn no_more(rest: &str, r: Request) -> Result<Option<Request>, ParseError<'_>> {
+fn no_more(rest: &[u8], r: Request) -> Result<Option<Request>, ParseError<'_>> {
     let rest = rest.trim_ascii();
     if rest.is_empty() {
         Ok(Some(r))
     } else {
-        Err(ParseError::Trailing(rest))
+        Err(ParseError::Trailing(Words(rest)))
     }
 }
 
-fn key<'a>(cmd: &'static str, rest: &'a str) -> Result<(SettingId, &'a str), ParseError<'a>> {
+fn key<'a>(cmd: &'static str, rest: &'a [u8]) -> Result<(SettingId, &'a [u8]), ParseError<'a>> {
     let (k, rest) = word(rest);
     if k.is_empty() {
         return Err(ParseError::MissingKey(cmd));
     }
     settings::find(k)
         .map(|id| (id, rest))
-        .ok_or(ParseError::UnknownKey(k))
+        .ok_or(ParseError::UnknownKey(Words(k)))
 }
 
 /// Parse one line (without its line end). `Ok(None)`: an empty line or a `#` comment.
@@ -142,18 +172,22 @@ pub fn parse(line: &[u8]) -> Result<Option<Request>, ParseError<'_>> {
     if line.len() > MAX_LINE {
         return Err(ParseError::TooLong);
     }
-    let line = core::str::from_utf8(line).map_err(|_| ParseError::NotText)?;
+    // Checked, then parsed as bytes (see `Words`): every word cut from it at ASCII whitespace
+    // is valid UTF-8 too.
+    if !text::is_utf8(line) {
+        return Err(ParseError::NotText);
+    }
     let line = line.trim_ascii();
-    if line.is_empty() || line.starts_with('#') {
+    if line.is_empty() || line.first() == Some(&b'#') {
         return Ok(None);
     }
     let (cmd, rest) = word(line);
     // One search of a table instead of a compare per command (≈ 0.1 KiB less flash).
     let Some(i) = COMMAND_WORDS
         .iter()
-        .position(|name| cmd.eq_ignore_ascii_case(name))
+        .position(|name| cmd.eq_ignore_ascii_case(name.as_bytes()))
     else {
-        return Err(ParseError::UnknownCommand(cmd));
+        return Err(ParseError::UnknownCommand(Words(cmd)));
     };
     let simple = match i {
         0 => Request::Status,
@@ -186,10 +220,10 @@ pub fn parse(line: &[u8]) -> Result<Option<Request>, ParseError<'_>> {
             let (sub, rest) = word(rest);
             return if sub.is_empty() {
                 Ok(Some(Request::Fault))
-            } else if sub.eq_ignore_ascii_case("clear") {
+            } else if sub.eq_ignore_ascii_case(b"clear") {
                 no_more(rest, Request::FaultClear)
             } else {
-                Err(ParseError::Trailing(sub))
+                Err(ParseError::Trailing(Words(sub)))
             };
         }
         // `help` and `?`.
@@ -197,10 +231,10 @@ pub fn parse(line: &[u8]) -> Result<Option<Request>, ParseError<'_>> {
             let (topic, rest) = word(rest);
             return if topic.is_empty() {
                 Ok(Some(Request::Help(HelpTopic::Commands)))
-            } else if topic.eq_ignore_ascii_case("keys") {
+            } else if topic.eq_ignore_ascii_case(b"keys") {
                 no_more(rest, Request::Help(HelpTopic::Keys))
             } else {
-                let id = settings::find(topic).ok_or(ParseError::UnknownKey(topic))?;
+                let id = settings::find(topic).ok_or(ParseError::UnknownKey(Words(topic)))?;
                 no_more(rest, Request::Help(HelpTopic::Key(id)))
             };
         }
@@ -229,15 +263,24 @@ fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {
         Kind::Number {
             unit, none_at_max, ..
         } => {
-            out.write_str(unit.what())?;
-            let display = unit.display();
+            // The spec's parts in one pass: display unit, what it is, `suffix=power`s.
+            let mut parts = unit.parts();
+            let display = parts.next().unwrap_or("");
+            out.write_str(parts.next().unwrap_or(""))?;
             if !display.is_empty() {
                 out.write_str(" in ")?;
                 out.write_str(display)?;
             }
-            // The other ASCII spellings, once each (`accepts` has no display unit).
+            // The other ASCII spellings, once each (the accepted suffixes repeat no display
+            // unit).
             let mut n = 0;
-            for (s, _) in unit.accepts() {
+            for a in parts {
+                // The suffix: the part before its `=` (ASCII, so a char boundary).
+                let s = a
+                    .bytes()
+                    .position(|b| b == b'=')
+                    .and_then(|i| a.get(..i))
+                    .unwrap_or(a);
                 // (One byte test for both: `is_ascii`'s word-wise loop is ≈ 60 B of its own.)
                 if s.bytes().any(|b| !b.is_ascii() || b == b'*') {
                     continue;
@@ -269,35 +312,32 @@ pub fn write_parse_error(out: &mut dyn Write, e: &ParseError<'_>) -> fmt::Result
             "line longer than \x01 characters, ignored; type `help`",
             &[Arg::Uint(MAX_LINE as u32)],
         ),
-        ParseError::UnknownCommand(c) => (
-            "unknown command '\x01'\x01",
-            &[Arg::Clip(c), Arg::Str(COMMANDS)],
-        ),
+        // The user's words and a pointer to `help` (one argument list for the three).
+        ParseError::UnknownCommand(w) | ParseError::UnknownKey(w) | ParseError::Trailing(w) => {
+            let (template, ending) = match e {
+                ParseError::UnknownCommand(_) => ("unknown command '\x01'\x01", COMMANDS),
+                ParseError::UnknownKey(_) => (settings::unknown_key_template(w.as_bytes()), KEYS),
+                _ => ("unexpected '\x01'\x01", COMMANDS),
+            };
+            return fill(out, template, &[Arg::Clip(*w), Arg::Str(ending)]);
+        }
         ParseError::MissingKey(cmd) => (
             "`\x01` needs a key, e.g. `\x01 limits.upper`\x01",
             &[Arg::Str(cmd), Arg::Str(cmd), Arg::Str(KEYS)],
         ),
-        ParseError::UnknownKey(k) => (
-            settings::unknown_key_template(k),
-            &[Arg::Clip(k), Arg::Str(KEYS)],
-        ),
-        ParseError::MissingValue(id) => {
-            fill(out, "`set \x01` needs a value: ", &[Arg::Str(id.key())])?;
-            return write_expected(out, *id);
-        }
-        ParseError::BadValue(id, v) => {
-            fill(
-                out,
-                "bad value for \x01: \x01; ",
-                &[Arg::Str(id.key()), Arg::Str(v.message())],
-            )?;
+        // Both end with what the key takes (one `fill` and one `write_expected` for both).
+        ParseError::MissingValue(id) | ParseError::BadValue(id, _) => {
+            let (template, why) = match e {
+                ParseError::BadValue(_, v) => ("bad value for \x01: \x01; ", v.message()),
+                _ => ("`set \x01` needs a value: ", ""),
+            };
+            fill(out, template, &[Arg::Str(id.key()), Arg::Str(why)])?;
             return write_expected(out, *id);
         }
         ParseError::BadHeight(v) => (
             "bad height for goto: \x01; expected a length in mm (or m, cm), e.g. `goto 300mm`",
             &[Arg::Str(v.message())],
         ),
-        ParseError::Trailing(t) => ("unexpected '\x01'\x01", &[Arg::Clip(t), Arg::Str(COMMANDS)]),
     };
     fill(out, template, args)
 }
@@ -311,23 +351,20 @@ fn write_expected(out: &mut dyn Write, id: SettingId) -> fmt::Result {
     out.write_str(s.range)
 }
 
-/// At most 24 characters of user text in a message (the rest as `...`).
-fn clip(out: &mut dyn Write, s: &str) -> fmt::Result {
-    // The 25th character starts at the 25th byte that is not a UTF-8 continuation byte (no
-    // char decoding: ≈ 0.1 KiB less flash than `char_indices`).
-    match s
-        .bytes()
-        .enumerate()
-        .filter(|&(_, b)| b & 0xC0 != 0x80)
-        .nth(24)
-    {
-        Some((i, _)) => {
-            // A char boundary (checked, so that no panic is linked).
-            out.write_str(s.get(..i).unwrap_or(s))?;
-            out.write_str("...")
+/// At most 24 characters of user text in a message (the rest as `...`), char by char (the
+/// words are bytes, see [`Words`]).
+fn clip(out: &mut dyn Write, s: Words<'_>) -> fmt::Result {
+    let mut rest = s.0;
+    let mut n = 0;
+    while let Some((c, tail)) = text::next_char(rest) {
+        if n == 24 {
+            return out.write_str("...");
         }
-        None => out.write_str(s),
+        out.write_char(c)?;
+        n += 1;
+        rest = tail;
     }
+    Ok(())
 }
 
 /// `key = value` for `get`.
@@ -592,7 +629,7 @@ pub(crate) enum Arg<'a> {
     /// A name as one `key=value` word ([`write_word`]).
     Word(&'a str),
     /// User text, at most 24 characters of it ([`clip`]).
-    Clip(&'a str),
+    Clip(Words<'a>),
     /// An unsigned integer in decimal.
     Uint(u32),
     /// A fixed-point value: its bits, fractional bits and the decimals shown
@@ -627,7 +664,7 @@ pub(crate) fn fill(out: &mut dyn Write, template: &str, args: &[Arg<'_>]) -> fmt
         let number = match args.next() {
             Some(Arg::Str(t)) => out.write_str(t).map(|_| None)?,
             Some(Arg::Word(t)) => write_word(out, t).map(|_| None)?,
-            Some(Arg::Clip(t)) => clip(out, t).map(|_| None)?,
+            Some(&Arg::Clip(t)) => clip(out, t).map(|_| None)?,
             Some(&Arg::Uint(v)) => Some((i64::from(v), 0)),
             Some(&Arg::Fixed(bits, frac, dec)) => Some((
                 fixed_decimal(bits, u32::from(frac), u32::from(dec)),
@@ -881,7 +918,7 @@ mod tests {
                 format!("error: line longer than {MAX_LINE} characters, ignored; type `help`"),
             ),
             (
-                ParseError::UnknownCommand(long),
+                ParseError::UnknownCommand(long.into()),
                 format!(
                     "error: unknown command '{}...'; type `help` for the commands",
                     &long[..24]
@@ -894,7 +931,7 @@ mod tests {
                 ),
             ),
             (
-                ParseError::UnknownKey("x"),
+                ParseError::UnknownKey("x".into()),
                 String::from("error: unknown key 'x'; `help keys` lists them"),
             ),
             (
@@ -913,7 +950,7 @@ mod tests {
                 ),
             ),
             (
-                ParseError::Trailing("now"),
+                ParseError::Trailing("now".into()),
                 String::from("error: unexpected 'now'; type `help` for the commands"),
             ),
         ];
@@ -999,7 +1036,7 @@ mod tests {
             "a𝄞b𝄞c𝄞d𝄞e𝄞f𝄞g𝄞h𝄞i𝄞j𝄞k𝄞l𝄞m𝄞",
         ] {
             let mut out = String::new();
-            clip(&mut out, s).unwrap();
+            clip(&mut out, s.into()).unwrap();
             assert_eq!(out, twin(s), "{s}");
         }
     }
@@ -1033,6 +1070,49 @@ mod tests {
         assert_eq!(text(-12.34), "-12.3");
         assert_eq!(text(0.04), "0.0");
         assert_eq!(text(416.44), "416.4");
+    }
+
+    /// A number's unit text (one pass over the unit's spec) is the one its `Unit` accessors
+    /// spell, for every setting and the goto height.
+    #[test]
+    fn unit_texts_are_those_of_the_unit_accessors() {
+        fn twin(kind: &Kind) -> String {
+            let Kind::Number {
+                unit, none_at_max, ..
+            } = kind
+            else {
+                unreachable!()
+            };
+            let mut t = String::from(unit.what());
+            if !unit.display().is_empty() {
+                t += " in ";
+                t += unit.display();
+            }
+            let others: Vec<&str> = unit
+                .accepts()
+                .map(|(s, _)| s)
+                .filter(|s| s.is_ascii() && !s.contains('*'))
+                .collect();
+            if !others.is_empty() {
+                t += &format!(" (or {})", others.join(", "));
+            }
+            if *none_at_max {
+                t += ", or none";
+            }
+            t
+        }
+        let kinds = settings::all()
+            .map(|id| &id.setting().kind)
+            .chain([&HEIGHT])
+            .filter(|k| matches!(k, Kind::Number { .. }));
+        let mut n = 0;
+        for kind in kinds {
+            let mut got = String::new();
+            write_unit(&mut got, kind).unwrap();
+            assert_eq!(got, twin(kind));
+            n += 1;
+        }
+        assert!(n > 40);
     }
 
     /// Each choice setting's names (by their id in the registry) are the ones its range

@@ -27,6 +27,7 @@ use crate::config::{record, settings, ValidatedConfig};
 use crate::control::config::ControlConfig;
 use crate::control::{Command, Controller, Fault, Refusal, Status};
 use crate::text;
+use crate::units::Metres;
 use core::fmt::{self, Write};
 
 /// The console protocol version `version` reports. Bump it when a reply a host tool parses
@@ -217,23 +218,20 @@ fn write_set_ok(
 }
 
 fn motion<L: Lift + ?Sized>(out: &mut dyn Write, lift: &mut L, cmd: Command) -> fmt::Result {
-    let word = match cmd {
-        Command::Up => "up",
-        Command::Down => "down",
-        Command::Stop => "stop",
-        Command::GoTo(_) => "goto",
-        Command::ClearFault => "fault clear",
+    // The command's word for a refusal and its whole reply when accepted (one `fill` each way).
+    let (word, ok) = match cmd {
+        Command::Up => ("up", "ok: lifting to limits.upper"),
+        Command::Down => ("down", "ok: lowering to limits.lower"),
+        Command::Stop => ("stop", "ok: stop"),
+        Command::GoTo(_) => ("goto", "ok: going to \x01 mm"),
+        Command::ClearFault => ("fault clear", "ok: fault clear"),
+    };
+    let target = match cmd {
+        Command::GoTo(h) => h,
+        _ => Metres::ZERO,
     };
     match lift.command(cmd) {
-        Ok(()) => {
-            out.write_str("ok: ")?;
-            match cmd {
-                Command::Up => out.write_str("lifting to limits.upper"),
-                Command::Down => out.write_str("lowering to limits.lower"),
-                Command::GoTo(h) => fill(out, "going to \x01 mm", &[Arg::Mm(h)]),
-                Command::Stop | Command::ClearFault => out.write_str(word),
-            }
-        }
+        Ok(()) => fill(out, ok, &[Arg::Mm(target)]),
         Err(r) => fill(
             out,
             "error: \x01 \x01",
@@ -245,11 +243,19 @@ fn motion<L: Lift + ?Sized>(out: &mut dyn Write, lift: &mut L, cmd: Command) -> 
 /// The reply to `version`: `liftfw console v1 firmware=0.1.0 schema=1a2b3c4d` (the schema is
 /// the flash record's fingerprint of the settings list, [`record::schema`]).
 pub fn write_version(out: &mut dyn Write) -> fmt::Result {
-    out.write_str(VERSION_PREFIX)?;
-    text::uint(out, u64::from(PROTOCOL_VERSION))?;
-    out.write_str(concat!(" firmware=", env!("CARGO_PKG_VERSION"), " schema="))?;
+    out.write_str(VERSION_HEAD)?;
     text::hex8(out, record::schema())
 }
+
+/// The `version` reply up to the schema, one text: [`VERSION_PREFIX`], [`PROTOCOL_VERSION`]
+/// and the firmware's version (a test checks it against the two constants).
+const VERSION_HEAD: &str = concat!(
+    "liftfw console v",
+    "1",
+    " firmware=",
+    env!("CARGO_PKG_VERSION"),
+    " schema="
+);
 
 /// The reply to `fault`, `key=value` like `status`: `fault=none`, or the fault and the state
 /// of the lift when it tripped: `fault=over-current t=12.345s state=lifting height=212.4mm
@@ -258,8 +264,6 @@ pub fn write_fault(out: &mut dyn Write, fault: Option<&Fault>) -> fmt::Result {
     let Some(f) = fault else {
         return out.write_str("fault=none");
     };
-    // Duty Q15 → per mille, rounded (|duty| ≤ 32768, so no overflow in i32).
-    let permille = (i32::from(f.duty) * 1000 + if f.duty < 0 { -16384 } else { 16384 }) / 32768;
     // Milliseconds since boot: at most 2^32 µs / 1000, an i32.
     let ms = (f.at.0 / 1000) as i32;
     // The fault's name may contain spaces; `-` keeps the line `key=value`.
@@ -275,7 +279,9 @@ pub fn write_fault(out: &mut dyn Write, fault: Option<&Fault>) -> fmt::Result {
             Arg::Fixed(f.screw_speed.to_bits(), 16, 2),
             Arg::Fixed(f.current.to_bits(), 16, 2),
             Arg::Fixed(f.supply.to_bits(), 16, 2),
-            Arg::Deci(permille, 1),
+            // Duty Q15 in percent with one decimal: duty·100 with 15 fractional bits, rounded
+            // half away from zero (|duty| ≤ 32768: no overflow in i32).
+            Arg::Fixed(i32::from(f.duty) * 100, 15, 1),
             Arg::Fixed(f.measured_torque.to_bits(), 16, 3),
             Arg::Fixed(f.model_torque.to_bits(), 16, 3),
         ],
@@ -293,5 +299,39 @@ pub fn write_saved(out: &mut dyn Write, result: Result<u32, StoreError>) -> fmt:
              never a mix; the running settings are unchanged",
             &[Arg::Str(e.message())],
         ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    extern crate std;
+    use std::format;
+    use std::string::String;
+
+    /// A fault's duty (Q15) shows as the percentage rounded half away from zero to one
+    /// decimal: the same text as the per-mille integer formula it replaced, for every duty.
+    #[test]
+    fn duty_percent_is_the_rounded_per_mille_for_every_duty() {
+        for d in i16::MIN..=i16::MAX {
+            let permille = (i32::from(d) * 1000 + if d < 0 { -16384 } else { 16384 }) / 32768;
+            let (mut got, mut want) = (String::new(), String::new());
+            fill(&mut got, "\x01", &[Arg::Fixed(i32::from(d) * 100, 15, 1)]).unwrap();
+            fill(&mut want, "\x01", &[Arg::Deci(permille, 1)]).unwrap();
+            assert_eq!(got, want, "{d}");
+        }
+    }
+
+    /// The `version` reply's one text spells the two constants host tools read it by.
+    #[test]
+    fn the_version_reply_spells_the_protocol_constants() {
+        let mut s = String::new();
+        write_version(&mut s).unwrap();
+        let head = format!(
+            "{VERSION_PREFIX}{PROTOCOL_VERSION} firmware={} schema=",
+            env!("CARGO_PKG_VERSION")
+        );
+        assert_eq!(VERSION_HEAD, head);
+        assert_eq!(s, format!("{head}{:08x}", record::schema()));
     }
 }

@@ -72,9 +72,19 @@ pub(crate) fn ten_to(k: u32) -> Option<u64> {
     Some(p)
 }
 
+/// `m·10^k`, `None` if it exceeds `u64` (checked steps of ×10: for `m ≥ 1` at most 20 rounds
+/// before it overflows).
+fn times_ten_to(m: u64, k: u32) -> Option<u64> {
+    let mut v = m;
+    for _ in 0..k {
+        v = v.checked_mul(10)?;
+    }
+    Some(v)
+}
+
 /// Split `text` into a decimal and the unit text after it.
-fn parse_decimal(text: &str) -> Result<(Decimal, &str), ValueError> {
-    let b = text.as_bytes();
+fn parse_decimal(text: &[u8]) -> Result<(Decimal, &[u8]), ValueError> {
+    let b = text;
     let mut i = 0;
     let neg = match b.first() {
         Some(b'-') => {
@@ -158,7 +168,7 @@ fn parse_decimal(text: &str) -> Result<(Decimal, &str), ValueError> {
             i = j;
         }
     }
-    let unit = text.get(i..).ok_or(ValueError::NotANumber)?.trim_ascii();
+    let unit = b.get(i..).ok_or(ValueError::NotANumber)?.trim_ascii();
     Ok((Decimal { neg, mant, exp }, unit))
 }
 
@@ -193,8 +203,8 @@ fn to_raw(m: u64, k: i32, frac: u32) -> Option<(u64, bool)> {
         return Some((0, true));
     }
     if k >= 0 {
-        let p = ten_to(k.unsigned_abs())?;
-        let v = m.checked_mul(p)?;
+        // m ≥ 1: past 10^19 this overflows as `ten_to` did.
+        let v = times_ten_to(m, k.unsigned_abs())?;
         // `v·2^frac` fits when no set bit is shifted out.
         if frac >= 64 || v.leading_zeros() < frac {
             return None;
@@ -206,24 +216,30 @@ fn to_raw(m: u64, k: i32, frac: u32) -> Option<(u64, bool)> {
     Some((t / 2 + (t & 1), exact && t & 1 == 0))
 }
 
-fn unit_pow(unit: &Unit, text: &str) -> Option<i32> {
-    if text.is_empty() || text.eq_ignore_ascii_case(unit.display()) {
+fn unit_pow(unit: &Unit, text: &[u8]) -> Option<i32> {
+    if text.is_empty() || text.eq_ignore_ascii_case(unit.display().as_bytes()) {
         return Some(0);
     }
     unit.accepts()
-        .find(|(s, _)| s.eq_ignore_ascii_case(text))
+        .find(|(s, _)| s.as_bytes().eq_ignore_ascii_case(text))
         .map(|(_, p)| p)
 }
 
-fn is_none_word(text: &str) -> bool {
+fn is_none_word(text: &[u8]) -> bool {
     ["none", "off", "inf", "never"]
         .iter()
-        .any(|w| w.eq_ignore_ascii_case(text))
+        .any(|w| w.as_bytes().eq_ignore_ascii_case(text))
 }
 
 /// Parse `text` as a value of `kind` into raw bits (no range check beyond the raw type's
-/// magnitude: [`crate::config::settings::apply`] checks the field's type and range).
-pub fn parse(kind: &Kind, text: &str) -> Result<i64, ValueError> {
+/// magnitude: [`crate::config::settings::apply`] checks the field's type and range). Text is
+/// taken as bytes (a `&str` or a line's `&[u8]`): the console parses lines without converting
+/// them to `str` (see [`crate::text::is_utf8`]).
+pub fn parse(kind: &Kind, text: &(impl AsRef<[u8]> + ?Sized)) -> Result<i64, ValueError> {
+    parse_bytes(kind, text.as_ref())
+}
+
+fn parse_bytes(kind: &Kind, text: &[u8]) -> Result<i64, ValueError> {
     let text = text.trim_ascii();
     if text.is_empty() {
         return Err(ValueError::Missing);
@@ -231,7 +247,7 @@ pub fn parse(kind: &Kind, text: &str) -> Result<i64, ValueError> {
     match kind {
         Kind::Choice(names) => names
             .iter()
-            .position(|n| n.eq_ignore_ascii_case(text))
+            .position(|n| n.as_bytes().eq_ignore_ascii_case(text))
             .map(|i| i as i64)
             .ok_or(ValueError::NotAChoice),
         Kind::Number {
@@ -297,10 +313,12 @@ pub fn format(out: &mut dyn Write, kind: &Kind, raw: i64) -> fmt::Result {
 /// `e = −rem/10^(n+pow10)` (down) or `(2^frac − rem)/10^(n+pow10)` (up), and the parser's
 /// rounding returns `|raw|` exactly when `−½ ≤ e < ½`.
 fn write_shortest(out: &mut dyn Write, raw: i64, frac: u32, pow10: i32) -> fmt::Result {
+    // |raw|·10^pow10 by checked steps of ×10 (a 64-bit multiply by a variable with its
+    // overflow check is ≈ 60 B more on the board); `ten_to`'s limit, 10^19, kept.
     let Some(s) = u32::try_from(pow10)
         .ok()
-        .and_then(ten_to)
-        .and_then(|p| raw.unsigned_abs().checked_mul(p))
+        .filter(|&k| k < 20)
+        .and_then(|k| times_ten_to(raw.unsigned_abs(), k))
         .filter(|_| frac <= 40)
     else {
         // No registry kind gets here (pow10 ≥ 0, small values): the tests cover every key.
@@ -653,7 +671,7 @@ mod tests {
             return Err(ValueError::Missing);
         }
         let (d, unit_text) = reference::parse_decimal(text)?;
-        let p = unit_pow(unit, unit_text).ok_or(ValueError::WrongUnit)?;
+        let p = unit_pow(unit, unit_text.as_bytes()).ok_or(ValueError::WrongUnit)?;
         reference::parse(u32::from(*frac), i32::from(*pow10), p, d)
     }
 

@@ -345,6 +345,7 @@ impl Periodicity {
     /// One torque sample, Q16 N·m. Returns whether the torque is periodic now (the EWMAs start
     /// once the history holds 3 torques and LAG_MAX filtered values, and decide after
     /// 2^PER_SHIFT ticks).
+    #[inline(never)]
     #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn step(&mut self, x: i32, min_power: i64) -> bool {
         // Torques clipped to ±X_CLIP, so the filter is exact in i32 (|h| < 4 · 2^29).
@@ -497,6 +498,7 @@ impl StickSlipDetector {
     /// One tick. `law` is the configured friction law (for the branch of μ(θ̇)), the same on
     /// every call of a detector (the branch test's halves run on two successive ticks). Total:
     /// no panic, no wrap, whatever the inputs.
+    #[inline(never)]
     #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn step(&mut self, x: &DetectorInputs, law: &CompiledLaw) -> StickSlipOutput {
         self.out.onset = false;

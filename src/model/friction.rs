@@ -215,7 +215,6 @@ impl CompiledLaw {
     /// [`Self::mu_unfloored`] out of line: one copy of the law's code for the callers that
     /// run it at configuration time or as a fallback.
     #[inline(never)]
-    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn mu_unfloored_call(&self, input: u32) -> i32 {
         self.mu_unfloored(input)
     }

@@ -111,7 +111,6 @@ const EXP2_TABLE: [u32; 32] = {
 /// factor from a 32-entry table, the last from a cubic. Error ≤ 10⁻⁸ absolute (tests), far below
 /// the friction law's needs (10⁻⁶). About 25 instructions on a Cortex-M4.
 #[inline]
-#[cfg_attr(liftfw_speed_attr, optimize(speed))]
 pub fn exp_neg_q16(y_q16: u32) -> u32 {
     // log2(e) in Q2.30.
     const LOG2E_Q30: u64 = 1_549_082_005;

@@ -32,7 +32,6 @@ pub mod speed;
 
 use crate::detect::stickslip::{DetectorInputs, Reaction, StickSlipDetector};
 use crate::estimator::{Estimator, Measurements, TickEstimate};
-use crate::math::div128;
 #[cfg(feature = "ball-screw")]
 use crate::model::ballscrew::BallScrew;
 use crate::model::Scale;
@@ -464,17 +463,26 @@ impl Controller {
         let rad_per_count = geometry.screw_rad_per_count(); // counts → Q16 rad
         let speed_scale = rad_per_count.times(tick_hz, 1 << 16);
         // counts per screw rad (Q16) = 2^32 / rad_per_count(Q16 value).
+        // Unsigned products and quotients through the one out-of-line `mul_div_u64`: every
+        // operand is positive, and for a validated drive (4…65 536 counts/rev, gear 1…1000)
+        // counts/rad (Q16) < 2^40, so the speeds below stay far inside `u64`.
         let (mant, shift) = rad_per_count.parts();
-        let counts_per_rad_q16 =
-            div128(crate::math::shl128(1, 32 + shift), i128::from(mant.max(1))) as i64;
+        let mul_div = crate::math::mul_div_u64;
+        let counts_per_rad_q16 = mul_div(
+            1 << 32,
+            1 << shift.min(63),
+            mant.max(1).unsigned_abs().into(),
+        ) as i64;
         // Twist counts = T/k · counts/rad: from Q16 N·m.
         let k = i128::from(cfg.estimator.mechanics.coupling_stiffness.bits()); // Q16
         let twist_scale = Scale::from_ratio(i128::from(counts_per_rad_q16), k << 16);
         // Cruise: rad/s → Q32 counts/tick = ω·counts/rad·T·2^32.
-        let counts_per_rad_tick = i128::from(counts_per_rad_q16) * i128::from(tick_us);
+        // (Both speeds are validated positive: 0.2…20 rad/s.)
+        let counts_per_rad_tick = counts_per_rad_q16.unsigned_abs() * u64::from(tick_us);
         let per_tick_q32 = |speed: RadiansPerSecond| {
-            div128(
-                crate::math::mul128(i128::from(speed.bits()), counts_per_rad_tick),
+            mul_div(
+                speed.bits().unsigned_abs().into(),
+                counts_per_rad_tick,
                 1_000_000,
             ) as i64
         };
@@ -482,9 +490,10 @@ impl Controller {
         let escape_q32 = per_tick_q32(cfg.stick_slip.escape_speed);
         let ramp_ticks = ms_to_ticks(cfg.motion.ramp_ms, tick_us);
         let gear_ratio = cfg.estimator.drive.gear_ratio;
-        let counts_per_motor_rad_q16 = div128(
-            i128::from(counts_per_rad_q16) << 16,
-            i128::from(gear_ratio.to_bits().max(1)),
+        let counts_per_motor_rad_q16 = mul_div(
+            counts_per_rad_q16.unsigned_abs(),
+            1 << 16,
+            gear_ratio.to_bits().max(1).unsigned_abs().into(),
         );
         // Nut metres per count in Q40: the travel of 2^16 counts in Q24.
         let nut_q40 =
@@ -1273,5 +1282,67 @@ impl Controller {
     #[inline]
     fn reference_speed(&self) -> RadiansPerSecond {
         self.last_ref_rad
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fixed::types::I16F16;
+
+    /// `Controller::new`'s speeds in counts per tick through the unsigned `mul_div_u64` are
+    /// the `i128` arithmetic they replaced, bit for bit, over the validated drives, ticks
+    /// and speeds (corners and a sweep).
+    #[test]
+    fn derived_speeds_match_their_i128_form() {
+        use crate::math::{div128, mul128, shl128};
+        let mut checked = 0;
+        for counts_per_rev in [4u32, 48, 1000, 4096, 65_536] {
+            for gear in [1.0, 7.5, 60.0, 1000.0] {
+                for tick_us in [100u32, 1000, 10_000] {
+                    for speed in [0.2, 1.375, 20.0] {
+                        let mut cfg = ControlConfig::DEFAULT;
+                        cfg.estimator.drive.counts_per_rev = counts_per_rev;
+                        cfg.estimator.drive.gear_ratio = I16F16::from_num(gear);
+                        cfg.estimator.tick_us = tick_us;
+                        cfg.motion.cruise_speed = RadiansPerSecond::from_f64(speed);
+                        cfg.stick_slip.escape_speed = RadiansPerSecond::from_f64(speed);
+                        let Ok(c) = Controller::new(&cfg, 0) else {
+                            continue;
+                        };
+                        let (mant, shift) = c.est.geometry().screw_rad_per_count().parts();
+                        let cprq16 = div128(shl128(1, 32 + shift), i128::from(mant.max(1))) as i64;
+                        let per_tick = |s: RadiansPerSecond| {
+                            div128(
+                                mul128(
+                                    i128::from(s.bits()),
+                                    i128::from(cprq16) * i128::from(tick_us),
+                                ),
+                                1_000_000,
+                            ) as i64
+                        };
+                        assert_eq!(c.cruise_q32, per_tick(cfg.motion.cruise_speed));
+                        assert_eq!(c.escape_q32, per_tick(cfg.stick_slip.escape_speed));
+                        let per_motor_rad = div128(
+                            i128::from(cprq16) << 16,
+                            i128::from(cfg.estimator.drive.gear_ratio.to_bits().max(1)),
+                        );
+                        let nut_q40 = i64::from(c.est.geometry().travel(1 << 16).bits())
+                            - i64::from(c.est.geometry().travel(0).bits());
+                        let limits = Limits::new(
+                            &cfg.protection,
+                            tick_us,
+                            per_motor_rad as i64,
+                            nut_q40,
+                            cfg.motion.cruise_speed,
+                        );
+                        assert_eq!(c.limits.max_counts_per_tick, limits.max_counts_per_tick);
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        // Most combinations are valid configurations (a few drives refuse the limit stops).
+        assert!(checked >= 60, "only {checked} configurations built");
     }
 }

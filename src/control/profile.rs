@@ -118,10 +118,11 @@ fn far_distance(target: i64, p: i64) -> i64 {
 /// lose: from there the braking limit is surely inactive. Exact form:
 /// `(cruise + δ)²/a + cruise + δ + 1`, saturated.
 fn cruise_room(cruise: i64, accel: i64) -> i64 {
-    let c = i128::from(cruise) + (1 << 14);
-    // One shared 128-bit division (crate::math::div128), not an inline expansion: this runs
-    // when a motion is planned, not per tick.
-    let room = crate::math::div128(crate::math::mul128(c, c), i128::from(accel.max(1))) + c + 1;
+    // cruise ≥ 1 and accel ≥ 1 ([`Profile::new`]); one shared 128-bit product and division
+    // (crate::math::mul_div_u64), not an inline expansion: this runs when a motion is
+    // planned, not per tick. Saturated at u64::MAX, the sum still exceeds i64::MAX.
+    let c = cruise.unsigned_abs() + (1 << 14);
+    let room = crate::math::mul_div_u64(c, c, accel.max(1).unsigned_abs()).saturating_add(c + 1);
     i64::try_from(room).unwrap_or(i64::MAX)
 }
 
@@ -177,14 +178,14 @@ impl Profile {
 
     /// Brake along the ramp from the current speed: the target becomes the stopping point.
     pub fn stop(&mut self) {
-        let v = i128::from(self.v.unsigned_abs());
+        let v = self.v.unsigned_abs();
         // v²/(2a) + v/2 (the discrete ramp covers half a step more than the continuous one).
-        // (Once per stop: the shared 128-bit product and division, see `cruise_room`; an
-        // inline i128 product cost 0.1 KiB here.)
+        // (Once per stop: the shared 128-bit product and division, see `cruise_room`.)
         // Saturated, not cast: with an absurd acceleration (a few Q32 LSB per tick²) the
         // distance exceeds i64 and a cast would wrap it to a target behind the head.
-        let sq = crate::math::mul128(v, v);
-        let dist = i64::try_from(crate::math::div128(sq, i128::from(self.accel.max(1)) << 1) + (v >> 1))
+        // 1 ≤ accel ≤ 64·2^32 (`new`), so 2·accel fits.
+        let two_a = self.accel.max(1).unsigned_abs() << 1;
+        let dist = i64::try_from(crate::math::mul_div_u64(v, v, two_a).saturating_add(v >> 1))
             .unwrap_or(i64::MAX);
         // dist ≥ 0, and 0 when v is.
         self.target = if self.v < 0 {

@@ -143,8 +143,11 @@ impl Profile {
             accel,
             cruise,
             cruise_room: cruise_room(cruise, accel),
-            // accel ≥ 1: a²/4 through the shared out-of-line product (configuration time).
-            accel_sq_4: crate::math::mul128(i128::from(accel), i128::from(accel)) as u128 >> 2,
+            // accel ≥ 1: a²/4, an unsigned 64×64-bit product (smaller inline than the i128 call).
+            accel_sq_4: {
+                let a = u128::from(accel.unsigned_abs());
+                a * a >> 2
+            },
             roots: [0; 2],
             shape,
             p,

@@ -236,7 +236,8 @@ impl Geometry {
         let metres_per_count = Scale::from_ratio(num << 16, den << 56);
         let counts_per_metre = Scale::from_ratio(den << 56, num << 16);
         // x/L per count in Q28 = num/(den·2^64)·2^28/(L_bits/2^24) = num/(den·L_bits·2^12).
-        let cos_per_count = Scale::from_ratio(num, den * i128::from(cfg.length.bits()) << 12);
+        let cos_per_count =
+            Scale::from_ratio(num, mul128(den, i128::from(cfg.length.bits())) << 12);
         // Screw radians per count in Q16: 2π·2^16/(counts·ratio) → num 2π(Q28)·2^16·2^16 / (den·2^28).
         let screw_rad_per_count = Scale::from_ratio(TWO_PI_Q28 << 32, den << 28);
 

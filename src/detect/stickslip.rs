@@ -346,7 +346,6 @@ impl Periodicity {
     /// once the history holds 3 torques and LAG_MAX filtered values, and decide after
     /// 2^PER_SHIFT ticks).
     #[inline(never)]
-    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn step(&mut self, x: i32, min_power: i64) -> bool {
         // Torques clipped to ±X_CLIP, so the filter is exact in i32 (|h| < 4 · 2^29).
         let x = x.clamp(-X_CLIP, X_CLIP);

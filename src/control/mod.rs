@@ -1029,32 +1029,15 @@ impl Controller {
             self.latch(now, FaultKind::SwitchesImplausible);
         }
         if moving && self.state != State::Fault {
-            let (switch, stop) = if dir > 0 {
-                (Switches::LIMIT_UPPER, self.upper_counts)
+            let switch = if dir > 0 {
+                Switches::LIMIT_UPPER
             } else {
-                (Switches::LIMIT_LOWER, self.lower_counts)
+                Switches::LIMIT_LOWER
             };
             let lower_closed = self.switches.is_active(Switches::LIMIT_LOWER);
-            if !self.homed && (dir < 0) == lower_closed {
-                // Homing run: the lower switch closed (lowering) or opened (creeping up from
-                // it) at its configured height. That height is the screw's, so the encoder is
-                // set ahead of it by the coupling twist of the moment.
-                self.homed = true;
-                let twist = self.twist_scale.apply32(self.torque_lp.bits());
-                let at = self.switch_counts;
-                self.set_position(at.saturating_add(twist));
-                self.enter_rest(State::Holding);
-                self.pending_event = Some(Event::Homed { position: at });
-            } else if self.switches.is_active(switch) {
-                // The soft limit should have caught it if the lift is already at or past it.
-                let past =
-                    (self.screw_position() - stop) * i32::from(dir) >= -self.limits.runaway_counts;
-                if past {
-                    self.latch(now, FaultKind::LimitSwitch);
-                } else {
-                    self.enter_rest(State::Holding);
-                    self.pending_event = Some(Event::SwitchStop);
-                }
+            let homing = !self.homed && (dir < 0) == lower_closed;
+            if homing || self.switches.is_active(switch) {
+                self.limit_switch(now, dir, homing);
             }
         }
 
@@ -1103,6 +1086,41 @@ impl Controller {
     #[inline]
     pub fn finish_tick(&mut self) {
         self.est.prepare();
+    }
+
+    /// A motion reached its limit switch, or (`homing`) the lower switch changed on a homing
+    /// run: the homing reference, a stop at the switch, or a fault if the soft limit should
+    /// have stopped the lift first. Out of line and compiled for size (the tick's body is
+    /// compiled for speed): it runs on one tick of a motion at most, which ends it.
+    #[cold]
+    #[inline(never)]
+    fn limit_switch(&mut self, now: Instant, dir: i8, homing: bool) {
+        if homing {
+            // Homing run: the lower switch closed (lowering) or opened (creeping up from it)
+            // at its configured height. That height is the screw's, so the encoder is set
+            // ahead of it by the coupling twist of the moment.
+            self.homed = true;
+            let twist = self.twist_scale.apply32(self.torque_lp.bits());
+            let at = self.switch_counts;
+            self.set_position(at.saturating_add(twist));
+            self.enter_rest(State::Holding);
+            self.pending_event = Some(Event::Homed { position: at });
+        } else {
+            // The soft limit should have caught it if the lift is already at or past it.
+            let stop = if dir > 0 {
+                self.upper_counts
+            } else {
+                self.lower_counts
+            };
+            let past =
+                (self.screw_position() - stop) * i32::from(dir) >= -self.limits.runaway_counts;
+            if past {
+                self.latch(now, FaultKind::LimitSwitch);
+            } else {
+                self.enter_rest(State::Holding);
+                self.pending_event = Some(Event::SwitchStop);
+            }
+        }
     }
 
     /// Stick-slip detector step on this tick's measured torque (the current answers the bridge

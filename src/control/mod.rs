@@ -391,7 +391,6 @@ pub struct Controller {
     speed_scale: Scale,
     /// Screw torque (Q16 N·m) → coupling twist in counts.
     twist_scale: Scale,
-    tick_us: u32,
     /// Durations in ticks, computed once (no division on the tick path).
     ticks: TickCounts,
     state: State,
@@ -531,7 +530,6 @@ impl Controller {
             rad_per_count,
             speed_scale,
             twist_scale,
-            tick_us,
             ticks: TickCounts::new(tick_us, cfg.motion.ramp_ms),
             state: State::Idle,
             fault: None,
@@ -722,7 +720,7 @@ impl Controller {
             // field-by-field clone was 0.3 KiB of flash).
             core::mem::swap(&mut next.est, &mut self.est);
         }
-        if next.tick_us == self.tick_us {
+        if cfg.estimator.tick_us == self.cfg.estimator.tick_us {
             next.debounce = self.debounce;
         }
         next.enc = self.enc;

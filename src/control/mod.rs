@@ -395,7 +395,6 @@ pub struct Controller {
     ticks: TickCounts,
     state: State,
     fault: Option<Fault>,
-    last_tick: Option<Instant>,
     last_duty: i16,
     last_bridge: Bridge,
     current: Amperes,
@@ -533,7 +532,6 @@ impl Controller {
             ticks: TickCounts::new(tick_us, cfg.motion.ramp_ms),
             state: State::Idle,
             fault: None,
-            last_tick: None,
             last_duty: 0,
             last_bridge: Bridge::Coast,
             current: Amperes::ZERO,
@@ -728,7 +726,6 @@ impl Controller {
         next.fault = self.fault;
         next.hold_position = self.hold_position;
         next.rest_ticks = self.rest_ticks;
-        next.last_tick = self.last_tick;
         next.current = self.current;
         next.supply = self.supply;
         next.switches = self.switches;
@@ -969,7 +966,6 @@ impl Controller {
             },
             between,
         );
-        self.last_tick = Some(now);
         if moving {
             let d = self.estimate.measured_screw_torque.sat_sub(self.torque_lp);
             self.torque_lp = self

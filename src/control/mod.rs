@@ -1129,17 +1129,27 @@ impl Controller {
         };
         let out = self.stick_slip.step(&x, self.est.law());
         if out.onset {
-            let reaction = self.cfg.stick_slip.reaction;
-            if reaction == Reaction::ChangeSpeed {
-                self.profile.set_cruise(self.escape_q32);
-            }
-            if self.pending_event.is_none() {
-                self.pending_event = Some(Event::StickSlip {
-                    amplitude: out.amplitude,
-                    episode: out.episodes,
-                    reaction,
-                });
-            }
+            self.stick_slip_onset();
+        }
+    }
+
+    /// The reaction to a stick-slip episode's onset, and its event: out of line and compiled
+    /// for size (once per episode).
+    #[cold]
+    #[inline(never)]
+    fn stick_slip_onset(&mut self) {
+        let out = self.stick_slip.output();
+        let (amplitude, episode) = (out.amplitude, out.episodes);
+        let reaction = self.cfg.stick_slip.reaction;
+        if reaction == Reaction::ChangeSpeed {
+            self.profile.set_cruise(self.escape_q32);
+        }
+        if self.pending_event.is_none() {
+            self.pending_event = Some(Event::StickSlip {
+                amplitude,
+                episode,
+                reaction,
+            });
         }
     }
 

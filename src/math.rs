@@ -73,6 +73,16 @@ pub fn div128(n: i128, d: i128) -> i128 {
     }
 }
 
+/// `⌊a·b/d⌋` for `u64` operands (the product in 128 bits), saturated to `u64::MAX`; `d = 0`
+/// gives 0 (as [`udiv128`]). Out of line, for the configuration-time and once-per-stop
+/// arithmetic of the ramp planner: three `u64` arguments and a `u64` result where
+/// `div128(mul128(…), …)` passes and returns `i128`s (eight words and a return slot per call
+/// site). Not for the tick path.
+#[inline(never)]
+pub fn mul_div_u64(a: u64, b: u64, d: u64) -> u64 {
+    u64::try_from(udiv128(u128::from(a) * u128::from(b), u128::from(d))).unwrap_or(u64::MAX)
+}
+
 /// `2^(−k/32)` for k = 0…31 in Q0.32 (k = 0 saturates to `u32::MAX`), generated offline:
 /// `round(2^(32 − k/32))`.
 const EXP2_TABLE: [u32; 32] = {
@@ -111,7 +121,6 @@ const EXP2_TABLE: [u32; 32] = {
 /// factor from a 32-entry table, the last from a cubic. Error ≤ 10⁻⁸ absolute (tests), far below
 /// the friction law's needs (10⁻⁶). About 25 instructions on a Cortex-M4.
 #[inline]
-#[cfg_attr(liftfw_speed_attr, optimize(speed))]
 pub fn exp_neg_q16(y_q16: u32) -> u32 {
     // log2(e) in Q2.30.
     const LOG2E_Q30: u64 = 1_549_082_005;
@@ -504,6 +513,30 @@ mod tests {
             "worst relative error: sqrt {:e}, rsqrt {:e}",
             worst.0, worst.1
         );
+    }
+
+    proptest::proptest! {
+        /// The product-quotient against `u128` arithmetic, over the whole `u64` range.
+        #[test]
+        fn mul_div_u64_is_the_saturated_quotient(
+            a in proptest::prelude::any::<u64>(),
+            b in proptest::prelude::any::<u64>(),
+            d in proptest::prelude::any::<u64>(),
+        ) {
+            let want = (u128::from(a) * u128::from(b))
+                .checked_div(u128::from(d))
+                .map_or(0, |q| u64::try_from(q).unwrap_or(u64::MAX));
+            proptest::prop_assert_eq!(mul_div_u64(a, b, d), want);
+        }
+    }
+
+    #[test]
+    fn mul_div_u64_edges() {
+        assert_eq!(mul_div_u64(u64::MAX, u64::MAX, u64::MAX), u64::MAX);
+        assert_eq!(mul_div_u64(u64::MAX, u64::MAX, 1), u64::MAX);
+        assert_eq!(mul_div_u64(u64::MAX, 2, 2), u64::MAX);
+        assert_eq!(mul_div_u64(7, 3, 0), 0);
+        assert_eq!(mul_div_u64(1 << 40, 1 << 40, 1 << 30), 1 << 50);
     }
 
     #[test]

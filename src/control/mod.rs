@@ -32,7 +32,6 @@ pub mod speed;
 
 use crate::detect::stickslip::{DetectorInputs, Reaction, StickSlipDetector};
 use crate::estimator::{Estimator, Measurements, TickEstimate};
-use crate::math::div128;
 #[cfg(feature = "ball-screw")]
 use crate::model::ballscrew::BallScrew;
 use crate::model::Scale;
@@ -392,12 +391,10 @@ pub struct Controller {
     speed_scale: Scale,
     /// Screw torque (Q16 N·m) → coupling twist in counts.
     twist_scale: Scale,
-    tick_us: u32,
     /// Durations in ticks, computed once (no division on the tick path).
     ticks: TickCounts,
     state: State,
     fault: Option<Fault>,
-    last_tick: Option<Instant>,
     last_duty: i16,
     last_bridge: Bridge,
     current: Amperes,
@@ -464,17 +461,26 @@ impl Controller {
         let rad_per_count = geometry.screw_rad_per_count(); // counts → Q16 rad
         let speed_scale = rad_per_count.times(tick_hz, 1 << 16);
         // counts per screw rad (Q16) = 2^32 / rad_per_count(Q16 value).
+        // Unsigned products and quotients through the one out-of-line `mul_div_u64`: every
+        // operand is positive, and for a validated drive (4…65 536 counts/rev, gear 1…1000)
+        // counts/rad (Q16) < 2^40, so the speeds below stay far inside `u64`.
         let (mant, shift) = rad_per_count.parts();
-        let counts_per_rad_q16 =
-            div128(crate::math::shl128(1, 32 + shift), i128::from(mant.max(1))) as i64;
+        let mul_div = crate::math::mul_div_u64;
+        let counts_per_rad_q16 = mul_div(
+            1 << 32,
+            1 << shift.min(63),
+            mant.max(1).unsigned_abs().into(),
+        ) as i64;
         // Twist counts = T/k · counts/rad: from Q16 N·m.
         let k = i128::from(cfg.estimator.mechanics.coupling_stiffness.bits()); // Q16
         let twist_scale = Scale::from_ratio(i128::from(counts_per_rad_q16), k << 16);
         // Cruise: rad/s → Q32 counts/tick = ω·counts/rad·T·2^32.
-        let counts_per_rad_tick = i128::from(counts_per_rad_q16) * i128::from(tick_us);
+        // (Both speeds are validated positive: 0.2…20 rad/s.)
+        let counts_per_rad_tick = counts_per_rad_q16.unsigned_abs() * u64::from(tick_us);
         let per_tick_q32 = |speed: RadiansPerSecond| {
-            div128(
-                crate::math::mul128(i128::from(speed.bits()), counts_per_rad_tick),
+            mul_div(
+                speed.bits().unsigned_abs().into(),
+                counts_per_rad_tick,
                 1_000_000,
             ) as i64
         };
@@ -482,9 +488,10 @@ impl Controller {
         let escape_q32 = per_tick_q32(cfg.stick_slip.escape_speed);
         let ramp_ticks = ms_to_ticks(cfg.motion.ramp_ms, tick_us);
         let gear_ratio = cfg.estimator.drive.gear_ratio;
-        let counts_per_motor_rad_q16 = div128(
-            i128::from(counts_per_rad_q16) << 16,
-            i128::from(gear_ratio.to_bits().max(1)),
+        let counts_per_motor_rad_q16 = mul_div(
+            counts_per_rad_q16.unsigned_abs(),
+            1 << 16,
+            gear_ratio.to_bits().max(1).unsigned_abs().into(),
         );
         // Nut metres per count in Q40: the travel of 2^16 counts in Q24.
         let nut_q40 =
@@ -522,11 +529,9 @@ impl Controller {
             rad_per_count,
             speed_scale,
             twist_scale,
-            tick_us,
             ticks: TickCounts::new(tick_us, cfg.motion.ramp_ms),
             state: State::Idle,
             fault: None,
-            last_tick: None,
             last_duty: 0,
             last_bridge: Bridge::Coast,
             current: Amperes::ZERO,
@@ -713,7 +718,7 @@ impl Controller {
             // field-by-field clone was 0.3 KiB of flash).
             core::mem::swap(&mut next.est, &mut self.est);
         }
-        if next.tick_us == self.tick_us {
+        if cfg.estimator.tick_us == self.cfg.estimator.tick_us {
             next.debounce = self.debounce;
         }
         next.enc = self.enc;
@@ -721,7 +726,6 @@ impl Controller {
         next.fault = self.fault;
         next.hold_position = self.hold_position;
         next.rest_ticks = self.rest_ticks;
-        next.last_tick = self.last_tick;
         next.current = self.current;
         next.supply = self.supply;
         next.switches = self.switches;
@@ -872,7 +876,8 @@ impl Controller {
     /// Screw position estimate: the encoder less the coupling twist while driving. The twist
     /// comes from the *measured* torque (low-passed), not the model's: the model assumes the
     /// rated load, and with an empty lift it would over-correct by the whole rated twist.
-    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
+    /// Not marked for speed: its out-of-line copy is 46 B at "z", 100 B for speed (3
+    /// instructions a tick).
     fn screw_position(&self) -> i32 {
         if matches!(self.state, State::Lifting | State::Lowering) {
             let twist = self.twist_scale.apply32(self.torque_lp.bits());
@@ -953,17 +958,7 @@ impl Controller {
         let between = self
             .edges
             .update_fraction(now, position, inputs.encoder_edge_age);
-        self.estimate = self.est.step_at(
-            now,
-            &Measurements {
-                position_counts: position,
-                motor_current: self.current,
-                load: self.cfg.rated_load,
-                commanded_dir: dir,
-            },
-            between,
-        );
-        self.last_tick = Some(now);
+        self.estimate = self.estimate_tick(now, position, dir, between);
         if moving {
             let d = self.estimate.measured_screw_torque.sat_sub(self.torque_lp);
             self.torque_lp = self
@@ -1021,32 +1016,15 @@ impl Controller {
             self.latch(now, FaultKind::SwitchesImplausible);
         }
         if moving && self.state != State::Fault {
-            let (switch, stop) = if dir > 0 {
-                (Switches::LIMIT_UPPER, self.upper_counts)
+            let switch = if dir > 0 {
+                Switches::LIMIT_UPPER
             } else {
-                (Switches::LIMIT_LOWER, self.lower_counts)
+                Switches::LIMIT_LOWER
             };
             let lower_closed = self.switches.is_active(Switches::LIMIT_LOWER);
-            if !self.homed && (dir < 0) == lower_closed {
-                // Homing run: the lower switch closed (lowering) or opened (creeping up from
-                // it) at its configured height. That height is the screw's, so the encoder is
-                // set ahead of it by the coupling twist of the moment.
-                self.homed = true;
-                let twist = self.twist_scale.apply32(self.torque_lp.bits());
-                let at = self.switch_counts;
-                self.set_position(at.saturating_add(twist));
-                self.enter_rest(State::Holding);
-                self.pending_event = Some(Event::Homed { position: at });
-            } else if self.switches.is_active(switch) {
-                // The soft limit should have caught it if the lift is already at or past it.
-                let past =
-                    (self.screw_position() - stop) * i32::from(dir) >= -self.limits.runaway_counts;
-                if past {
-                    self.latch(now, FaultKind::LimitSwitch);
-                } else {
-                    self.enter_rest(State::Holding);
-                    self.pending_event = Some(Event::SwitchStop);
-                }
+            let homing = !self.homed && (dir < 0) == lower_closed;
+            if homing || self.switches.is_active(switch) {
+                self.limit_switch(now, dir, homing);
             }
         }
 
@@ -1097,6 +1075,65 @@ impl Controller {
         self.est.prepare();
     }
 
+    /// A motion reached its limit switch, or (`homing`) the lower switch changed on a homing
+    /// run: the homing reference, a stop at the switch, or a fault if the soft limit should
+    /// have stopped the lift first. Out of line and compiled for size (the tick's body is
+    /// compiled for speed): it runs on one tick of a motion at most, which ends it.
+    #[cold]
+    #[inline(never)]
+    fn limit_switch(&mut self, now: Instant, dir: i8, homing: bool) {
+        if homing {
+            // Homing run: the lower switch closed (lowering) or opened (creeping up from it)
+            // at its configured height. That height is the screw's, so the encoder is set
+            // ahead of it by the coupling twist of the moment.
+            self.homed = true;
+            let twist = self.twist_scale.apply32(self.torque_lp.bits());
+            let at = self.switch_counts;
+            self.set_position(at.saturating_add(twist));
+            self.enter_rest(State::Holding);
+            self.pending_event = Some(Event::Homed { position: at });
+        } else {
+            // The soft limit should have caught it if the lift is already at or past it.
+            let stop = if dir > 0 {
+                self.upper_counts
+            } else {
+                self.lower_counts
+            };
+            let past =
+                (self.screw_position() - stop) * i32::from(dir) >= -self.limits.runaway_counts;
+            if past {
+                self.latch(now, FaultKind::LimitSwitch);
+            } else {
+                self.enter_rest(State::Holding);
+                self.pending_event = Some(Event::SwitchStop);
+            }
+        }
+    }
+
+    /// The estimator's step of this tick, at rated load. Out of line and compiled for size,
+    /// not inlined into the speed-compiled [`Controller::step`]: 108 B less flash for ≈ 40
+    /// instructions a tick (BENCHMARKS.md, session 7); the cheapest trade of flash for
+    /// instructions among the tick's parts (the speed loop: 64 B for 48, the planner: none).
+    #[inline(never)]
+    fn estimate_tick(
+        &mut self,
+        now: Instant,
+        position: i32,
+        dir: i8,
+        between: u16,
+    ) -> TickEstimate {
+        self.est.step_at(
+            now,
+            &Measurements {
+                position_counts: position,
+                motor_current: self.current,
+                load: self.cfg.rated_load,
+                commanded_dir: dir,
+            },
+            between,
+        )
+    }
+
     /// Stick-slip detector step on this tick's measured torque (the current answers the bridge
     /// command of the previous tick, so "driving" is that command) and the reaction.
     fn detect_stick_slip(&mut self) {
@@ -1109,17 +1146,27 @@ impl Controller {
         };
         let out = self.stick_slip.step(&x, self.est.law());
         if out.onset {
-            let reaction = self.cfg.stick_slip.reaction;
-            if reaction == Reaction::ChangeSpeed {
-                self.profile.set_cruise(self.escape_q32);
-            }
-            if self.pending_event.is_none() {
-                self.pending_event = Some(Event::StickSlip {
-                    amplitude: out.amplitude,
-                    episode: out.episodes,
-                    reaction,
-                });
-            }
+            self.stick_slip_onset();
+        }
+    }
+
+    /// The reaction to a stick-slip episode's onset, and its event: out of line and compiled
+    /// for size (once per episode).
+    #[cold]
+    #[inline(never)]
+    fn stick_slip_onset(&mut self) {
+        let out = self.stick_slip.output();
+        let (amplitude, episode) = (out.amplitude, out.episodes);
+        let reaction = self.cfg.stick_slip.reaction;
+        if reaction == Reaction::ChangeSpeed {
+            self.profile.set_cruise(self.escape_q32);
+        }
+        if self.pending_event.is_none() {
+            self.pending_event = Some(Event::StickSlip {
+                amplitude,
+                episode,
+                reaction,
+            });
         }
     }
 
@@ -1274,5 +1321,67 @@ impl Controller {
     #[inline]
     fn reference_speed(&self) -> RadiansPerSecond {
         self.last_ref_rad
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fixed::types::I16F16;
+
+    /// `Controller::new`'s speeds in counts per tick through the unsigned `mul_div_u64` are
+    /// the `i128` arithmetic they replaced, bit for bit, over the validated drives, ticks
+    /// and speeds (corners and a sweep).
+    #[test]
+    fn derived_speeds_match_their_i128_form() {
+        use crate::math::{div128, mul128, shl128};
+        let mut checked = 0;
+        for counts_per_rev in [4u32, 48, 1000, 4096, 65_536] {
+            for gear in [1.0, 7.5, 60.0, 1000.0] {
+                for tick_us in [100u32, 1000, 10_000] {
+                    for speed in [0.2, 1.375, 20.0] {
+                        let mut cfg = ControlConfig::DEFAULT;
+                        cfg.estimator.drive.counts_per_rev = counts_per_rev;
+                        cfg.estimator.drive.gear_ratio = I16F16::from_num(gear);
+                        cfg.estimator.tick_us = tick_us;
+                        cfg.motion.cruise_speed = RadiansPerSecond::from_f64(speed);
+                        cfg.stick_slip.escape_speed = RadiansPerSecond::from_f64(speed);
+                        let Ok(c) = Controller::new(&cfg, 0) else {
+                            continue;
+                        };
+                        let (mant, shift) = c.est.geometry().screw_rad_per_count().parts();
+                        let cprq16 = div128(shl128(1, 32 + shift), i128::from(mant.max(1))) as i64;
+                        let per_tick = |s: RadiansPerSecond| {
+                            div128(
+                                mul128(
+                                    i128::from(s.bits()),
+                                    i128::from(cprq16) * i128::from(tick_us),
+                                ),
+                                1_000_000,
+                            ) as i64
+                        };
+                        assert_eq!(c.cruise_q32, per_tick(cfg.motion.cruise_speed));
+                        assert_eq!(c.escape_q32, per_tick(cfg.stick_slip.escape_speed));
+                        let per_motor_rad = div128(
+                            i128::from(cprq16) << 16,
+                            i128::from(cfg.estimator.drive.gear_ratio.to_bits().max(1)),
+                        );
+                        let nut_q40 = i64::from(c.est.geometry().travel(1 << 16).bits())
+                            - i64::from(c.est.geometry().travel(0).bits());
+                        let limits = Limits::new(
+                            &cfg.protection,
+                            tick_us,
+                            per_motor_rad as i64,
+                            nut_q40,
+                            cfg.motion.cruise_speed,
+                        );
+                        assert_eq!(c.limits.max_counts_per_tick, limits.max_counts_per_tick);
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        // Most combinations are valid configurations (a few drives refuse the limit stops).
+        assert!(checked >= 60, "only {checked} configurations built");
     }
 }

@@ -118,10 +118,11 @@ fn far_distance(target: i64, p: i64) -> i64 {
 /// lose: from there the braking limit is surely inactive. Exact form:
 /// `(cruise + δ)²/a + cruise + δ + 1`, saturated.
 fn cruise_room(cruise: i64, accel: i64) -> i64 {
-    let c = i128::from(cruise) + (1 << 14);
-    // One shared 128-bit division (crate::math::div128), not an inline expansion: this runs
-    // when a motion is planned, not per tick.
-    let room = crate::math::div128(crate::math::mul128(c, c), i128::from(accel.max(1))) + c + 1;
+    // cruise ≥ 1 and accel ≥ 1 ([`Profile::new`]); one shared 128-bit product and division
+    // (crate::math::mul_div_u64), not an inline expansion: this runs when a motion is
+    // planned, not per tick. Saturated at u64::MAX, the sum still exceeds i64::MAX.
+    let c = cruise.unsigned_abs() + (1 << 14);
+    let room = crate::math::mul_div_u64(c, c, accel.max(1).unsigned_abs()).saturating_add(c + 1);
     i64::try_from(room).unwrap_or(i64::MAX)
 }
 
@@ -142,8 +143,11 @@ impl Profile {
             accel,
             cruise,
             cruise_room: cruise_room(cruise, accel),
-            // accel ≥ 1: a²/4 through the shared out-of-line product (configuration time).
-            accel_sq_4: crate::math::mul128(i128::from(accel), i128::from(accel)) as u128 >> 2,
+            // accel ≥ 1: a²/4, an unsigned 64×64-bit product (smaller inline than the i128 call).
+            accel_sq_4: {
+                let a = u128::from(accel.unsigned_abs());
+                a * a >> 2
+            },
             roots: [0; 2],
             shape,
             p,
@@ -177,14 +181,21 @@ impl Profile {
 
     /// Brake along the ramp from the current speed: the target becomes the stopping point.
     pub fn stop(&mut self) {
-        let v = self.v.unsigned_abs() as i128;
+        let v = self.v.unsigned_abs();
         // v²/(2a) + v/2 (the discrete ramp covers half a step more than the continuous one).
-        // (Once per stop: the shared 128-bit division, see `cruise_room`.)
+        // (Once per stop: the shared 128-bit product and division, see `cruise_room`.)
         // Saturated, not cast: with an absurd acceleration (a few Q32 LSB per tick²) the
         // distance exceeds i64 and a cast would wrap it to a target behind the head.
-        let dist = i64::try_from(crate::math::div128(v * v, 2 * self.accel.max(1) as i128) + v / 2)
+        // 1 ≤ accel ≤ 64·2^32 (`new`), so 2·accel fits.
+        let two_a = self.accel.max(1).unsigned_abs() << 1;
+        let dist = i64::try_from(crate::math::mul_div_u64(v, v, two_a).saturating_add(v >> 1))
             .unwrap_or(i64::MAX);
-        self.target = self.p.saturating_add(dist * self.v.signum());
+        // dist ≥ 0, and 0 when v is.
+        self.target = if self.v < 0 {
+            self.p.saturating_sub(dist)
+        } else {
+            self.p.saturating_add(dist)
+        };
         self.done = false;
     }
 

@@ -344,8 +344,9 @@ impl Periodicity {
 
     /// One torque sample, Q16 N·m. Returns whether the torque is periodic now (the EWMAs start
     /// once the history holds 3 torques and LAG_MAX filtered values, and decide after
-    /// 2^PER_SHIFT ticks).
-    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
+    /// 2^PER_SHIFT ticks). Out of line and compiled for size: 30 B less than for speed and no
+    /// measurable cost on the control tick (docs/qemu.md "Optimisation level").
+    #[inline(never)]
     pub fn step(&mut self, x: i32, min_power: i64) -> bool {
         // Torques clipped to ±X_CLIP, so the filter is exact in i32 (|h| < 4 · 2^29).
         let x = x.clamp(-X_CLIP, X_CLIP);
@@ -424,7 +425,9 @@ const NOISE_SHIFT: u32 = 6;
 const NOISE_GAIN: i32 = 2;
 
 impl StickSlipDetector {
-    /// A detector for a validated configuration at a tick of `tick_us` µs (100…10 000).
+    /// A detector for a validated configuration at a tick of `tick_us` µs (100…10 000). Out
+    /// of line (16 B less than inlined into `Controller::new`).
+    #[inline(never)]
     pub fn new(cfg: &StickSlipConfig, tick_us: u32) -> StickSlipDetector {
         let ticks = |ms: u32| crate::control::ms_to_ticks(ms, tick_us).max(1);
         let threshold = cfg.drop_threshold.to_bits().max(1);
@@ -496,7 +499,9 @@ impl StickSlipDetector {
 
     /// One tick. `law` is the configured friction law (for the branch of μ(θ̇)), the same on
     /// every call of a detector (the branch test's halves run on two successive ticks). Total:
-    /// no panic, no wrap, whatever the inputs.
+    /// no panic, no wrap, whatever the inputs. Compiled for speed, out of line: inlined into
+    /// `Controller::step` it took 272 B more flash (docs/qemu.md "Optimisation level").
+    #[inline(never)]
     #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn step(&mut self, x: &DetectorInputs, law: &CompiledLaw) -> StickSlipOutput {
         self.out.onset = false;

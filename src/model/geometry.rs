@@ -219,7 +219,12 @@ impl Geometry {
 
         // Nut travel per count = r_m·tanλ·2π / (counts_per_rev·gear_ratio).
         let (cl, sl) = Angle::from_degrees(drive.lead_angle_deg).cos_sin();
-        let tan_q28 = crate::math::div128(i128::from(sl.bits()) << 28, i128::from(cl.bits()));
+        // sin and cos of a validated lead angle (0.5…20°) are positive.
+        let tan_q28 = i128::from(crate::math::mul_div_u64(
+            sl.bits().unsigned_abs().into(),
+            1 << 28,
+            cl.bits().unsigned_abs().into(),
+        ));
         const TWO_PI_Q28: i128 = 1_686_629_713; // 2π·2^28
                                                 // r_m(Q24)·tan(Q28)·2π(Q28) over counts·ratio(Q16); the extra 2^16 below cancels the ratio's Q16.
         let den = i128::from(drive.counts_per_rev) * i128::from(drive.gear_ratio.to_bits());
@@ -231,7 +236,8 @@ impl Geometry {
         let metres_per_count = Scale::from_ratio(num << 16, den << 56);
         let counts_per_metre = Scale::from_ratio(den << 56, num << 16);
         // x/L per count in Q28 = num/(den·2^64)·2^28/(L_bits/2^24) = num/(den·L_bits·2^12).
-        let cos_per_count = Scale::from_ratio(num, den * i128::from(cfg.length.bits()) << 12);
+        let cos_per_count =
+            Scale::from_ratio(num, mul128(den, i128::from(cfg.length.bits())) << 12);
         // Screw radians per count in Q16: 2π·2^16/(counts·ratio) → num 2π(Q28)·2^16·2^16 / (den·2^28).
         let screw_rad_per_count = Scale::from_ratio(TWO_PI_Q28 << 32, den << 28);
 

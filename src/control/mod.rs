@@ -958,7 +958,16 @@ impl Controller {
         let between = self
             .edges
             .update_fraction(now, position, inputs.encoder_edge_age);
-        self.estimate = self.estimate_tick(now, position, dir, between);
+        self.estimate = self.est.step_at(
+            now,
+            &Measurements {
+                position_counts: position,
+                motor_current: self.current,
+                load: self.cfg.rated_load,
+                commanded_dir: dir,
+            },
+            between,
+        );
         if moving {
             let d = self.estimate.measured_screw_torque.sat_sub(self.torque_lp);
             self.torque_lp = self
@@ -1108,30 +1117,6 @@ impl Controller {
                 self.pending_event = Some(Event::SwitchStop);
             }
         }
-    }
-
-    /// The estimator's step of this tick, at rated load. Out of line and compiled for size,
-    /// not inlined into the speed-compiled [`Controller::step`]: 108 B less flash for ≈ 40
-    /// instructions a tick (BENCHMARKS.md, session 7); the cheapest trade of flash for
-    /// instructions among the tick's parts (the speed loop: 64 B for 48, the planner: none).
-    #[inline(never)]
-    fn estimate_tick(
-        &mut self,
-        now: Instant,
-        position: i32,
-        dir: i8,
-        between: u16,
-    ) -> TickEstimate {
-        self.est.step_at(
-            now,
-            &Measurements {
-                position_counts: position,
-                motor_current: self.current,
-                load: self.cfg.rated_load,
-                commanded_dir: dir,
-            },
-            between,
-        )
     }
 
     /// Stick-slip detector step on this tick's measured torque (the current answers the bridge

@@ -4,15 +4,15 @@
 //! height within 0.05 mm. Extreme and nonsensical inputs must not panic or wrap.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use fixed::types::{I16F16, I32F32};
+#[path = "support/corners.rs"]
+mod corners;
+
+use fixed::types::I16F16;
 use host_sim::physics::{self, friction::FrictionLaw as FLaw, geometry::structure_damping_cos};
-use liftfw::estimator::{EstimateFlags, Estimator, EstimatorConfig, Measurements, MotorConfig};
+use liftfw::estimator::{EstimateFlags, Estimator, EstimatorConfig, Measurements};
 use liftfw::model::friction::{FrictionLaw, LawVariable};
-use liftfw::model::geometry::{DriveConfig, GeometryConfig};
-use liftfw::model::screw::MechanicsConfig;
 use liftfw::units::{
-    Amperes, Instant, Kilograms, Metres, NewtonMetres, RadiansPerSecond, RadiansPerSecond2, Ratio,
-    Q,
+    Amperes, Instant, Kilograms, Metres, RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
 };
 use proptest::prelude::*;
 
@@ -667,46 +667,14 @@ fn search_configs() -> Vec<(String, EstimatorConfig)> {
         big.drive.lead_angle_deg = I16F16::lit("20");
         v.push((format!("bigscrew/{name}"), big));
     }
-    let high_law = FrictionLaw {
-        base: Ratio::ONE,
-        amp: Ratio::ONE,
-        rate: I32F32::lit("1000000"),
-        slope: I32F32::lit("1000"),
-        s_max: I32F32::MAX,
-        variable: LawVariable::SlidingSpeed,
-    };
     v.push((
         "forces/high".into(),
         EstimatorConfig {
-            law: high_law,
+            law: corners::high_law(),
             ..forces()
         },
     ));
-    let upper = EstimatorConfig {
-        geometry: GeometryConfig {
-            length: Metres::lit("2"),
-            alpha0_deg: I16F16::lit("60"),
-            alpha_max_deg: I16F16::lit("89"),
-            h0: Metres::lit("1"),
-            mu_pin: Ratio::ONE,
-        },
-        drive: DriveConfig {
-            counts_per_rev: 65_536,
-            gear_ratio: I16F16::lit("1000"),
-            pitch_radius: Metres::lit("0.05"),
-            lead_angle_deg: I16F16::lit("20"),
-        },
-        mechanics: big_mech(),
-        law: high_law,
-        motor: MotorConfig {
-            torque_constant: Ratio::ONE,
-            gear_efficiency: Ratio::lit("0.1"),
-            ..MotorConfig::DEFAULT
-        },
-        tick_us: 100,
-        speed_bandwidth_hz: 1000,
-        rest_speed: RadiansPerSecond::lit("50"),
-    };
+    let upper = corners::upper();
     v.push(("upper/high".into(), upper));
     v.push((
         "upper/dry".into(),
@@ -715,74 +683,22 @@ fn search_configs() -> Vec<(String, EstimatorConfig)> {
             ..upper
         },
     ));
-    let lower = EstimatorConfig {
-        geometry: GeometryConfig {
-            length: Metres::lit("0.05"),
-            alpha0_deg: I16F16::lit("12"),
-            alpha_max_deg: I16F16::lit("17"),
-            h0: Metres::ZERO,
-            mu_pin: Ratio::ZERO,
+    v.push((
+        "lower/dry".into(),
+        EstimatorConfig {
+            law: FrictionLaw::DRY,
+            ..corners::lower()
         },
-        drive: DriveConfig {
-            counts_per_rev: 4,
-            gear_ratio: I16F16::ONE,
-            pitch_radius: Metres::lit("0.001"),
-            lead_angle_deg: I16F16::lit("0.5"),
-        },
-        mechanics: MechanicsConfig {
-            inertia_ukgm2: 0,
-            damping_unms: 0,
-            support_torque: NewtonMetres::ZERO,
-            nut_mass: Kilograms::ZERO,
-            ..MechanicsConfig::DEFAULT
-        },
-        law: FrictionLaw::DRY,
-        motor: MotorConfig {
-            torque_constant: Ratio::lit("0.001"),
-            gear_efficiency: Ratio::ONE,
-            ..MotorConfig::DEFAULT
-        },
-        tick_us: 10_000,
-        speed_bandwidth_hz: 1,
-        rest_speed: RadiansPerSecond::ZERO,
-    };
-    v.push(("lower/dry".into(), lower));
+    ));
     v
 }
 
-/// The envelope tests' heaviest mechanics (tests/estimator_envelope.rs).
-fn big_mech() -> MechanicsConfig {
-    MechanicsConfig {
-        inertia_ukgm2: 100_000,
-        damping_unms: 1_000_000,
-        support_torque: NewtonMetres::lit("10"),
-        nut_mass: Kilograms::lit("5"),
-        ..MechanicsConfig::DEFAULT
-    }
-}
-
-/// The envelope tests' configuration that maximises the forces: steepest arms, largest screw
-/// and lead, heaviest nut, μ_b = 1 (tests/estimator_envelope.rs).
+/// The envelope tests' configuration that maximises the forces (tests/support/corners.rs),
+/// with the paper's dry law: the search sets each law in turn.
 fn forces() -> EstimatorConfig {
     EstimatorConfig {
-        geometry: GeometryConfig {
-            alpha0_deg: I16F16::lit("12"),
-            mu_pin: Ratio::ONE,
-            ..GeometryConfig::DEFAULT
-        },
-        drive: DriveConfig {
-            counts_per_rev: 4,
-            gear_ratio: I16F16::lit("1.25002"),
-            pitch_radius: Metres::lit("0.05"),
-            lead_angle_deg: I16F16::lit("20"),
-        },
-        mechanics: big_mech(),
-        motor: MotorConfig {
-            torque_constant: Ratio::ONE,
-            gear_efficiency: Ratio::lit("0.1"),
-            ..MotorConfig::DEFAULT
-        },
-        ..EstimatorConfig::DEFAULT
+        law: FrictionLaw::DRY,
+        ..corners::forces()
     }
 }
 

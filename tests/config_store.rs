@@ -393,6 +393,27 @@ fn intact_record_with_a_value_this_firmware_refuses_falls_back() {
     assert!(msg.contains("motion.ramp_ms out of range"), "{msg}");
 }
 
+/// The ball-screw build refuses a record with a law in τ on a lead screw through the path of
+/// any refused value (factory defaults, the store not written: the record is still there at
+/// the next boot). The lead-screw build locks on it instead (`src/config/lead_only_tests.rs`).
+#[cfg(feature = "ball-screw")]
+#[test]
+fn record_with_a_tau_law_on_a_lead_screw_is_refused_and_kept() {
+    let mut bad = ControlConfig::DEFAULT;
+    bad.estimator.law = liftfw::model::friction::FrictionLaw::BALL_SCREW;
+    let want = Source::Rejected(ConfigError::Conflict {
+        field: "friction.variable",
+        reason: liftfw::control::config::TAU_NEEDS_BALL,
+    });
+    let (loaded, flash) = load(store_raw(&encoded(&bad)));
+    assert_eq!(loaded.source, want);
+    assert_eq!(loaded.config, ValidatedConfig::factory());
+    let msg = format!("{}", loaded.source);
+    assert!(msg.contains("needs drive.screw = ball"), "{msg}");
+    let (again, _) = load(flash);
+    assert_eq!(again.source, want);
+}
+
 #[test]
 fn garbage_in_the_store_reads_as_corrupt() {
     let mut flash = Flash::new();

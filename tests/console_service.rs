@@ -425,3 +425,43 @@ fn status_fault_names_are_one_word() {
         "{s}"
     );
 }
+
+/// The ball-screw image's console refuses a law in τ on a lead screw (the estimator would read
+/// its |θ̇| as τ), as the `ball` preset or as the variable, and changes nothing; on a ball screw
+/// the law is taken and the screw can then not go back to lead under it.
+#[cfg(feature = "ball-screw")]
+#[test]
+fn tau_law_needs_drive_screw_ball() {
+    let mut b = Bench::new();
+    let before = b.cfg;
+    assert_eq!(b.reply("get drive.screw"), "drive.screw = lead");
+    for (line, key) in [
+        ("set friction.law ball", "friction.law"),
+        ("set friction.variable tau", "friction.variable"),
+    ] {
+        let (r, o) = b.line(line);
+        assert_eq!(
+            r,
+            format!(
+                "error: set {key} refused: friction.variable: tau (the ball-screw law) needs \
+                 drive.screw = ball"
+            ),
+            "{line}"
+        );
+        assert_eq!(o.action, Action::None);
+        assert_eq!(b.cfg, before, "{line}");
+        assert_eq!(b.c.config(), before.get(), "{line}");
+    }
+    let r = b.reply("set drive.screw ball");
+    assert!(r.starts_with("ok: drive.screw = ball"), "{r}");
+    let r = b.reply("set friction.law ball");
+    assert!(r.starts_with("ok: friction.law = ball"), "{r}");
+    let with_tau = b.cfg;
+    let (r, _) = b.line("set drive.screw lead");
+    assert!(
+        r.starts_with("error: set drive.screw refused: friction.variable: tau"),
+        "{r}"
+    );
+    assert_eq!(b.cfg, with_tau);
+    assert_eq!(b.c.config(), with_tau.get());
+}

@@ -465,11 +465,33 @@ impl ControlConfig {
         {
             self.ball_screw.compile()?;
             self.lube.validate()?;
+            check_tau_needs_ball(self)?;
         }
         crate::config::settings::check_variant(self)?;
         self.brake.validate()?;
         self.limits.counts(geometry)
     }
+}
+
+/// The refusal's reason, in the ball-screw build, of the τ law variable on a lead screw.
+#[cfg(feature = "ball-screw")]
+pub const TAU_NEEDS_BALL: &str = "tau (the ball-screw law) needs drive.screw = ball";
+
+/// The ball-screw build's refusal of a law in τ (the `ball` preset, `friction.variable = tau`)
+/// on a lead screw: only the ball screw's model is written in τ; the estimator feeds its law
+/// |θ̇| (Q16 bits), which a τ law reads as τ = |θ̇|/4096. Without the feature
+/// [`crate::config::settings::check_variant`] refuses τ on any screw, with its own reason
+/// (the lead-screw image's record lock-out).
+#[cfg(feature = "ball-screw")]
+fn check_tau_needs_ball(cfg: &ControlConfig) -> Result<(), ConfigError> {
+    use crate::model::friction::LawVariable;
+    if cfg.screw == ScrewKind::Lead && cfg.estimator.law.variable == LawVariable::Lubrication {
+        return Err(ConfigError::Conflict {
+            field: "friction.variable",
+            reason: TAU_NEEDS_BALL,
+        });
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -616,6 +638,50 @@ mod tests {
                 "{field}"
             );
         }
+    }
+
+    /// A law in τ on a lead screw (the `ball` preset, or `friction.variable = tau` under
+    /// another law): the estimator would read its |θ̇| bits as τ. The ball-screw build refuses
+    /// it as needing a ball screw, the lead-screw build as needing the ball-screw firmware
+    /// (`check_variant`, unchanged), on every path that builds a controller.
+    #[test]
+    fn tau_law_on_a_lead_screw_is_refused() {
+        use crate::model::friction::{FrictionLaw, LawVariable};
+        let mut preset = ControlConfig::DEFAULT;
+        preset.estimator.law = FrictionLaw::BALL_SCREW;
+        let mut variable = ControlConfig::DEFAULT;
+        variable.estimator.law.variable = LawVariable::Lubrication;
+        #[cfg(feature = "ball-screw")]
+        let reason = TAU_NEEDS_BALL;
+        #[cfg(not(feature = "ball-screw"))]
+        let reason = crate::config::settings::NEEDS_BALL_SCREW;
+        let want = ConfigError::Conflict {
+            field: "friction.variable",
+            reason,
+        };
+        for c in [preset, variable] {
+            assert_eq!(c.screw, ScrewKind::Lead);
+            assert_eq!(c.validate(&geometry()), Err(want));
+            assert_eq!(crate::config::ValidatedConfig::new(c).err(), Some(want));
+            assert_eq!(crate::control::Controller::new(&c, 0).err(), Some(want));
+            // The same law in |θ̇| is taken: only the variable is refused.
+            let mut rate = c;
+            rate.estimator.law.variable = LawVariable::ScrewRate;
+            rate.validate(&geometry()).unwrap();
+        }
+    }
+
+    /// With `drive.screw = ball` the ball-screw build takes a law in τ for the estimator (which
+    /// feeds it |θ̇|, read as τ = |θ̇|/4096; docs/console.md advises the equivalent thread law
+    /// in `rate` instead): validation does not refuse it.
+    #[cfg(feature = "ball-screw")]
+    #[test]
+    fn tau_law_on_a_ball_screw_is_taken() {
+        use crate::model::friction::FrictionLaw;
+        let mut c = ControlConfig::ball_screw_4008().unwrap();
+        c.estimator.law = FrictionLaw::BALL_SCREW;
+        crate::config::ValidatedConfig::new(c).unwrap();
+        assert!(crate::control::Controller::new(&c, 0).is_ok());
     }
 
     #[test]

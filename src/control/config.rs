@@ -323,6 +323,24 @@ impl ControlConfig {
         Ok(c)
     }
 
+    /// The estimator's configuration as the model runs it. On a ball screw
+    /// (`drive.screw = ball`) a law written in τ (the `ball` preset) is given to the estimator
+    /// as the equivalent thread law in the screw rate ([`BallScrewConfig::thread_law_fixed`],
+    /// fixed point) at the rated load's axial force at α = 45° (F_p + M·g, as
+    /// [`ControlConfig::ball_screw_4008`]): the estimator feeds its law |θ̇|, which a τ law
+    /// would read as τ = |θ̇|/4096. Every other configuration is the estimator's as given. The
+    /// configuration itself (console, store) keeps the law as the user gave it.
+    #[cfg(feature = "ball-screw")]
+    pub fn model_estimator(&self) -> Result<EstimatorConfig, ConfigError> {
+        use crate::model::friction::LawVariable;
+        let mut e = self.estimator;
+        if self.screw == ScrewKind::Ball && e.law.variable == LawVariable::Lubrication {
+            let f = (self.ball_screw.preload).sat_add(Geometry::weight(self.rated_load));
+            e.law = self.ball_screw.thread_law_fixed(&e.law, f)?;
+        }
+        Ok(e)
+    }
+
     /// Check every range that does not need the compiled geometry, then the limit stops
     /// against it. The estimator's own settings are checked by [`crate::estimator::Estimator::new`].
     pub fn validate(&self, geometry: &Geometry) -> Result<(), ConfigError> {

@@ -138,6 +138,33 @@ impl BallScrewConfig {
 
         // Design in integers (no floating point linked into the firmware): lengths in Q24,
         // cos α and sin α in Q28, rationals in i128, quantised once by `Scale::from_ratio`.
+        let Design {
+            num52,
+            sa,
+            tau_num,
+        } = self.design();
+        let lead = i128::from(self.lead.bits());
+        // f·F (N, Q8) → N·m (Q16): ×arm·2^8 = num52/(sa·2^16).
+        let arm_scale = Scale::from_ratio(num52, sa << 16);
+        // Lever l/(2π): F (Q8) → N·m (Q16) is ×lever·2^8 = lead/(2^16·2π).
+        let lever_scale = Scale::from_ratio(lead << 60, TWO_PI_Q60 << 16);
+        // Through the one out-of-line `div128` (an inline `/` on i128 is a 0.6 KiB loop here).
+        let lever_q24 = crate::math::div128(lead << 60, TWO_PI_Q60);
+        let tau_scale = Scale::from_ratio(tau_num, 1i128 << 64);
+        Ok(BallScrew {
+            preload: self.preload,
+            law,
+            arm_scale,
+            lever_scale,
+            tau_scale,
+            arm: Metres::from_raw(crate::units::sat32((num52 / sa) as i64)),
+            lever: Metres::from_raw(crate::units::sat32(lever_q24 as i64)),
+        })
+    }
+
+    /// The design's integer constants (configuration time): Eq 1's arm and τ's numerator.
+    #[cfg(feature = "ball-screw")]
+    fn design(&self) -> Design {
         let (cos_a, sin_a) = Angle::from_degrees(self.contact_angle_deg).cos_sin();
         let (rm, rb) = (i128::from(self.r_m.bits()), i128::from(self.r_b.bits()));
         let lead = i128::from(self.lead.bits());
@@ -145,12 +172,6 @@ impl BallScrewConfig {
         // Eq 1 (with Eq 2's factor 2): M_f = f·F·arm, arm = 2(r_m + r_b cos α)/sin α; arm in
         // Q52/Q28 = num52/sa in Q24.
         let num52 = 2 * ((rm << 28) + rb * ca);
-        // f·F (N, Q8) → N·m (Q16): ×arm·2^8 = num52/(sa·2^16).
-        let arm_scale = Scale::from_ratio(num52, sa << 16);
-        // Lever l/(2π): F (Q8) → N·m (Q16) is ×lever·2^8 = lead/(2^16·2π).
-        let lever_scale = Scale::from_ratio(lead << 60, TWO_PI_Q60 << 16);
-        // Through the one out-of-line `div128` (an inline `/` on i128 is a 0.6 KiB loop here).
-        let lever_q24 = crate::math::div128(lead << 60, TWO_PI_Q60);
         // Helix angle β: cos β = 2π r_m / √((2π r_m)² + l²), lengths in Q32 (≤ 0.63 m).
         let circ = (rm * TWO_PI_Q60) >> 52;
         let l32 = lead << 8;
@@ -162,16 +183,67 @@ impl BallScrewConfig {
         let eta = i128::from(self.viscosity.to_bits());
         let mul = crate::math::mul128;
         let tau_num = mul(mul(eta * rm, i128::from(self.loaded_balls)), sa_cb);
-        let tau_scale = Scale::from_ratio(tau_num, 1i128 << 64);
-        Ok(BallScrew {
-            preload: self.preload,
-            law,
-            arm_scale,
-            lever_scale,
-            tau_scale,
-            arm: Metres::from_raw(crate::units::sat32((num52 / sa) as i64)),
-            lever: Metres::from_raw(crate::units::sat32(lever_q24 as i64)),
-        })
+        Design {
+            num52,
+            sa,
+            tau_num,
+        }
+    }
+
+    /// [`BallScrewConfig::equivalent_thread_law`] in fixed point, for `law` (a law in τ, the
+    /// estimator's) on this ball screw at axial force `f_axial`: what the ball-screw firmware
+    /// gives its estimator when `drive.screw = ball` and the estimator's law is written in τ
+    /// (configuration time only; no floating point). Validates this ball screw's settings and
+    /// the result as a law in the screw rate (refusals name the `friction.*` keys). Error
+    /// against the float64 twin: each parameter within 10⁻⁶ relative plus 2 LSB of its format
+    /// (`thread_law_fixed_matches_the_twin`).
+    #[cfg(feature = "ball-screw")]
+    pub fn thread_law_fixed(
+        &self,
+        law: &FrictionLaw,
+        f_axial: Newtons,
+    ) -> Result<FrictionLaw, ConfigError> {
+        self.compile()?;
+        // F in Q8: at least 1 N.
+        if f_axial.bits() < 1 << 8 {
+            return Err(ConfigError::OutOfRange {
+                field: "ballscrew.reference_force",
+                range: ">= 1 N",
+            });
+        }
+        let eq = self.thread_law_bits(law, f_axial);
+        eq.compile(self.r_m, Ratio::ONE)?;
+        Ok(eq)
+    }
+
+    /// [`BallScrewConfig::thread_law_fixed`] before validation (`f_axial` ≥ 1 N, a compiled
+    /// configuration): μ_eq = k·f(τ), τ = t·|θ̇| with k = arm/r_m = num52/(sa·r_m) and
+    /// t = c/F = tau_num/(F_bits·2^76), each parameter one exact rational of the inputs.
+    #[cfg(feature = "ball-screw")]
+    fn thread_law_bits(&self, law: &FrictionLaw, f_axial: Newtons) -> FrictionLaw {
+        let Design {
+            num52,
+            sa,
+            tau_num,
+        } = self.design();
+        let k_den = crate::math::mul128(sa, i128::from(self.r_m.bits()));
+        let f_den = crate::math::shl128(i128::from(f_axial.bits().max(1)), 76);
+        let ratio = |x: i128| Ratio::from_raw(sat_i128_32(mul_ratio(x, num52, k_den)));
+        let q32 = |v: i128| I32F32::from_bits(v.clamp(i64::MIN.into(), i64::MAX.into()) as i64);
+        // slope·k first with 30 guard bits, then ·t.
+        let slope_k = mul_ratio(i128::from(law.slope.to_bits()) << 30, num52, k_den);
+        FrictionLaw {
+            base: ratio(law.base.bits().into()),
+            amp: ratio(law.amp.bits().into()),
+            rate: q32(mul_ratio(law.rate.to_bits().into(), tau_num, f_den)),
+            slope: q32(mul_ratio(slope_k, tau_num, f_den) >> 30),
+            s_max: if law.s_max == I32F32::MAX {
+                I32F32::MAX
+            } else {
+                q32(mul_ratio(law.s_max.to_bits().into(), f_den, tau_num))
+            },
+            variable: LawVariable::ScrewRate,
+        }
     }
 
     /// The ball screw as a thread for the lead-screw model (estimator and plant): the friction
@@ -188,10 +260,19 @@ impl BallScrewConfig {
                 range: ">= 1 N",
             });
         }
+        let law = self.thread_law_float(fa);
+        // Validate the result as a law in its own right.
+        law.compile(self.r_m, Ratio::ONE)?;
+        Ok(law)
+    }
+
+    /// [`BallScrewConfig::equivalent_thread_law`] before validation, at `fa` ≥ 1 N (float64;
+    /// the twin of [`BallScrewConfig::thread_law_fixed`]).
+    fn thread_law_float(&self, fa: f64) -> FrictionLaw {
         let (k, c) = self.float_design();
         let tau_per_rate = c / fa;
         let l = &self.law;
-        let law = FrictionLaw {
+        FrictionLaw {
             base: Ratio::from_f64(l.base.to_f64() * k),
             amp: Ratio::from_f64(l.amp.to_f64() * k),
             rate: I32F32::saturating_from_num(l.rate.to_num::<f64>() * tau_per_rate),
@@ -202,10 +283,7 @@ impl BallScrewConfig {
                 I32F32::saturating_from_num(l.s_max.to_num::<f64>() / tau_per_rate)
             },
             variable: LawVariable::ScrewRate,
-        };
-        // Validate the result as a law in its own right.
-        law.compile(self.r_m, Ratio::ONE)?;
-        Ok(law)
+        }
     }
 
     /// arm/r_m and η₀ r_m M sin α cos β in float64, for [`BallScrewConfig::equivalent_thread_law`]
@@ -221,6 +299,57 @@ impl BallScrewConfig {
         let c = self.viscosity.to_num::<f64>() * rm * f64::from(self.loaded_balls) * sa * cos_b;
         (arm / rm, c)
     }
+}
+
+/// A ball screw's design constants in integers ([`BallScrewConfig::design`]).
+#[cfg(feature = "ball-screw")]
+struct Design {
+    /// 2(r_m + r_b cos α) in Q52: arm = num52/sa (Q24).
+    num52: i128,
+    /// sin α in Q28 (≥ 1 LSB).
+    sa: i128,
+    /// η₀·r_m·M·sin α·cos β in Q84 (N·s).
+    tau_num: i128,
+}
+
+/// `x·num/den` for `num, den > 0` (configuration time): the operands normalised to 62 bits
+/// (relative error ≤ 2^-61 each), the product to 123…124 bits before the one division, so that
+/// the quotient keeps ≥ 61 significant bits; floored; saturated to ±2^100 (every caller
+/// saturates further).
+#[cfg(feature = "ball-screw")]
+fn mul_ratio(x: i128, num: i128, den: i128) -> i128 {
+    if x == 0 || num <= 0 || den <= 0 {
+        return 0;
+    }
+    let bits = |v: i128| 128 - v.unsigned_abs().leading_zeros();
+    let (sx, sn, sd) = (
+        bits(x).saturating_sub(62),
+        bits(num).saturating_sub(62),
+        bits(den).saturating_sub(62),
+    );
+    let p = crate::math::mul128(x >> sx, num >> sn);
+    let sp = 123u32.saturating_sub(bits(p));
+    let q = crate::math::div128(crate::math::shl128(p, sp), den >> sd);
+    // result = q·2^e, e = sx + sn − sp − sd.
+    let e = i64::from(sx) + i64::from(sn) - i64::from(sp) - i64::from(sd);
+    const LIM: i128 = 1 << 100;
+    if e >= 0 {
+        if e > 100 || bits(q) as i64 + e > 100 {
+            if q < 0 { -LIM } else { LIM }
+        } else {
+            q << e
+        }
+    } else if e < -126 {
+        if q < 0 { -1 } else { 0 }
+    } else {
+        q >> (-e)
+    }
+}
+
+/// An `i128` saturated to `i32`.
+#[cfg(feature = "ball-screw")]
+fn sat_i128_32(v: i128) -> i32 {
+    v.clamp(i32::MIN.into(), i32::MAX.into()) as i32
 }
 
 /// 2π in Q60.
@@ -467,5 +596,128 @@ impl FrictionIdentifier {
     /// Samples used so far (saturating).
     pub fn samples(&self) -> u32 {
         self.samples
+    }
+}
+
+#[cfg(all(test, feature = "ball-screw"))]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// |fixed − twin| within 10⁻⁶ of |twin| plus 2 LSB of the format (`lsb`).
+    fn close(what: &str, fixed: f64, twin: f64, lsb: f64) -> Result<(), TestCaseError> {
+        let bound = 1e-6 * twin.abs() + 2.0 * lsb;
+        prop_assert!(
+            (fixed - twin).abs() <= bound,
+            "{what}: fixed {fixed:e} vs twin {twin:e} (bound {bound:e})"
+        );
+        Ok(())
+    }
+
+    /// A log-uniform value in lo..hi.
+    fn log_range(lo: f64, hi: f64) -> impl Strategy<Value = f64> {
+        (lo.ln()..hi.ln()).prop_map(f64::exp)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
+
+        /// The fixed-point equivalent thread law (`thread_law_bits`, what the ball-screw
+        /// firmware gives its estimator for a τ law) against its float64 twin
+        /// (`thread_law_float`, `equivalent_thread_law`) over the ball-screw settings'
+        /// validated ranges, any law within the law's ranges and axial forces 1 N…150 kN
+        /// (100 kN preload plus the 5 t rated load): each parameter within 10⁻⁶ relative plus
+        /// 2 LSB of its format (Q28 for base and amp, Q32 for rate, slope and s_max).
+        #[test]
+        fn thread_law_fixed_matches_the_twin(
+            r_m in 0.002f64..0.1,
+            r_b_frac in 0.0f64..1.0,
+            alpha in 20.0f64..80.0,
+            lead in log_range(0.0005, 0.05),
+            balls in 1u16..=1000,
+            eta in log_range(1e-4, 10.0),
+            fa in log_range(1.0, 150_000.0),
+            base in 0.0f64..1.0,
+            amp in -1.0f64..1.0,
+            rate in prop_oneof![Just(0.0), log_range(1e-3, 1e6)],
+            slope in -1000.0f64..1000.0,
+            s_max in prop_oneof![Just(None), log_range(1e-6, 1e6).prop_map(Some)],
+        ) {
+            let r_m = Metres::from_f64(r_m);
+            // r_b within 0.5…20 mm and below r_m.
+            let hi = (r_m.to_f64() - 1e-6).min(0.02);
+            let r_b = Metres::from_f64(0.0005 + r_b_frac * (hi - 0.0005));
+            let law = FrictionLaw {
+                base: Ratio::from_f64(base),
+                amp: Ratio::from_f64(amp),
+                rate: I32F32::from_num(rate),
+                slope: I32F32::from_num(slope),
+                s_max: s_max.map_or(I32F32::MAX, I32F32::from_num),
+                variable: LawVariable::Lubrication,
+            };
+            let cfg = BallScrewConfig {
+                r_m,
+                r_b,
+                contact_angle_deg: I16F16::from_num(alpha),
+                lead: Metres::from_f64(lead),
+                loaded_balls: balls,
+                preload: Newtons::ZERO,
+                viscosity: I32F32::from_num(eta),
+                law,
+            };
+            prop_assume!(cfg.compile().is_ok());
+            let f = Newtons::from_f64(fa).max(Newtons::from_int(1));
+            let fixed = cfg.thread_law_bits(&law, f);
+            let twin = cfg.thread_law_float(f.to_f64());
+            let (q28, q32) = (2f64.powi(-28), 2f64.powi(-32));
+            close("base", fixed.base.to_f64(), twin.base.to_f64(), q28)?;
+            close("amp", fixed.amp.to_f64(), twin.amp.to_f64(), q28)?;
+            close("rate", fixed.rate.to_num(), twin.rate.to_num(), q32)?;
+            close("slope", fixed.slope.to_num(), twin.slope.to_num(), q32)?;
+            if twin.s_max == I32F32::MAX {
+                prop_assert_eq!(fixed.s_max, I32F32::MAX);
+            } else {
+                close("s_max", fixed.s_max.to_num(), twin.s_max.to_num(), q32)?;
+            }
+            prop_assert_eq!(fixed.variable, LawVariable::ScrewRate);
+            // Validation agrees wherever no parameter is within the bound of a range's end.
+            let ok = |l: &FrictionLaw| l.compile(cfg.r_m, Ratio::ONE).is_ok();
+            let near = |v: f64, end: f64| (v - end).abs() <= 1e-6 * end.abs() + 1e-8;
+            let edge = [
+                near(twin.base.to_f64(), 0.0), near(twin.base.to_f64(), 1.0),
+                near(twin.amp.to_f64(), 1.0), near(twin.amp.to_f64(), -1.0),
+                near(twin.rate.to_num(), 1e6), near(twin.slope.to_num(), 1000.0),
+                near(twin.slope.to_num(), -1000.0), near(twin.s_max.to_num(), 1e6),
+                near(twin.s_max.to_num(), 0.0),
+            ];
+            if !edge.iter().any(|&e| e) {
+                prop_assert_eq!(ok(&fixed), ok(&twin));
+            }
+        }
+    }
+
+    /// The fixed-point conversion refuses a reference force below 1 N and validates its result.
+    #[test]
+    fn thread_law_fixed_refuses_what_the_twin_refuses() {
+        let c = BallScrewConfig::SEED_001_4008;
+        let e = c
+            .thread_law_fixed(&c.law, Newtons::from_f64(0.5))
+            .unwrap_err();
+        assert_eq!(e, c.equivalent_thread_law(Newtons::from_f64(0.5)).unwrap_err());
+        // 10 Pa·s at 1 N: τ ≈ 11·|θ̇| s/rad, so a rate of 10⁶ per unit of τ is ≈ 10⁷ s/rad.
+        let mut steep = c;
+        steep.viscosity = I32F32::lit("10");
+        steep.law.rate = I32F32::lit("1000000");
+        let f = Newtons::from_int(1);
+        assert_eq!(
+            steep.thread_law_fixed(&steep.law, f).unwrap_err(),
+            steep.equivalent_thread_law(f).unwrap_err()
+        );
+        // The 4008 at the rated load: both taken.
+        let f = Newtons::from_int(9807);
+        let fixed = c.thread_law_fixed(&c.law, f).unwrap();
+        let twin = c.equivalent_thread_law(f).unwrap();
+        let (a, b) = (fixed.slope.to_num::<f64>(), twin.slope.to_num::<f64>());
+        assert!((a - b).abs() <= 1e-6 * b.abs() + 2f64.powi(-31), "{a:e} vs {b:e}");
     }
 }

@@ -138,33 +138,6 @@ impl BallScrewConfig {
 
         // Design in integers (no floating point linked into the firmware): lengths in Q24,
         // cos α and sin α in Q28, rationals in i128, quantised once by `Scale::from_ratio`.
-        let Design {
-            num52,
-            sa,
-            tau_num,
-        } = self.design();
-        let lead = i128::from(self.lead.bits());
-        // f·F (N, Q8) → N·m (Q16): ×arm·2^8 = num52/(sa·2^16).
-        let arm_scale = Scale::from_ratio(num52, sa << 16);
-        // Lever l/(2π): F (Q8) → N·m (Q16) is ×lever·2^8 = lead/(2^16·2π).
-        let lever_scale = Scale::from_ratio(lead << 60, TWO_PI_Q60 << 16);
-        // Through the one out-of-line `div128` (an inline `/` on i128 is a 0.6 KiB loop here).
-        let lever_q24 = crate::math::div128(lead << 60, TWO_PI_Q60);
-        let tau_scale = Scale::from_ratio(tau_num, 1i128 << 64);
-        Ok(BallScrew {
-            preload: self.preload,
-            law,
-            arm_scale,
-            lever_scale,
-            tau_scale,
-            arm: Metres::from_raw(crate::units::sat32((num52 / sa) as i64)),
-            lever: Metres::from_raw(crate::units::sat32(lever_q24 as i64)),
-        })
-    }
-
-    /// The design's integer constants (configuration time): Eq 1's arm and τ's numerator.
-    #[cfg(feature = "ball-screw")]
-    fn design(&self) -> Design {
         let (cos_a, sin_a) = Angle::from_degrees(self.contact_angle_deg).cos_sin();
         let (rm, rb) = (i128::from(self.r_m.bits()), i128::from(self.r_b.bits()));
         let lead = i128::from(self.lead.bits());
@@ -172,6 +145,12 @@ impl BallScrewConfig {
         // Eq 1 (with Eq 2's factor 2): M_f = f·F·arm, arm = 2(r_m + r_b cos α)/sin α; arm in
         // Q52/Q28 = num52/sa in Q24.
         let num52 = 2 * ((rm << 28) + rb * ca);
+        // f·F (N, Q8) → N·m (Q16): ×arm·2^8 = num52/(sa·2^16).
+        let arm_scale = Scale::from_ratio(num52, sa << 16);
+        // Lever l/(2π): F (Q8) → N·m (Q16) is ×lever·2^8 = lead/(2^16·2π).
+        let lever_scale = Scale::from_ratio(lead << 60, TWO_PI_Q60 << 16);
+        // Through the one out-of-line `div128` (an inline `/` on i128 is a 0.6 KiB loop here).
+        let lever_q24 = crate::math::div128(lead << 60, TWO_PI_Q60);
         // Helix angle β: cos β = 2π r_m / √((2π r_m)² + l²), lengths in Q32 (≤ 0.63 m).
         let circ = (rm * TWO_PI_Q60) >> 52;
         let l32 = lead << 8;
@@ -183,11 +162,16 @@ impl BallScrewConfig {
         let eta = i128::from(self.viscosity.to_bits());
         let mul = crate::math::mul128;
         let tau_num = mul(mul(eta * rm, i128::from(self.loaded_balls)), sa_cb);
-        Design {
-            num52,
-            sa,
-            tau_num,
-        }
+        let tau_scale = Scale::from_ratio(tau_num, 1i128 << 64);
+        Ok(BallScrew {
+            preload: self.preload,
+            law,
+            arm_scale,
+            lever_scale,
+            tau_scale,
+            arm: Metres::from_raw(crate::units::sat32((num52 / sa) as i64)),
+            lever: Metres::from_raw(crate::units::sat32(lever_q24 as i64)),
+        })
     }
 
     /// [`BallScrewConfig::equivalent_thread_law`] in fixed point, for `law` (a law in τ, the
@@ -203,7 +187,7 @@ impl BallScrewConfig {
         law: &FrictionLaw,
         f_axial: Newtons,
     ) -> Result<FrictionLaw, ConfigError> {
-        self.compile()?;
+        let bs = self.compile()?;
         // F in Q8: at least 1 N.
         if f_axial.bits() < 1 << 8 {
             return Err(ConfigError::OutOfRange {
@@ -211,39 +195,9 @@ impl BallScrewConfig {
                 range: ">= 1 N",
             });
         }
-        let eq = self.thread_law_bits(law, f_axial);
+        let eq = bs.thread_law(self.r_m, law, f_axial);
         eq.compile(self.r_m, Ratio::ONE)?;
         Ok(eq)
-    }
-
-    /// [`BallScrewConfig::thread_law_fixed`] before validation (`f_axial` ≥ 1 N, a compiled
-    /// configuration): μ_eq = k·f(τ), τ = t·|θ̇| with k = arm/r_m = num52/(sa·r_m) and
-    /// t = c/F = tau_num/(F_bits·2^76), each parameter one exact rational of the inputs.
-    #[cfg(feature = "ball-screw")]
-    fn thread_law_bits(&self, law: &FrictionLaw, f_axial: Newtons) -> FrictionLaw {
-        let Design {
-            num52,
-            sa,
-            tau_num,
-        } = self.design();
-        let k_den = crate::math::mul128(sa, i128::from(self.r_m.bits()));
-        let f_den = crate::math::shl128(i128::from(f_axial.bits().max(1)), 76);
-        let ratio = |x: i128| Ratio::from_raw(sat_i128_32(mul_ratio(x, num52, k_den)));
-        let q32 = |v: i128| I32F32::from_bits(v.clamp(i64::MIN.into(), i64::MAX.into()) as i64);
-        // slope·k first with 30 guard bits, then ·t.
-        let slope_k = mul_ratio(i128::from(law.slope.to_bits()) << 30, num52, k_den);
-        FrictionLaw {
-            base: ratio(law.base.bits().into()),
-            amp: ratio(law.amp.bits().into()),
-            rate: q32(mul_ratio(law.rate.to_bits().into(), tau_num, f_den)),
-            slope: q32(mul_ratio(slope_k, tau_num, f_den) >> 30),
-            s_max: if law.s_max == I32F32::MAX {
-                I32F32::MAX
-            } else {
-                q32(mul_ratio(law.s_max.to_bits().into(), f_den, tau_num))
-            },
-            variable: LawVariable::ScrewRate,
-        }
     }
 
     /// The ball screw as a thread for the lead-screw model (estimator and plant): the friction
@@ -301,55 +255,32 @@ impl BallScrewConfig {
     }
 }
 
-/// A ball screw's design constants in integers ([`BallScrewConfig::design`]).
+/// A scale's constant in a format of `frac` fractional bits (≤ 32), floored, saturated to
+/// `i32` (the Q28 ratios: μ ≤ 8).
 #[cfg(feature = "ball-screw")]
-struct Design {
-    /// 2(r_m + r_b cos α) in Q52: arm = num52/sa (Q24).
-    num52: i128,
-    /// sin α in Q28 (≥ 1 LSB).
-    sa: i128,
-    /// η₀·r_m·M·sin α·cos β in Q84 (N·s).
-    tau_num: i128,
-}
-
-/// `x·num/den` for `num, den > 0` (configuration time): the operands normalised to 62 bits
-/// (relative error ≤ 2^-61 each), the product to 123…124 bits before the one division, so that
-/// the quotient keeps ≥ 61 significant bits; floored; saturated to ±2^100 (every caller
-/// saturates further).
-#[cfg(feature = "ball-screw")]
-fn mul_ratio(x: i128, num: i128, den: i128) -> i128 {
-    if x == 0 || num <= 0 || den <= 0 {
-        return 0;
-    }
-    let bits = |v: i128| 128 - v.unsigned_abs().leading_zeros();
-    let (sx, sn, sd) = (
-        bits(x).saturating_sub(62),
-        bits(num).saturating_sub(62),
-        bits(den).saturating_sub(62),
-    );
-    let p = crate::math::mul128(x >> sx, num >> sn);
-    let sp = 123u32.saturating_sub(bits(p));
-    let q = crate::math::div128(crate::math::shl128(p, sp), den >> sd);
-    // result = q·2^e, e = sx + sn − sp − sd.
-    let e = i64::from(sx) + i64::from(sn) - i64::from(sp) - i64::from(sd);
-    const LIM: i128 = 1 << 100;
-    if e >= 0 {
-        if e > 100 || bits(q) as i64 + e > 100 {
-            if q < 0 { -LIM } else { LIM }
-        } else {
-            q << e
-        }
-    } else if e < -126 {
-        if q < 0 { -1 } else { 0 }
+fn scale_bits(s: Scale, frac: u32) -> i32 {
+    let (m, sh) = s.parts();
+    let v = if sh <= frac {
+        i64::from(m) << (frac - sh)
     } else {
-        q >> (-e)
-    }
+        i64::from(m) >> (sh - frac)
+    };
+    crate::units::sat32(v)
 }
 
-/// An `i128` saturated to `i32`.
+/// A scale's constant as `I32F32`, floored; a saturated scale (±2^31) is `I32F32::MAX`/`MIN`,
+/// as the float64 twin's `saturating_from_num`.
 #[cfg(feature = "ball-screw")]
-fn sat_i128_32(v: i128) -> i32 {
-    v.clamp(i32::MIN.into(), i32::MAX.into()) as i32
+fn scale_q32(s: Scale) -> I32F32 {
+    let (m, sh) = s.parts();
+    if sh == 0 && m.unsigned_abs() == i32::MAX as u32 {
+        return if m < 0 { I32F32::MIN } else { I32F32::MAX };
+    }
+    I32F32::from_bits(if sh <= 32 {
+        i64::from(m) << (32 - sh)
+    } else {
+        i64::from(m) >> (sh - 32)
+    })
 }
 
 /// 2π in Q60.
@@ -390,6 +321,42 @@ impl BallScrew {
     /// The preload F_p it was compiled with.
     pub fn preload(&self) -> Newtons {
         self.preload
+    }
+
+    /// The equivalent thread law of `law` (a law in τ) at axial force `f_axial` (≥ 1 N) for a
+    /// thread of pitch radius `r_m` (this screw's), before validation
+    /// ([`BallScrewConfig::thread_law_fixed`]): μ_eq = k·f(τ), τ = t·|θ̇|, with k = arm/r_m and
+    /// t = η₀ r_m M sin α cos β/F from the compiled scales (31 significant bits each), every
+    /// parameter a product of scales ([`Scale::times`]), floored into its format.
+    pub fn thread_law(&self, r_m: Metres, law: &FrictionLaw, f_axial: Newtons) -> FrictionLaw {
+        // arm_scale = arm·2^8 and r_m = r_bits/2^24: k = arm_scale·2^16/r_bits.
+        let k = self.arm_scale.times(1 << 16, r_m.bits().max(1).into());
+        // tau_scale = c·2^20 and F = F_bits/2^8: t·2^16 = tau_scale·2^4/F_bits, within
+        // 7·10⁻⁹…7·10⁷ over the validated ranges (c ≤ 10³ N·s, 1 N ≤ F ≤ 150 kN): all 31 bits.
+        let t16 = self.tau_scale.times(1 << 4, f_axial.bits().max(1).into());
+        let (t_mant, t_shift) = t16.parts();
+        let (k_mant, k_shift) = k.parts();
+        let ratio = |v: Ratio| Ratio::from_raw(scale_bits(k.times(v.bits().into(), 1 << 28), 28));
+        FrictionLaw {
+            base: ratio(law.base),
+            amp: ratio(law.amp),
+            // rate·t = rate_bits·t16/2^48.
+            rate: scale_q32(t16.times(law.rate.to_bits().into(), 1 << 48)),
+            slope: scale_q32(
+                t16.times(law.slope.to_bits().into(), 1 << 48)
+                    .times(k_mant.into(), crate::math::shl128(1, k_shift)),
+            ),
+            s_max: if law.s_max == I32F32::MAX {
+                I32F32::MAX
+            } else {
+                // s_max/t = s_max_bits/(t16·2^16).
+                scale_q32(Scale::from_ratio(
+                    crate::math::shl128(law.s_max.to_bits().into(), t_shift),
+                    i128::from(t_mant) << 16,
+                ))
+            },
+            variable: LawVariable::ScrewRate,
+        }
     }
 
     /// Moment arm of Eq 1, 2(r_m + r_b cos α)/sin α.
@@ -622,7 +589,7 @@ mod tests {
     proptest! {
         #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
 
-        /// The fixed-point equivalent thread law (`thread_law_bits`, what the ball-screw
+        /// The fixed-point equivalent thread law (`BallScrew::thread_law`, what the ball-screw
         /// firmware gives its estimator for a τ law) against its float64 twin
         /// (`thread_law_float`, `equivalent_thread_law`) over the ball-screw settings'
         /// validated ranges, any law within the law's ranges and axial forces 1 N…150 kN
@@ -667,7 +634,7 @@ mod tests {
             };
             prop_assume!(cfg.compile().is_ok());
             let f = Newtons::from_f64(fa).max(Newtons::from_int(1));
-            let fixed = cfg.thread_law_bits(&law, f);
+            let fixed = cfg.compile().unwrap().thread_law(cfg.r_m, &law, f);
             let twin = cfg.thread_law_float(f.to_f64());
             let (q28, q32) = (2f64.powi(-28), 2f64.powi(-32));
             close("base", fixed.base.to_f64(), twin.base.to_f64(), q28)?;

@@ -719,10 +719,18 @@ mod tests {
                 + twin.amp.to_f64() * (-twin.rate.to_num::<f64>() * w).exp()
                 + twin.slope.to_num::<f64>() * w
         };
-        let bound = |w: f64| {
-            1e-6 * want(w) + twin.amp.to_f64() * 2f64.powi(-15) + 3.0 * 2f64.powi(-28)
-        };
-        for w in [c.motion.cruise_speed.to_f64(), 0.01, 0.1, 0.5, 1.0, 3.0, 20.0, 200.0] {
+        let bound =
+            |w: f64| 1e-6 * want(w) + twin.amp.to_f64() * 2f64.powi(-15) + 3.0 * 2f64.powi(-28);
+        for w in [
+            c.motion.cruise_speed.to_f64(),
+            0.01,
+            0.1,
+            0.5,
+            1.0,
+            3.0,
+            20.0,
+            200.0,
+        ] {
             let got = est.mu(RadiansPerSecond::from_f64(w)).to_f64();
             let want = want(RadiansPerSecond::from_f64(w).to_f64());
             assert!(
@@ -734,7 +742,10 @@ mod tests {
         // The controller's law is the one `ball_screw_4008` gives its estimator (the same
         // reference force up to g's rounding).
         let factory = ControlConfig::ball_screw_4008().unwrap().estimator.law;
-        let (a, b) = (est.law().slope.to_num::<f64>(), factory.slope.to_num::<f64>());
+        let (a, b) = (
+            est.law().slope.to_num::<f64>(),
+            factory.slope.to_num::<f64>(),
+        );
         assert!((a / b - 1.0).abs() < 1e-4, "{a:e} vs {b:e}");
     }
 

@@ -663,6 +663,30 @@ mod tests {
         }
     }
 
+    /// The `ball` preset's equivalent stays within the `friction.*` ranges at the corners of
+    /// the validated settings that make it steepest (the largest η₀, r_m, M, r_b, cos β, no
+    /// preload, the smallest rated load, 10 kg; α = 80° the largest t ∝ sin α, α = 20° the
+    /// largest k·t ∝ r_m + r_b cos α), as docs/console.md says.
+    #[test]
+    fn ball_preset_equivalent_is_always_valid() {
+        let f = crate::model::geometry::Geometry::weight(crate::units::Kilograms::lit("10"));
+        for alpha in [I16F16::lit("20"), I16F16::lit("80")] {
+            let c = BallScrewConfig {
+                r_m: Metres::lit("0.1"),
+                r_b: Metres::lit("0.02"),
+                contact_angle_deg: alpha,
+                lead: Metres::lit("0.0005"),
+                loaded_balls: 1000,
+                preload: Newtons::ZERO,
+                viscosity: I32F32::lit("10"),
+                law: FrictionLaw::BALL_SCREW,
+            };
+            let eq = c.thread_law_fixed(&c.law, f).unwrap();
+            assert!(eq.rate < I32F32::lit("90000"), "{eq:?}");
+            assert!(eq.slope < I32F32::lit("25"), "{eq:?}");
+        }
+    }
+
     /// The fixed-point conversion refuses a reference force below 1 N and validates its result.
     #[test]
     fn thread_law_fixed_refuses_what_the_twin_refuses() {
@@ -670,7 +694,10 @@ mod tests {
         let e = c
             .thread_law_fixed(&c.law, Newtons::from_f64(0.5))
             .unwrap_err();
-        assert_eq!(e, c.equivalent_thread_law(Newtons::from_f64(0.5)).unwrap_err());
+        assert_eq!(
+            e,
+            c.equivalent_thread_law(Newtons::from_f64(0.5)).unwrap_err()
+        );
         // 10 Pa·s at 1 N: τ ≈ 11·|θ̇| s/rad, so a rate of 10⁶ per unit of τ is ≈ 10⁷ s/rad.
         let mut steep = c;
         steep.viscosity = I32F32::lit("10");
@@ -685,6 +712,9 @@ mod tests {
         let fixed = c.thread_law_fixed(&c.law, f).unwrap();
         let twin = c.equivalent_thread_law(f).unwrap();
         let (a, b) = (fixed.slope.to_num::<f64>(), twin.slope.to_num::<f64>());
-        assert!((a - b).abs() <= 1e-6 * b.abs() + 2f64.powi(-31), "{a:e} vs {b:e}");
+        assert!(
+            (a - b).abs() <= 1e-6 * b.abs() + 2f64.powi(-31),
+            "{a:e} vs {b:e}"
+        );
     }
 }

@@ -335,7 +335,10 @@ impl ControlConfig {
         use crate::model::friction::LawVariable;
         let mut e = self.estimator;
         if self.screw == ScrewKind::Ball && e.law.variable == LawVariable::Lubrication {
-            let f = (self.ball_screw.preload).sat_add(Geometry::weight(self.rated_load));
+            let f = self
+                .ball_screw
+                .preload
+                .sat_add(Geometry::weight(self.rated_load));
             e.law = self.ball_screw.thread_law_fixed(&e.law, f)?;
         }
         Ok(e)
@@ -694,7 +697,8 @@ mod tests {
     /// load's axial force: the estimator's μ equals the float64 equivalent law's
     /// (`BallScrewConfig::equivalent_thread_law`) within the conversion's 10⁻⁶ relative plus
     /// the law's own evaluation error (e^(−y)'s argument in Q16: |amp|·2^-15; μ in Q28). Before,
-    /// the estimator read |θ̇| as τ = |θ̇|/4096: μ at the 4008's cruise was 5.1× low (0.00304 for 0.01552).
+    /// the estimator read |θ̇| as τ = |θ̇|/4096: μ at the 4008's cruise was 5.1× low (0.00304
+    /// for 0.01552).
     #[cfg(feature = "ball-screw")]
     #[test]
     fn tau_law_on_a_ball_screw_runs_as_the_equivalent_thread_law() {
@@ -747,6 +751,29 @@ mod tests {
             factory.slope.to_num::<f64>(),
         );
         assert!((a / b - 1.0).abs() < 1e-4, "{a:e} vs {b:e}");
+    }
+
+    /// `reconfigure` rebuilds the estimator's law when only the ball screw's reference force
+    /// changes (the rated load): the estimator's own settings are the same, its law is not.
+    #[cfg(feature = "ball-screw")]
+    #[test]
+    fn reconfigure_follows_the_equivalent_thread_law() {
+        use crate::control::Controller;
+        use crate::model::friction::FrictionLaw;
+        let mut c = ControlConfig::ball_screw_4008().unwrap();
+        c.estimator.law = FrictionLaw::BALL_SCREW;
+        let mut ctrl = Controller::new(&c, 0).unwrap();
+        let before = *ctrl.estimator().law().law();
+        let mut lighter = c;
+        lighter.rated_load = Kilograms::lit("500");
+        ctrl.reconfigure(&lighter).unwrap();
+        let want = *Controller::new(&lighter, 0)
+            .unwrap()
+            .estimator()
+            .law()
+            .law();
+        assert_ne!(want, before);
+        assert_eq!(*ctrl.estimator().law().law(), want);
     }
 
     #[test]

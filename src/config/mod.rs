@@ -55,6 +55,10 @@ impl ValidatedConfig {
     /// mechanics, friction law, motor, tick), then motion, protections, sensing and the limit
     /// stops against the geometry.
     pub fn new(cfg: ControlConfig) -> Result<ValidatedConfig, ConfigError> {
+        // The estimator as the controller builds it (`ControlConfig::model_estimator`).
+        #[cfg(feature = "ball-screw")]
+        let estimator = Estimator::new(&cfg.model_estimator()?)?;
+        #[cfg(not(feature = "ball-screw"))]
         let estimator = Estimator::new(&cfg.estimator)?;
         cfg.validate(estimator.geometry())?;
         Ok(ValidatedConfig(cfg))

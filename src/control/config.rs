@@ -323,6 +323,27 @@ impl ControlConfig {
         Ok(c)
     }
 
+    /// The estimator's configuration as the model runs it. On a ball screw
+    /// (`drive.screw = ball`) a law written in τ (the `ball` preset) is given to the estimator
+    /// as the equivalent thread law in the screw rate ([`BallScrewConfig::thread_law_fixed`],
+    /// fixed point) at the rated load's axial force at α = 45° (F_p + M·g, as
+    /// [`ControlConfig::ball_screw_4008`]): the estimator feeds its law |θ̇|, which a τ law
+    /// would read as τ = |θ̇|/4096. Every other configuration is the estimator's as given. The
+    /// configuration itself (console, store) keeps the law as the user gave it.
+    #[cfg(feature = "ball-screw")]
+    pub fn model_estimator(&self) -> Result<EstimatorConfig, ConfigError> {
+        use crate::model::friction::LawVariable;
+        let mut e = self.estimator;
+        if self.screw == ScrewKind::Ball && e.law.variable == LawVariable::Lubrication {
+            let f = self
+                .ball_screw
+                .preload
+                .sat_add(Geometry::weight(self.rated_load));
+            e.law = self.ball_screw.thread_law_fixed(&e.law, f)?;
+        }
+        Ok(e)
+    }
+
     /// Check every range that does not need the compiled geometry, then the limit stops
     /// against it. The estimator's own settings are checked by [`crate::estimator::Estimator::new`].
     pub fn validate(&self, geometry: &Geometry) -> Result<(), ConfigError> {
@@ -671,17 +692,88 @@ mod tests {
         }
     }
 
-    /// With `drive.screw = ball` the ball-screw build takes a law in τ for the estimator (which
-    /// feeds it |θ̇|, read as τ = |θ̇|/4096; docs/console.md advises the equivalent thread law
-    /// in `rate` instead): validation does not refuse it.
+    /// With `drive.screw = ball` the ball-screw build takes a law in τ (the `ball` preset) and
+    /// gives it to the estimator as the equivalent thread law in the screw rate at the rated
+    /// load's axial force: the estimator's μ equals the float64 equivalent law's
+    /// (`BallScrewConfig::equivalent_thread_law`) within the conversion's 10⁻⁶ relative plus
+    /// the law's own evaluation error (e^(−y)'s argument in Q16: |amp|·2^-15; μ in Q28). Before,
+    /// the estimator read |θ̇| as τ = |θ̇|/4096: μ at the 4008's cruise was 5.1× low (0.00304
+    /// for 0.01552).
     #[cfg(feature = "ball-screw")]
     #[test]
-    fn tau_law_on_a_ball_screw_is_taken() {
-        use crate::model::friction::FrictionLaw;
+    fn tau_law_on_a_ball_screw_runs_as_the_equivalent_thread_law() {
+        use crate::model::friction::{FrictionLaw, LawVariable};
         let mut c = ControlConfig::ball_screw_4008().unwrap();
         c.estimator.law = FrictionLaw::BALL_SCREW;
         crate::config::ValidatedConfig::new(c).unwrap();
-        assert!(crate::control::Controller::new(&c, 0).is_ok());
+        let ctrl = crate::control::Controller::new(&c, 0).unwrap();
+        // The configuration keeps the law as given; the estimator runs it in the screw rate.
+        assert_eq!(ctrl.config().estimator.law, FrictionLaw::BALL_SCREW);
+        let est = ctrl.estimator().law();
+        // The float64 equivalent law at the same force, evaluated in float64.
+        let bs = BallScrewConfig {
+            law: FrictionLaw::BALL_SCREW,
+            ..c.ball_screw
+        };
+        let f = c.ball_screw.preload.sat_add(Geometry::weight(c.rated_load));
+        let twin = bs.equivalent_thread_law(f).unwrap();
+        assert_eq!(twin.s_max, fixed::types::I32F32::MAX);
+        let want = |w: f64| {
+            twin.base.to_f64()
+                + twin.amp.to_f64() * (-twin.rate.to_num::<f64>() * w).exp()
+                + twin.slope.to_num::<f64>() * w
+        };
+        let bound =
+            |w: f64| 1e-6 * want(w) + twin.amp.to_f64() * 2f64.powi(-15) + 3.0 * 2f64.powi(-28);
+        for w in [
+            c.motion.cruise_speed.to_f64(),
+            0.01,
+            0.1,
+            0.5,
+            1.0,
+            3.0,
+            20.0,
+            200.0,
+        ] {
+            let got = est.mu(RadiansPerSecond::from_f64(w)).to_f64();
+            let want = want(RadiansPerSecond::from_f64(w).to_f64());
+            assert!(
+                (got - want).abs() <= bound(w),
+                "{w} rad/s: estimator μ {got:e}, equivalent law {want:e}"
+            );
+        }
+        assert_eq!(est.law().variable, LawVariable::ScrewRate);
+        // The controller's law is the one `ball_screw_4008` gives its estimator (the same
+        // reference force up to g's rounding).
+        let factory = ControlConfig::ball_screw_4008().unwrap().estimator.law;
+        let (a, b) = (
+            est.law().slope.to_num::<f64>(),
+            factory.slope.to_num::<f64>(),
+        );
+        assert!((a / b - 1.0).abs() < 1e-4, "{a:e} vs {b:e}");
+    }
+
+    /// `reconfigure` rebuilds the estimator's law when only the ball screw's reference force
+    /// changes (the rated load): the estimator's own settings are the same, its law is not.
+    #[cfg(feature = "ball-screw")]
+    #[test]
+    fn reconfigure_follows_the_equivalent_thread_law() {
+        use crate::control::Controller;
+        use crate::model::friction::FrictionLaw;
+        let mut c = ControlConfig::ball_screw_4008().unwrap();
+        c.estimator.law = FrictionLaw::BALL_SCREW;
+        let mut ctrl = Controller::new(&c, 0).unwrap();
+        let before = *ctrl.estimator().law().law();
+        let mut lighter = c;
+        lighter.rated_load = Kilograms::lit("500");
+        ctrl.reconfigure(&lighter).unwrap();
+        let want = *Controller::new(&lighter, 0)
+            .unwrap()
+            .estimator()
+            .law()
+            .law();
+        assert_ne!(want, before);
+        assert_eq!(*ctrl.estimator().law().law(), want);
     }
 
     #[test]

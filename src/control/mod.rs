@@ -451,6 +451,11 @@ impl Controller {
     /// Validate `cfg` and start at rest with the encoder at `position` counts (the position
     /// survives power loss with the configuration: the lead screw is self-locking).
     pub fn new(cfg: &ControlConfig, position: i32) -> Result<Controller, ConfigError> {
+        // The ball-screw build gives a law in τ on a ball screw to the estimator in the screw
+        // rate (`ControlConfig::model_estimator`).
+        #[cfg(feature = "ball-screw")]
+        let est = Estimator::new(&cfg.model_estimator()?)?;
+        #[cfg(not(feature = "ball-screw"))]
         let est = Estimator::new(&cfg.estimator)?;
         #[cfg(feature = "ball-screw")]
         let ball_screw = cfg.ball_screw.compile()?;
@@ -712,7 +717,11 @@ impl Controller {
         let Ok(next) = &mut made else {
             return Err(Refusal::BadConfig);
         };
-        if cfg.estimator == self.cfg.estimator {
+        let same_model = cfg.estimator == self.cfg.estimator;
+        // A τ law on a ball screw also depends on the ball screw and the rated load.
+        #[cfg(feature = "ball-screw")]
+        let same_model = same_model && next.est.law() == self.est.law();
+        if same_model {
             // Same model and filter: keep the speed estimate running. Swapped rather than
             // cloned (`self` is replaced by `next` below and reads no `est` before that; the
             // field-by-field clone was 0.3 KiB of flash).

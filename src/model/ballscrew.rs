@@ -174,6 +174,32 @@ impl BallScrewConfig {
         })
     }
 
+    /// [`BallScrewConfig::equivalent_thread_law`] in fixed point, for `law` (a law in τ, the
+    /// estimator's) on this ball screw at axial force `f_axial`: what the ball-screw firmware
+    /// gives its estimator when `drive.screw = ball` and the estimator's law is written in τ
+    /// (configuration time only; no floating point). Validates this ball screw's settings and
+    /// the result as a law in the screw rate (refusals name the `friction.*` keys). Error
+    /// against the float64 twin: each parameter within 10⁻⁶ relative plus 2 LSB of its format
+    /// (`thread_law_fixed_matches_the_twin`).
+    #[cfg(feature = "ball-screw")]
+    pub fn thread_law_fixed(
+        &self,
+        law: &FrictionLaw,
+        f_axial: Newtons,
+    ) -> Result<FrictionLaw, ConfigError> {
+        let bs = self.compile()?;
+        // F in Q8: at least 1 N.
+        if f_axial.bits() < 1 << 8 {
+            return Err(ConfigError::OutOfRange {
+                field: "ballscrew.reference_force",
+                range: ">= 1 N",
+            });
+        }
+        let eq = bs.thread_law(self.r_m, law, f_axial);
+        eq.compile(self.r_m, Ratio::ONE)?;
+        Ok(eq)
+    }
+
     /// The ball screw as a thread for the lead-screw model (estimator and plant): the friction
     /// law in the screw rate whose thread friction torque μ·W·r_m equals Eq 1's `f·F·arm` at
     /// axial force `f_axial`: `μ_eq(θ̇) = (arm/r_m)·f(τ)` with `τ = η₀ r_m M sin α cos β·|θ̇|/F`.
@@ -188,10 +214,19 @@ impl BallScrewConfig {
                 range: ">= 1 N",
             });
         }
+        let law = self.thread_law_float(fa);
+        // Validate the result as a law in its own right.
+        law.compile(self.r_m, Ratio::ONE)?;
+        Ok(law)
+    }
+
+    /// [`BallScrewConfig::equivalent_thread_law`] before validation, at `fa` ≥ 1 N (float64;
+    /// the twin of [`BallScrewConfig::thread_law_fixed`]).
+    fn thread_law_float(&self, fa: f64) -> FrictionLaw {
         let (k, c) = self.float_design();
         let tau_per_rate = c / fa;
         let l = &self.law;
-        let law = FrictionLaw {
+        FrictionLaw {
             base: Ratio::from_f64(l.base.to_f64() * k),
             amp: Ratio::from_f64(l.amp.to_f64() * k),
             rate: I32F32::saturating_from_num(l.rate.to_num::<f64>() * tau_per_rate),
@@ -202,10 +237,7 @@ impl BallScrewConfig {
                 I32F32::saturating_from_num(l.s_max.to_num::<f64>() / tau_per_rate)
             },
             variable: LawVariable::ScrewRate,
-        };
-        // Validate the result as a law in its own right.
-        law.compile(self.r_m, Ratio::ONE)?;
-        Ok(law)
+        }
     }
 
     /// arm/r_m and η₀ r_m M sin α cos β in float64, for [`BallScrewConfig::equivalent_thread_law`]
@@ -221,6 +253,34 @@ impl BallScrewConfig {
         let c = self.viscosity.to_num::<f64>() * rm * f64::from(self.loaded_balls) * sa * cos_b;
         (arm / rm, c)
     }
+}
+
+/// A scale's constant in a format of `frac` fractional bits (≤ 32), floored, saturated to
+/// `i32` (the Q28 ratios: μ ≤ 8).
+#[cfg(feature = "ball-screw")]
+fn scale_bits(s: Scale, frac: u32) -> i32 {
+    let (m, sh) = s.parts();
+    let v = if sh <= frac {
+        i64::from(m) << (frac - sh)
+    } else {
+        i64::from(m) >> (sh - frac)
+    };
+    crate::units::sat32(v)
+}
+
+/// A scale's constant as `I32F32`, floored; a saturated scale (±2^31) is `I32F32::MAX`/`MIN`,
+/// as the float64 twin's `saturating_from_num`.
+#[cfg(feature = "ball-screw")]
+fn scale_q32(s: Scale) -> I32F32 {
+    let (m, sh) = s.parts();
+    if sh == 0 && m.unsigned_abs() == i32::MAX as u32 {
+        return if m < 0 { I32F32::MIN } else { I32F32::MAX };
+    }
+    I32F32::from_bits(if sh <= 32 {
+        i64::from(m) << (32 - sh)
+    } else {
+        i64::from(m) >> (sh - 32)
+    })
 }
 
 /// 2π in Q60.
@@ -261,6 +321,42 @@ impl BallScrew {
     /// The preload F_p it was compiled with.
     pub fn preload(&self) -> Newtons {
         self.preload
+    }
+
+    /// The equivalent thread law of `law` (a law in τ) at axial force `f_axial` (≥ 1 N) for a
+    /// thread of pitch radius `r_m` (this screw's), before validation
+    /// ([`BallScrewConfig::thread_law_fixed`]): μ_eq = k·f(τ), τ = t·|θ̇|, with k = arm/r_m and
+    /// t = η₀ r_m M sin α cos β/F from the compiled scales (31 significant bits each), every
+    /// parameter a product of scales ([`Scale::times`]), floored into its format.
+    pub fn thread_law(&self, r_m: Metres, law: &FrictionLaw, f_axial: Newtons) -> FrictionLaw {
+        // arm_scale = arm·2^8 and r_m = r_bits/2^24: k = arm_scale·2^16/r_bits.
+        let k = self.arm_scale.times(1 << 16, r_m.bits().max(1).into());
+        // tau_scale = c·2^20 and F = F_bits/2^8: t·2^16 = tau_scale·2^4/F_bits, within
+        // 7·10⁻⁹…7·10⁷ over the validated ranges (c ≤ 10³ N·s, 1 N ≤ F ≤ 150 kN): all 31 bits.
+        let t16 = self.tau_scale.times(1 << 4, f_axial.bits().max(1).into());
+        let (t_mant, t_shift) = t16.parts();
+        let (k_mant, k_shift) = k.parts();
+        let ratio = |v: Ratio| Ratio::from_raw(scale_bits(k.times(v.bits().into(), 1 << 28), 28));
+        FrictionLaw {
+            base: ratio(law.base),
+            amp: ratio(law.amp),
+            // rate·t = rate_bits·t16/2^48.
+            rate: scale_q32(t16.times(law.rate.to_bits().into(), 1 << 48)),
+            slope: scale_q32(
+                t16.times(law.slope.to_bits().into(), 1 << 48)
+                    .times(k_mant.into(), crate::math::shl128(1, k_shift)),
+            ),
+            s_max: if law.s_max == I32F32::MAX {
+                I32F32::MAX
+            } else {
+                // s_max/t = s_max_bits/(t16·2^16).
+                scale_q32(Scale::from_ratio(
+                    crate::math::shl128(law.s_max.to_bits().into(), t_shift),
+                    i128::from(t_mant) << 16,
+                ))
+            },
+            variable: LawVariable::ScrewRate,
+        }
     }
 
     /// Moment arm of Eq 1, 2(r_m + r_b cos α)/sin α.
@@ -467,5 +563,158 @@ impl FrictionIdentifier {
     /// Samples used so far (saturating).
     pub fn samples(&self) -> u32 {
         self.samples
+    }
+}
+
+#[cfg(all(test, feature = "ball-screw"))]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// |fixed − twin| within 10⁻⁶ of |twin| plus 2 LSB of the format (`lsb`).
+    fn close(what: &str, fixed: f64, twin: f64, lsb: f64) -> Result<(), TestCaseError> {
+        let bound = 1e-6 * twin.abs() + 2.0 * lsb;
+        prop_assert!(
+            (fixed - twin).abs() <= bound,
+            "{what}: fixed {fixed:e} vs twin {twin:e} (bound {bound:e})"
+        );
+        Ok(())
+    }
+
+    /// A log-uniform value in lo..hi.
+    fn log_range(lo: f64, hi: f64) -> impl Strategy<Value = f64> {
+        (lo.ln()..hi.ln()).prop_map(f64::exp)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
+
+        /// The fixed-point equivalent thread law (`BallScrew::thread_law`, what the ball-screw
+        /// firmware gives its estimator for a τ law) against its float64 twin
+        /// (`thread_law_float`, `equivalent_thread_law`) over the ball-screw settings'
+        /// validated ranges, any law within the law's ranges and axial forces 1 N…150 kN
+        /// (100 kN preload plus the 5 t rated load): each parameter within 10⁻⁶ relative plus
+        /// 2 LSB of its format (Q28 for base and amp, Q32 for rate, slope and s_max).
+        #[test]
+        fn thread_law_fixed_matches_the_twin(
+            r_m in 0.002f64..0.1,
+            r_b_frac in 0.0f64..1.0,
+            alpha in 20.0f64..80.0,
+            lead in log_range(0.0005, 0.05),
+            balls in 1u16..=1000,
+            eta in log_range(1e-4, 10.0),
+            fa in log_range(1.0, 150_000.0),
+            base in 0.0f64..1.0,
+            amp in -1.0f64..1.0,
+            rate in prop_oneof![Just(0.0), log_range(1e-3, 1e6)],
+            slope in -1000.0f64..1000.0,
+            s_max in prop_oneof![Just(None), log_range(1e-6, 1e6).prop_map(Some)],
+        ) {
+            let r_m = Metres::from_f64(r_m);
+            // r_b within 0.5…20 mm and below r_m.
+            let hi = (r_m.to_f64() - 1e-6).min(0.02);
+            let r_b = Metres::from_f64(0.0005 + r_b_frac * (hi - 0.0005));
+            let law = FrictionLaw {
+                base: Ratio::from_f64(base),
+                amp: Ratio::from_f64(amp),
+                rate: I32F32::from_num(rate),
+                slope: I32F32::from_num(slope),
+                s_max: s_max.map_or(I32F32::MAX, I32F32::from_num),
+                variable: LawVariable::Lubrication,
+            };
+            let cfg = BallScrewConfig {
+                r_m,
+                r_b,
+                contact_angle_deg: I16F16::from_num(alpha),
+                lead: Metres::from_f64(lead),
+                loaded_balls: balls,
+                preload: Newtons::ZERO,
+                viscosity: I32F32::from_num(eta),
+                law,
+            };
+            prop_assume!(cfg.compile().is_ok());
+            let f = Newtons::from_f64(fa).max(Newtons::from_int(1));
+            let fixed = cfg.compile().unwrap().thread_law(cfg.r_m, &law, f);
+            let twin = cfg.thread_law_float(f.to_f64());
+            let (q28, q32) = (2f64.powi(-28), 2f64.powi(-32));
+            close("base", fixed.base.to_f64(), twin.base.to_f64(), q28)?;
+            close("amp", fixed.amp.to_f64(), twin.amp.to_f64(), q28)?;
+            close("rate", fixed.rate.to_num(), twin.rate.to_num(), q32)?;
+            close("slope", fixed.slope.to_num(), twin.slope.to_num(), q32)?;
+            if twin.s_max == I32F32::MAX {
+                prop_assert_eq!(fixed.s_max, I32F32::MAX);
+            } else {
+                close("s_max", fixed.s_max.to_num(), twin.s_max.to_num(), q32)?;
+            }
+            prop_assert_eq!(fixed.variable, LawVariable::ScrewRate);
+            // Validation agrees wherever no parameter is within the bound of a range's end.
+            let ok = |l: &FrictionLaw| l.compile(cfg.r_m, Ratio::ONE).is_ok();
+            let near = |v: f64, end: f64| (v - end).abs() <= 1e-6 * end.abs() + 1e-8;
+            let edge = [
+                near(twin.base.to_f64(), 0.0), near(twin.base.to_f64(), 1.0),
+                near(twin.amp.to_f64(), 1.0), near(twin.amp.to_f64(), -1.0),
+                near(twin.rate.to_num(), 1e6), near(twin.slope.to_num(), 1000.0),
+                near(twin.slope.to_num(), -1000.0), near(twin.s_max.to_num(), 1e6),
+                near(twin.s_max.to_num(), 0.0),
+            ];
+            if !edge.iter().any(|&e| e) {
+                prop_assert_eq!(ok(&fixed), ok(&twin));
+            }
+        }
+    }
+
+    /// The `ball` preset's equivalent stays within the `friction.*` ranges at the corners of
+    /// the validated settings that make it steepest (the largest η₀, r_m, M, r_b, cos β, no
+    /// preload, the smallest rated load, 10 kg; α = 80° the largest t ∝ sin α, α = 20° the
+    /// largest k·t ∝ r_m + r_b cos α), as docs/console.md says.
+    #[test]
+    fn ball_preset_equivalent_is_always_valid() {
+        let f = crate::model::geometry::Geometry::weight(crate::units::Kilograms::lit("10"));
+        for alpha in [I16F16::lit("20"), I16F16::lit("80")] {
+            let c = BallScrewConfig {
+                r_m: Metres::lit("0.1"),
+                r_b: Metres::lit("0.02"),
+                contact_angle_deg: alpha,
+                lead: Metres::lit("0.0005"),
+                loaded_balls: 1000,
+                preload: Newtons::ZERO,
+                viscosity: I32F32::lit("10"),
+                law: FrictionLaw::BALL_SCREW,
+            };
+            let eq = c.thread_law_fixed(&c.law, f).unwrap();
+            assert!(eq.rate < I32F32::lit("90000"), "{eq:?}");
+            assert!(eq.slope < I32F32::lit("25"), "{eq:?}");
+        }
+    }
+
+    /// The fixed-point conversion refuses a reference force below 1 N and validates its result.
+    #[test]
+    fn thread_law_fixed_refuses_what_the_twin_refuses() {
+        let c = BallScrewConfig::SEED_001_4008;
+        let e = c
+            .thread_law_fixed(&c.law, Newtons::from_f64(0.5))
+            .unwrap_err();
+        assert_eq!(
+            e,
+            c.equivalent_thread_law(Newtons::from_f64(0.5)).unwrap_err()
+        );
+        // 10 Pa·s at 1 N: τ ≈ 11·|θ̇| s/rad, so a rate of 10⁶ per unit of τ is ≈ 10⁷ s/rad.
+        let mut steep = c;
+        steep.viscosity = I32F32::lit("10");
+        steep.law.rate = I32F32::lit("1000000");
+        let f = Newtons::from_int(1);
+        assert_eq!(
+            steep.thread_law_fixed(&steep.law, f).unwrap_err(),
+            steep.equivalent_thread_law(f).unwrap_err()
+        );
+        // The 4008 at the rated load: both taken.
+        let f = Newtons::from_int(9807);
+        let fixed = c.thread_law_fixed(&c.law, f).unwrap();
+        let twin = c.equivalent_thread_law(f).unwrap();
+        let (a, b) = (fixed.slope.to_num::<f64>(), twin.slope.to_num::<f64>());
+        assert!(
+            (a - b).abs() <= 1e-6 * b.abs() + 2f64.powi(-31),
+            "{a:e} vs {b:e}"
+        );
     }
 }

@@ -10,7 +10,7 @@
 //! - [`sim_flash`]: a simulated STM32G4-like flash with power-cut injection, for host tests.
 //!
 //! A configuration reaches the controller only as a [`ValidatedConfig`], which can only be
-//! built through [`ControlConfig::validate`] and [`Estimator::new`]: a value from the console
+//! built through [`ControlConfig::validate`] and [`crate::estimator::Estimator::new`]: a value from the console
 //! or from flash that fails either never leaves this module. docs/config-store.md describes the
 //! scheme and the power-loss argument.
 
@@ -23,11 +23,10 @@ pub mod store;
 mod lead_only_tests;
 
 use crate::control::config::ControlConfig;
-use crate::estimator::Estimator;
 use crate::ConfigError;
 
 /// A [`ControlConfig`] that passed [`ControlConfig::validate`] against its own geometry and
-/// [`Estimator::new`]: the only form in which a configuration reaches the controller.
+/// [`crate::estimator::Estimator::new`]: the only form in which a configuration reaches the controller.
 ///
 /// Replacing the controller's `ValidatedConfig` is one assignment between ticks, so a running
 /// motion never sees a half-applied change.
@@ -55,11 +54,8 @@ impl ValidatedConfig {
     /// mechanics, friction law, motor, tick), then motion, protections, sensing and the limit
     /// stops against the geometry.
     pub fn new(cfg: ControlConfig) -> Result<ValidatedConfig, ConfigError> {
-        // The estimator as the controller builds it (`ControlConfig::model_estimator`).
-        #[cfg(feature = "ball-screw")]
-        let estimator = Estimator::new(&cfg.model_estimator()?)?;
-        #[cfg(not(feature = "ball-screw"))]
-        let estimator = Estimator::new(&cfg.estimator)?;
+        // The estimator as the controller builds it.
+        let estimator = cfg.build_estimator()?;
         cfg.validate(estimator.geometry())?;
         Ok(ValidatedConfig(cfg))
     }

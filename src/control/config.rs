@@ -344,6 +344,18 @@ impl ControlConfig {
         Ok(e)
     }
 
+    /// The estimator the controller runs for this configuration: [`Self::model_estimator`]'s
+    /// on the ball-screw build, the configuration's own otherwise. One place for the choice
+    /// ([`crate::control::Controller::new`] and [`crate::config::ValidatedConfig::new`] build
+    /// it); inlined, so the caller's slot takes the estimator as `Estimator::new` returns it.
+    #[inline(always)]
+    pub fn build_estimator(&self) -> Result<crate::estimator::Estimator, ConfigError> {
+        #[cfg(feature = "ball-screw")]
+        return crate::estimator::Estimator::new(&self.model_estimator()?);
+        #[cfg(not(feature = "ball-screw"))]
+        return crate::estimator::Estimator::new(&self.estimator);
+    }
+
     /// Check every range that does not need the compiled geometry, then the limit stops
     /// against it. The estimator's own settings are checked by [`crate::estimator::Estimator::new`].
     pub fn validate(&self, geometry: &Geometry) -> Result<(), ConfigError> {

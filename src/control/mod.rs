@@ -452,11 +452,8 @@ impl Controller {
     /// survives power loss with the configuration: the lead screw is self-locking).
     pub fn new(cfg: &ControlConfig, position: i32) -> Result<Controller, ConfigError> {
         // The ball-screw build gives a law in τ on a ball screw to the estimator in the screw
-        // rate (`ControlConfig::model_estimator`).
-        #[cfg(feature = "ball-screw")]
-        let est = Estimator::new(&cfg.model_estimator()?)?;
-        #[cfg(not(feature = "ball-screw"))]
-        let est = Estimator::new(&cfg.estimator)?;
+        // rate (`ControlConfig::build_estimator`).
+        let est = cfg.build_estimator()?;
         #[cfg(feature = "ball-screw")]
         let ball_screw = cfg.ball_screw.compile()?;
         let geometry = est.geometry();

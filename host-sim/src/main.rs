@@ -2,10 +2,10 @@
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use host_sim::cli::Lube;
-use host_sim::paper::{self, CaseResult, MatrixConfig, Steady};
 use host_sim::physics::Lubricant;
 use host_sim::plant::{SpeedProfile, StructureDamping};
 use host_sim::sim::{Driver, OpenLoopDuty, Sim, SimConfig, Stepping};
+use host_sim::studies::paper::{self, CaseResult, MatrixConfig, Steady};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde::Deserialize;
@@ -49,7 +49,7 @@ enum Command {
     /// set (precision, recall, latency, false alarms), and show the `speed` reaction.
     Stickslip(StickslipArgs),
     /// The simulated board in closed loop, its console on a loopback TCP port (for liftctl).
-    Serve(host_sim::serve::ServeArgs),
+    Serve(host_sim::apps::serve::ServeArgs),
     /// Seed 001's ball-screw load distribution study (Figs 14–21): CSV, PNG plots and
     /// docs/ballscrew-reproduction.md; `--bench` times the solver.
     Ballscrew(BallscrewArgs),
@@ -511,7 +511,7 @@ fn paper_cmd(a: &PaperArgs) -> Result<(), Box<dyn std::error::Error>> {
     std::fs::create_dir_all(&a.out)?;
     let plots = !a.no_plots;
     if plots {
-        match host_sim::plots::init_font() {
+        match host_sim::studies::paper::plots::init_font() {
             Ok(p) => println!("font        {}", p.display()),
             Err(e) => return Err(e.into()),
         }
@@ -559,7 +559,10 @@ fn paper_cmd(a: &PaperArgs) -> Result<(), Box<dyn std::error::Error>> {
                         .map_err(|e| format!("{}: {e}", path.display()))?;
                     drop(trace);
                     if plots {
-                        host_sim::plots::case_plot(&a.out.join(format!("{stem}.png")), &r)?;
+                        host_sim::studies::paper::plots::case_plot(
+                            &a.out.join(format!("{stem}.png")),
+                            &r,
+                        )?;
                     }
                 }
                 let secs = t0.elapsed().as_secs_f64();
@@ -591,7 +594,7 @@ fn paper_cmd(a: &PaperArgs) -> Result<(), Box<dyn std::error::Error>> {
             let rs: Vec<&CaseResult> = main.iter().filter(|r| r.case.lubricant == l).collect();
             let fig = rs.first().map_or(13, |r| r.case.figure());
             let path = a.out.join(format!("fig{fig}_{}.png", l.name()));
-            host_sim::plots::figure(
+            host_sim::studies::paper::plots::figure(
                 &path,
                 &format!(
                     "{} thread: friction torque T and θ − θi (layout of seed 000 Fig. {fig})",
@@ -684,7 +687,7 @@ fn convergence(a: &ConvergenceArgs) {
         .par_iter()
         .map(|&(lube, mu, deg, sg)| {
             let st = match a.tol_max {
-                Some(tol) => host_sim::study::tolerance_convergence(
+                Some(tol) => host_sim::studies::convergence::tolerance_convergence(
                     lube.law(),
                     mu,
                     deg,
@@ -692,9 +695,14 @@ fn convergence(a: &ConvergenceArgs) {
                     tol,
                     a.levels,
                 ),
-                None => {
-                    host_sim::study::convergence(lube.law(), mu, deg, sg * 15.0, a.dt_max, a.levels)
-                }
+                None => host_sim::studies::convergence::convergence(
+                    lube.law(),
+                    mu,
+                    deg,
+                    sg * 15.0,
+                    a.dt_max,
+                    a.levels,
+                ),
             };
             let dir = if sg > 0.0 { "lifting" } else { "lowering" };
             format!(
@@ -709,7 +717,7 @@ fn convergence(a: &ConvergenceArgs) {
 }
 
 fn stickslip(a: &StickslipArgs) -> Result<(), Box<dyn std::error::Error>> {
-    use host_sim::score::{self, Mitigation, ScoreConfig};
+    use host_sim::studies::stickslip::{self as score, Mitigation, ScoreConfig};
     let wall = WallClock::now();
     let sc = ScoreConfig {
         dt: a.dt,
@@ -832,7 +840,7 @@ fn time_it(reps: usize, mut f: impl FnMut()) -> (f64, f64) {
 }
 
 fn ballscrew_cmd(a: &BallscrewArgs) -> Result<(), Box<dyn std::error::Error>> {
-    use host_sim::ballscrew::{self as bs, study};
+    use host_sim::studies::load_distribution::{self as bs, study};
     let wall = WallClock::now();
     let cfg = study::StudyConfig {
         seed: a.seed,
@@ -964,7 +972,7 @@ fn main() -> ExitCode {
     // A bare `host-sim` is `host-sim run` with the defaults.
     let cmd = cli.command.unwrap_or(Command::Run(RunArgs::default()));
     let res = match cmd {
-        Command::Lift(a) => host_sim::lift::main(&host_sim::lift::LiftArgs {
+        Command::Lift(a) => host_sim::apps::lift::main(&host_sim::apps::lift::LiftArgs {
             lubricant: a.lubricant.into(),
             load_kg: a.load_kg,
             from_mm: a.from_mm,
@@ -981,7 +989,7 @@ fn main() -> ExitCode {
             Ok(())
         }
         Command::Stickslip(a) => stickslip(&a),
-        Command::Serve(a) => host_sim::serve::main(&a),
+        Command::Serve(a) => host_sim::apps::serve::main(&a),
         Command::Ballscrew(a) => ballscrew_cmd(&a),
     };
     match res {

@@ -91,7 +91,7 @@ fn estimator(law: FrictionLaw) -> Estimator {
 }
 
 /// The error the pose segments' spacing allows in W (docs/model.md "Pose between nodes",
-/// `PoseBudget` in src/estimator.rs), and N's divisor's least value: A = 5·10⁻⁵ N·m/K,
+/// `PoseBudget` in src/estimator/pose.rs), and N's divisor's least value: A = 5·10⁻⁵ N·m/K,
 /// K = r_m·(tan λ + μ_hi)/(1 − μ_hi·tan λ), with μ_hi ≥ the law's μ over |θ̇| ≤ 400 rad/s
 /// (base + amp·e^(−y) + slope·min(s, s_max), bounded termwise), so that T_r and the thread
 /// torque move by at most a tenth of 0.5 mN·m; for larger |W|, within |W|/5000.

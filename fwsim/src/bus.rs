@@ -324,10 +324,9 @@ impl Bus {
     fn adc_access(&mut self, which: u8, write: Option<u32>, off: u32) -> Result<u32, String> {
         let now = self.now();
         let adc_clk = self.adc_clk()?;
-        let tim1 = self.tim1.clone();
         let this: &Bus = self;
         let input = |ch: u32| this.adc_input(which, ch);
-        let cc4 = |t: u64| tim1.last_match(3, t);
+        let cc4 = |t: u64| this.tim1.last_match(3, t);
         let env = adc::Env {
             now,
             adc_clk,
@@ -377,7 +376,7 @@ impl Bus {
             return Err(format!("{size}-byte read"));
         }
         if let Some(c) = clock(dev) {
-            self.rcc.check(c, &register_name(addr))?;
+            self.rcc.check(c)?;
         }
         let now = self.now();
         let v = match dev {
@@ -430,7 +429,7 @@ impl Bus {
             return Err(format!("{size}-byte write"));
         }
         if let Some(c) = clock(dev) {
-            self.rcc.check(c, &register_name(addr))?;
+            self.rcc.check(c)?;
         }
         let now = self.now();
         let v = value << lane;

@@ -12,6 +12,7 @@ use host_sim::physics::{Geometry, Lubricant};
 use host_sim::sim::SimConfig;
 use liftfw::config::sim_flash::SimFlash;
 use liftfw::config::store::{geometry_stamp, ConfigStore, Parked};
+use liftfw::config::ValidatedConfig;
 use liftfw::control::config::ControlConfig;
 use liftfw::control::Controller;
 use liftfw::units::Metres;
@@ -48,13 +49,16 @@ pub struct LiftOutcome {
     pub insns: u64,
 }
 
-/// The store with a parked-position record at `counts` for the factory configuration, written
+/// The store with the factory configuration saved and a parked-position record at `counts`, written
 /// by the core's own store code (the firmware's format) on a host flash of the store's size.
 pub fn parked_store(counts: i32) -> Result<Store, String> {
     let flash: SimFlash<STORE_LEN> = SimFlash::new();
     let mut store =
         ConfigStore::new(flash, 0..STORE_LEN as u32).map_err(|e| format!("store: {e:?}"))?;
     let stamp = geometry_stamp(&ControlConfig::DEFAULT);
+    store
+        .save(&ValidatedConfig::factory())
+        .map_err(|e| format!("store: {e:?}"))?;
     store
         .save_position(Parked::At(counts), stamp)
         .map_err(|e| format!("store: {e:?}"))?;

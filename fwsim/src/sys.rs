@@ -232,15 +232,15 @@ impl Rcc {
     }
 
     /// Whether the clock bit is on and the reset bit off; else the error naming both.
-    pub fn check(&self, c: ClockBit, periph: &str) -> Result<(), Unimplemented> {
+    pub fn check(&self, c: ClockBit) -> Result<(), Unimplemented> {
         if self.enr[c.reg] >> c.bit & 1 == 0 {
             return Err(format!(
-                "{periph} accessed while its clock is off (RCC.{} = 0)",
+                "access while the peripheral's clock is off (RCC.{} = 0)",
                 c.what
             ));
         }
         if self.rstr[c.reg] >> c.bit & 1 != 0 {
-            return Err(format!("{periph} accessed while held in reset"));
+            return Err("access while the peripheral is held in reset".into());
         }
         Ok(())
     }

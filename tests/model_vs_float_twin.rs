@@ -691,7 +691,7 @@ fn search_configs() -> Vec<(String, EstimatorConfig)> {
     v
 }
 
-/// The envelope tests' configuration that maximises the forces (tests/support/corners.rs),
+/// The envelope tests' configuration that maximises the forces (golden/src/corners.rs),
 /// with the paper's dry law: the search sets each law in turn.
 fn forces() -> EstimatorConfig {
     EstimatorConfig {

@@ -4,9 +4,6 @@
 //! height within 0.05 mm. Extreme and nonsensical inputs must not panic or wrap.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-#[path = "support/corners.rs"]
-mod corners;
-
 use fixed::types::I16F16;
 use host_sim::physics::{self, friction::FrictionLaw as FLaw, geometry::structure_damping_cos};
 use liftfw::estimator::{EstimateFlags, Estimator, EstimatorConfig, Measurements};
@@ -14,6 +11,7 @@ use liftfw::model::friction::{FrictionLaw, LawVariable};
 use liftfw::units::{
     Amperes, Instant, Kilograms, Metres, RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
 };
+use liftfw_golden::corners;
 use proptest::prelude::*;
 
 const RATED_KG: f64 = 1000.0;
@@ -91,7 +89,7 @@ fn estimator(law: FrictionLaw) -> Estimator {
 }
 
 /// The error the pose segments' spacing allows in W (docs/model.md "Pose between nodes",
-/// `PoseBudget` in src/estimator.rs), and N's divisor's least value: A = 5·10⁻⁵ N·m/K,
+/// `PoseBudget` in src/estimator/pose.rs), and N's divisor's least value: A = 5·10⁻⁵ N·m/K,
 /// K = r_m·(tan λ + μ_hi)/(1 − μ_hi·tan λ), with μ_hi ≥ the law's μ over |θ̇| ≤ 400 rad/s
 /// (base + amp·e^(−y) + slope·min(s, s_max), bounded termwise), so that T_r and the thread
 /// torque move by at most a tenth of 0.5 mN·m; for larger |W|, within |W|/5000.
@@ -693,7 +691,7 @@ fn search_configs() -> Vec<(String, EstimatorConfig)> {
     v
 }
 
-/// The envelope tests' configuration that maximises the forces (tests/support/corners.rs),
+/// The envelope tests' configuration that maximises the forces (golden/src/corners.rs),
 /// with the paper's dry law: the search sets each law in turn.
 fn forces() -> EstimatorConfig {
     EstimatorConfig {

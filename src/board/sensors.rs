@@ -3,7 +3,9 @@
 //!
 //! All of it through embassy-stm32's drivers (`Qei`, the low-level `Timer`, `Adc` and its
 //! injected sequence, `Input`) but for one register field: TIM4's master mode (CR2.MMS), which
-//! `Qei` does not set and which the edge timestamps need (see [`Sensors::new`]).
+//! `Qei` does not set and which the edge timestamps need (see [`Sensors::new`]). The edge timer
+//! is the low-level `Timer` rather than `InputCapture`, which captures from a pin and awaits an
+//! interrupt: here the capture comes from TIM4's internal trigger (TRC) and the tick polls it.
 
 use embassy_stm32::adc::{Adc, AdcChannel, AnyAdcChannel, Exten, InjectedAdc, SampleTime};
 use embassy_stm32::gpio::{Input, Pull};

@@ -21,7 +21,6 @@
 //! - [`config`]: the settings registry and the flash record.
 //! - [`console`]: the line protocol.
 #![cfg_attr(not(test), no_std)]
-#![cfg_attr(liftfw_speed_attr, feature(optimize_attribute))]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used))]

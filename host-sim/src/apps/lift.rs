@@ -5,8 +5,8 @@
 //! truth, then the halt error and a plot of both.
 
 use crate::physics::{Geometry, Lubricant};
-use crate::plots;
 use crate::sim::{Driver, Sim, SimConfig};
+use crate::studies::paper::plots;
 use liftfw::control::config::ControlConfig;
 use liftfw::control::{Command, Controller, Event, State};
 use liftfw::model::friction::FrictionLaw;

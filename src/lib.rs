@@ -15,7 +15,6 @@
 //! - [`detect`]: detectors on board-visible signals and the model's state (stick-slip).
 //! - [`control`]: the per-tick entry point shared by the board and host-sim.
 #![cfg_attr(not(test), no_std)]
-#![cfg_attr(liftfw_speed_attr, feature(optimize_attribute))]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used))]

@@ -481,6 +481,7 @@ pub fn write_stick_slip_warning(
 #[cfg(test)]
 mod tests {
     use super::super::parse::HEIGHT;
+    use super::super::{parse, service, ValueError};
     use super::*;
     extern crate std;
     use crate::control::protect::FaultKind;

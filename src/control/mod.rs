@@ -946,7 +946,6 @@ impl Controller {
 
     /// One control tick. Never panics, whatever the inputs.
     #[inline(never)]
-    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn step(&mut self, now: Instant, inputs: &Inputs) -> Outputs {
         // 1. Sense.
         let delta = self.enc.update(inputs.encoder_count);
@@ -1277,7 +1276,6 @@ impl Controller {
 
     /// One step of the speed loop toward `reference` with `error_counts` of position error:
     /// the duty for moving and, for a ball screw, for holding at rest (`hold.rs`).
-    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     fn speed_duty(&mut self, reference: RadiansPerSecond, error_counts: i32) -> i16 {
         self.speed.step(
             &self.gains,

@@ -499,10 +499,9 @@ impl StickSlipDetector {
 
     /// One tick. `law` is the configured friction law (for the branch of μ(θ̇)), the same on
     /// every call of a detector (the branch test's halves run on two successive ticks). Total:
-    /// no panic, no wrap, whatever the inputs. Compiled for speed, out of line: inlined into
+    /// no panic, no wrap, whatever the inputs. Out of line: inlined into
     /// `Controller::step` it took 272 B more flash (docs/qemu.md "Optimisation level").
     #[inline(never)]
-    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn step(&mut self, x: &DetectorInputs, law: &CompiledLaw) -> StickSlipOutput {
         self.out.onset = false;
         self.out.slip = false;

@@ -525,7 +525,6 @@ impl FrictionIdentifier {
     }
 
     /// Feed one measurement (screw torque, axial load R, direction). Returns whether it was used.
-    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn update(
         &mut self,
         bs: &BallScrew,

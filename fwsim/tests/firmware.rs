@@ -308,7 +308,8 @@ fn a_power_cut_during_a_save_boots_with_the_old_or_the_new_stops_never_a_mix() {
 fn an_over_current_on_the_adc_trips_within_a_millisecond() {
     let mut r = rig(parked_store(counts_at(200.0).unwrap()).unwrap(), 200.0);
     boot(&mut r);
-    assert!(r.command("goto 300mm", 1.0).unwrap().starts_with("ok"));
+    let reply = r.command("goto 300mm", 1.0).unwrap();
+    assert!(reply.starts_with("ok"), "{reply}");
     r.run_for(0.5).unwrap();
     assert!(matches!(
         fwsim::plant::bridge_of(&r.machine.board_out()),

@@ -15,7 +15,7 @@ use fwsim::TICK_HZ;
 use host_sim::physics::Lubricant;
 use host_sim::sim::{Driver, Sim, SimConfig};
 use liftfw::control::config::ControlConfig;
-use liftfw::control::{Bridge, Command, Controller, Inputs, Outputs, State, Switches};
+use liftfw::control::{Bridge, Command, Controller, Inputs, Outputs, Switches};
 use liftfw::units::{Instant, Metres};
 use std::sync::{Arc, Mutex};
 

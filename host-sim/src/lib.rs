@@ -10,12 +10,15 @@
 //! - [`study`]: the step-size convergence study.
 //! - [`truth`]: stick-slip episodes labelled from the plant's phase log; [`score`]: the core's
 //!   stick-slip detector scored against them (`host-sim stickslip`).
+//! - [`inject`]: faults a user injects into a closed-loop run (sensors, supply, jam, overload,
+//!   a hung control task).
 //! - [`serve`]: the simulated board with the core's console on loopback TCP (`host-sim serve`).
 //! - [`ballscrew`]: the ball-screw load distribution with geometric errors (seed 001) and its study.
 #![warn(missing_docs)]
 
 pub mod ballscrew;
 pub mod cli;
+pub mod inject;
 pub mod lift;
 pub mod paper;
 pub mod physics;

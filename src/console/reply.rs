@@ -70,6 +70,11 @@ pub fn write_parse_error(out: &mut dyn Write, e: &ParseError<'_>) -> fmt::Result
     out.write_str("error: ")?;
     let (template, args): (&str, &[Arg<'_>]) = match e {
         ParseError::NotText => ("line is not text (UTF-8); type `help`", &[]),
+        ParseError::Control(b) => {
+            out.write_str("control character ")?;
+            escape(out, *b)?;
+            return out.write_str(" in the line, ignored; type `help`");
+        }
         ParseError::TooLong => (
             "line longer than \x01 characters, ignored; type `help`",
             &[Arg::Uint(MAX_LINE as u32)],
@@ -122,11 +127,23 @@ fn clip(out: &mut dyn Write, s: Words<'_>) -> fmt::Result {
         if n == 24 {
             return out.write_str("...");
         }
-        out.write_char(c)?;
+        // A control character is shown, not sent: a terminal would act on ESC, BEL, NUL.
+        match u8::try_from(c) {
+            Ok(b) if b < 0x20 || (0x7F..0xA0).contains(&b) => escape(out, b)?,
+            _ => out.write_char(c)?,
+        }
         n += 1;
         rest = tail;
     }
     Ok(())
+}
+
+/// A byte as `\xNN` (upper-case hex), for control characters in replies.
+fn escape(out: &mut dyn Write, b: u8) -> fmt::Result {
+    const HEX: &[u8; 16] = b"0123456789ABCDEF";
+    out.write_str("\\x")?;
+    out.write_char(char::from(HEX[usize::from(b >> 4)]))?;
+    out.write_char(char::from(HEX[usize::from(b & 15)]))
 }
 
 /// `key = value` for `get`.
@@ -291,6 +308,8 @@ pub struct StatusView {
     pub state: &'static str,
     /// Head height.
     pub height: Metres,
+    /// The position is known; unhomed, `height` shows as `unknown` and `homed=no`.
+    pub homed: bool,
     /// Screw speed θ̇ (+ lifting).
     pub screw_speed: RadiansPerSecond,
     /// Motor current.
@@ -305,6 +324,9 @@ pub struct StatusView {
     pub stick_slip_episodes: u32,
     /// The active fault's name, if any.
     pub fault: Option<&'static str>,
+    /// The motion's cruise speed when the motor cannot reach `motion.cruise_speed`
+    /// (` cruise_limit=4.41rad/s` at the end of the line).
+    pub cruise_limit: Option<RadiansPerSecond>,
     /// Ball screw: identified friction coefficient and the law's f(τ), once identified.
     #[cfg(feature = "ball-screw")]
     pub ball_f: Option<(Ratio, Ratio)>,
@@ -338,11 +360,12 @@ fn write_decimal(out: &mut dyn Write, q: i64, dec: u32) -> fmt::Result {
 pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
     fill(
         out,
-        "state=\x01 height=\x01mm speed=\x01rad/s current=\x01A T_r=\x01Nm stick_slip=\x01 \
-         ss_amp=\x01Nm ss_episodes=\x01 fault=\x01",
+        "state=\x01 height=\x01\x01 speed=\x01rad/s current=\x01A T_r=\x01Nm stick_slip=\x01 \
+         ss_amp=\x01Nm ss_episodes=\x01 fault=\x01 homed=\x01",
         &[
             Arg::Str(s.state),
-            Arg::Mm(s.height),
+            height_arg(s.height, s.homed),
+            Arg::Str(if s.homed { "mm" } else { "" }),
             Arg::Fixed(s.screw_speed.to_bits(), 16, 2),
             Arg::Fixed(s.current.to_bits(), 16, 2),
             Arg::Fixed(s.friction_torque.to_bits(), 16, 3),
@@ -350,8 +373,16 @@ pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
             Arg::Fixed(s.stick_slip_amplitude.to_bits(), 16, 2),
             Arg::Uint(s.stick_slip_episodes),
             Arg::Word(s.fault.unwrap_or("none")),
+            Arg::Str(if s.homed { "yes" } else { "no" }),
         ],
     )?;
+    if let Some(w) = s.cruise_limit {
+        fill(
+            out,
+            " cruise_limit=\x01rad/s",
+            &[Arg::Fixed(w.to_bits(), 16, 2)],
+        )?;
+    }
     #[cfg(not(feature = "ball-screw"))]
     return Ok(());
     #[cfg(feature = "ball-screw")]
@@ -381,6 +412,16 @@ pub fn write_lube_warning(out: &mut dyn Write, f: Ratio, law: Ratio) -> fmt::Res
             Arg::Fixed(law.to_bits(), 28, 5),
         ],
     )
+}
+
+/// A height for a reply: in mm (the caller writes the unit) if the position is known, else
+/// `unknown` (an unhomed board's height is its homing assumption, not the head's).
+pub(crate) fn height_arg(h: Metres, homed: bool) -> Arg<'static> {
+    if homed {
+        Arg::Mm(h)
+    } else {
+        Arg::Str("unknown")
+    }
 }
 
 /// One value in a reply template ([`fill`]).
@@ -460,6 +501,17 @@ fn write_word(out: &mut dyn Write, name: &str) -> fmt::Result {
     out.write_str(rest)
 }
 
+/// The console warning of a motion whose cruise the motor cannot reach
+/// ([`crate::control::Event::CruiseLimited`]), one line.
+pub fn write_cruise_warning(out: &mut dyn Write, speed: RadiansPerSecond) -> fmt::Result {
+    fill(
+        out,
+        "warning: cruise limited to \x01 rad/s: the motor's speed at this load and supply \
+         (motion.cruise_speed is more)",
+        &[Arg::Fixed(speed.to_bits(), 16, 2)],
+    )
+}
+
 /// The console warning of the stick-slip reactions `warn` and `speed`, one line.
 pub fn write_stick_slip_warning(
     out: &mut dyn Write,
@@ -481,6 +533,7 @@ pub fn write_stick_slip_warning(
 #[cfg(test)]
 mod tests {
     use super::super::parse::HEIGHT;
+    use super::super::{parse, service, ValueError};
     use super::*;
     extern crate std;
     use crate::control::protect::FaultKind;
@@ -540,17 +593,25 @@ mod tests {
                 None => String::new(),
             };
             format!(
-                "state={} height={}mm speed={}rad/s current={}A T_r={}Nm stick_slip={} \
-                 ss_amp={}Nm ss_episodes={} fault={}{ball}",
+                "state={} height={} speed={}rad/s current={}A T_r={}Nm stick_slip={} \
+                 ss_amp={}Nm ss_episodes={} fault={} homed={}{}{ball}",
                 s.state,
-                mm(s.height),
+                if s.homed {
+                    mm(s.height) + "mm"
+                } else {
+                    "unknown".into()
+                },
                 fixed(s.screw_speed.to_bits(), 16, 2),
                 fixed(s.current.to_bits(), 16, 2),
                 fixed(s.friction_torque.to_bits(), 16, 3),
                 if s.stick_slip { "yes" } else { "no" },
                 fixed(s.stick_slip_amplitude.to_bits(), 16, 2),
                 s.stick_slip_episodes,
-                word(s.fault.unwrap_or("none"))
+                word(s.fault.unwrap_or("none")),
+                if s.homed { "yes" } else { "no" },
+                s.cruise_limit
+                    .map(|w| format!(" cruise_limit={}rad/s", fixed(w.to_bits(), 16, 2)))
+                    .unwrap_or_default()
             )
         }
 
@@ -560,13 +621,17 @@ mod tests {
                 (i32::from(f.duty) * 1000 + if f.duty < 0 { -16384 } else { 16384 }) / 32768;
             let p = permille.unsigned_abs();
             format!(
-                "fault={} t={}.{:03}s state={} height={}mm speed={}rad/s current={}A supply={}V \
+                "fault={} t={}.{:03}s state={} height={} speed={}rad/s current={}A supply={}V \
                  duty={}{}.{}% torque={}Nm model_torque={}Nm",
                 word(f.kind.name()),
                 ms / 1000,
                 ms % 1000,
                 f.state.name(),
-                mm(f.height),
+                if f.homed {
+                    mm(f.height) + "mm"
+                } else {
+                    "unknown".into()
+                },
                 fixed(f.screw_speed.to_bits(), 16, 2),
                 fixed(f.current.to_bits(), 16, 2),
                 fixed(f.supply.to_bits(), 16, 2),
@@ -672,6 +737,7 @@ mod tests {
             let s = StatusView {
                 state: ["idle", "lifting", "fault"][i % 3],
                 height: Metres::from_bits(b(0)),
+                homed: i % 5 != 3,
                 screw_speed: RadiansPerSecond::from_bits(b(7)),
                 current: Amperes::from_bits(b(13)),
                 friction_torque: NewtonMetres::from_bits(b(21)),
@@ -679,6 +745,7 @@ mod tests {
                 stick_slip_amplitude: NewtonMetres::from_bits(b(29)),
                 stick_slip_episodes: b(37) as u32,
                 fault: [None, Some("encoder lost"), Some("over-current")][i % 3],
+                cruise_limit: (i % 4 == 2).then(|| RadiansPerSecond::from_bits(b(45))),
                 #[cfg(feature = "ball-screw")]
                 ball_f: (i % 4 == 1).then(|| (Ratio::from_bits(b(47)), Ratio::from_bits(b(53)))),
             };
@@ -691,6 +758,7 @@ mod tests {
                 state: [State::Lifting, State::Lowering, State::Idle][i % 3],
                 position: b(5),
                 height: Metres::from_bits(b(11)),
+                homed: i % 7 != 2,
                 screw_speed: RadiansPerSecond::from_bits(b(17)),
                 current: Amperes::from_bits(b(19)),
                 supply: Volts::from_bits(b(23)),

@@ -7,15 +7,13 @@
 //! are the same bits as the whole estimate recomputed by `details`.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-#[path = "support/corners.rs"]
-mod corners;
-
 use fixed::types::I16F16;
 use liftfw::estimator::{
     EstimateFlags, Estimator, EstimatorConfig, Measurements, ACCEL_MAX, LOAD_MAX, SPEED_MAX,
 };
 use liftfw::model::friction::FrictionLaw;
 use liftfw::units::{Amperes, Instant, Kilograms, RadiansPerSecond, RadiansPerSecond2, Ratio};
+use liftfw_golden::corners;
 
 /// The configurations whose constants bound the products: the default, the upper and lower
 /// corners of every range, and the one that maximises the forces (steepest arms, largest

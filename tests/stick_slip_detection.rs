@@ -2,7 +2,7 @@
 //! `host-sim stickslip --quick`; the scored set and its numbers are in BENCHMARKS.md).
 #![allow(clippy::expect_used, clippy::unwrap_used)]
 
-use host_sim::score::{self, match_run, quick_set, ScoreConfig};
+use host_sim::studies::stickslip::{self as score, match_run, quick_set, ScoreConfig};
 
 #[test]
 fn dry_stick_slip_is_detected_and_smooth_runs_do_not_alarm() {

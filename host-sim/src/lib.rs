@@ -1,33 +1,30 @@
 //! host-sim: the lift's digital twin.
 //!
-//! - [`physics`]: the float64 screw-nut model (the fixed-point core's reference twin).
-//! - [`solver`]: fixed-step Bogacki–Shampine RK23 and the event locator.
-//! - [`plant`]: the plant built on the physics: screw-nut dynamics with stick/slip, the Fig. 2
-//!   drive profile, the motor/bridge/battery and the board's sensors.
-//! - [`sim`]: a run — plant + driver (paper profile, the liftfw core, or open-loop duty) —
-//!   with its ground-truth [`trace`] and summary.
-//! - [`paper`]: seed 000's 18-case matrix and its reproduction report; [`plots`]: its figures.
-//! - [`study`]: the step-size convergence study.
-//! - [`truth`]: stick-slip episodes labelled from the plant's phase log; [`score`]: the core's
-//!   stick-slip detector scored against them (`host-sim stickslip`).
+//! - [`twin`]: the simulated lift — the float64 [`physics`] (the fixed-point core's reference
+//!   twin), the [`solver`] (fixed-step Bogacki–Shampine RK23 and the event locator), the
+//!   [`plant`] (screw-nut dynamics with stick/slip, the Fig. 2 drive profile, the
+//!   motor/bridge/battery and the board's sensors), a run ([`sim`]: plant + driver — paper
+//!   profile, the liftfw core, or open-loop duty) with its ground-truth [`trace`], and the
+//!   stick-slip episodes labelled from the plant's phase log ([`truth`]).
+//! - [`apps`]: the twin in use — `host-sim lift` ([`apps::lift`]) and the simulated board with
+//!   the core's console on loopback TCP ([`apps::serve`]).
+//! - [`commands`]: the `host-sim` command line, one module per subcommand.
 //! - [`inject`]: faults a user injects into a closed-loop run (sensors, supply, jam, overload,
 //!   a hung control task).
-//! - [`serve`]: the simulated board with the core's console on loopback TCP (`host-sim serve`).
-//! - [`ballscrew`]: the ball-screw load distribution with geometric errors (seed 001) and its study.
+//! - [`studies`]: the twin measured — seed 000's matrix and its reproduction report
+//!   ([`studies::paper`]), the step-size convergence study ([`studies::convergence`]), the core's
+//!   stick-slip detector scored against the truth ([`studies::stickslip`]) and the ball-screw
+//!   load distribution with geometric errors of seed 001 ([`studies::load_distribution`]).
+//!
+//! The twin's modules are also at the crate root (`host_sim::physics`, …): everything else,
+//! here and in the core's tests, is built on them.
 #![warn(missing_docs)]
 
-pub mod ballscrew;
+pub mod apps;
 pub mod cli;
+pub mod commands;
 pub mod inject;
-pub mod lift;
-pub mod paper;
-pub mod physics;
-pub mod plant;
-pub mod plots;
-pub mod score;
-pub mod serve;
-pub mod sim;
-pub mod solver;
-pub mod study;
-pub mod trace;
-pub mod truth;
+pub mod studies;
+pub mod twin;
+
+pub use twin::{physics, plant, sim, solver, trace, truth};

@@ -7,7 +7,9 @@
     missing_docs
 )]
 
-use host_sim::ballscrew::{random_errors, AngleModel, BallScrew, LoadCase, SolveError, Solver};
+use host_sim::studies::load_distribution::{
+    random_errors, AngleModel, BallScrew, LoadCase, SolveError, Solver,
+};
 
 const BANDS: [f64; 4] = [0.0, 1e-6, 2e-6, 3e-6];
 

@@ -6,7 +6,7 @@
 
 use host_sim::physics::FrictionLaw;
 use host_sim::sim::DEFAULT_DT;
-use host_sim::study::convergence_to;
+use host_sim::studies::convergence::convergence_to;
 
 #[test]
 fn halving_the_default_step_changes_mean_friction_torque_by_less_than_one_percent() {

@@ -2,7 +2,7 @@
 //! height and its friction-torque estimate follows the plant.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use host_sim::lift::{main as lift, LiftArgs};
+use host_sim::apps::lift::{main as lift, LiftArgs};
 use host_sim::physics::Lubricant;
 
 #[test]

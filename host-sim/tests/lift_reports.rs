@@ -3,7 +3,7 @@
 //! snapshot and the plot, and the time cap fits a full stroke.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use host_sim::lift::{main as lift, time_cap, LiftArgs};
+use host_sim::apps::lift::{main as lift, time_cap, LiftArgs};
 use host_sim::physics::{Geometry, Lubricant};
 
 fn args(from_mm: f64, to_mm: f64, faults: &str) -> LiftArgs {

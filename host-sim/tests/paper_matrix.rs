@@ -4,8 +4,8 @@
 // A failed expectation is a failed test: panicking is the point here.
 #![allow(clippy::expect_used)]
 
-use host_sim::paper::{self, MatrixConfig};
 use host_sim::physics::Lubricant;
+use host_sim::studies::paper::{self, MatrixConfig};
 
 fn short() -> MatrixConfig {
     MatrixConfig {

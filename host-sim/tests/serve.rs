@@ -2,7 +2,7 @@
 //! flash, and a power cycle that boots from it.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
-use host_sim::serve::{ServeArgs, Server};
+use host_sim::apps::serve::{ServeArgs, Server};
 use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream;
 

@@ -4,7 +4,7 @@
 //! bytes echoed back in error replies.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
-use host_sim::serve::{ServeArgs, Server};
+use host_sim::apps::serve::{ServeArgs, Server};
 use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream;
 use std::path::PathBuf;

@@ -4,7 +4,7 @@
 //! protocol version.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
-use host_sim::serve::{ServeArgs, Server};
+use host_sim::apps::serve::{ServeArgs, Server};
 use liftfw::config::ValidatedConfig;
 use liftfw::console::{service, Feed, LineBuffer};
 use liftfw::control::Controller;

@@ -3,7 +3,7 @@
 //! serve`, in process) and fake boards on loopback TCP.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
-use host_sim::serve::{ServeArgs, Server};
+use host_sim::apps::serve::{ServeArgs, Server};
 use liftfw::console::{Feed, LineBuffer};
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpListener};

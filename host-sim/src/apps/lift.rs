@@ -6,8 +6,8 @@
 
 use crate::inject::{Injection, Plan};
 use crate::physics::{Geometry, Lubricant};
-use crate::plots;
 use crate::sim::{Driver, Sim, SimConfig};
+use crate::studies::paper::plots;
 use liftfw::console::service::write_fault;
 use liftfw::control::config::ControlConfig;
 use liftfw::control::{Command, Controller, Event, Refusal, State};

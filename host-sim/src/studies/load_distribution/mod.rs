@@ -4,7 +4,7 @@
 //! equivalent geometric error `E_g(j)` (Eq 3), a contact angle that grows with its contact
 //! deformation (Eq 10), a Hertz contact computed from the elliptic integrals (Eqs 15–16, see
 //! [`hertz`]), and nut/screw segments that compress/stretch between balls (Eqs 11–13). The
-//! self-adjusting Newton–Raphson solve of [`solve`] finds the normal contact deformation of every
+//! self-adjusting Newton–Raphson solve of [`newton`] finds the normal contact deformation of every
 //! ball, detects the non-loaded ones and drops them from the equation set (and adds a ball back
 //! if the new solution would press it). [`study`] sweeps the load and the error bands and writes
 //! the reproduction report; `host-sim ballscrew` runs it.
@@ -13,11 +13,11 @@
 //! there are no errors). Length in metres, force in newtons, angles in radians.
 
 pub mod hertz;
+pub mod newton;
 pub mod plots;
-pub mod solve;
 pub mod study;
 
-pub use solve::{LoadCase, SolveError, Solver};
+pub use newton::{LoadCase, SolveError, Solver};
 
 /// How the contact angle behaves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -166,7 +166,7 @@ impl BallScrew {
     /// The state of a ball with `k_of(α) = (K, dK/dα)`.
     ///
     /// δ < 0 (the ball would be in tension) is evaluated with the odd extension Q = −K|δ|^1.5 so
-    /// that the Newton iteration stays smooth; [`solve`] removes such balls.
+    /// that the Newton iteration stays smooth; [`newton`] removes such balls.
     pub fn ball_with(&self, eg: f64, delta: f64, k_of: impl Fn(f64) -> (f64, f64)) -> BallState {
         let cl = self.helix.cos();
         let (alpha, dalpha) = match self.angle {

@@ -1,6 +1,7 @@
-//! The estimator configurations at the corners of the validated ranges, shared by the envelope
+//! The estimator configurations at the corners of the validated ranges, shared by the golden
+//! vectors ([`crate::config`]) and, through the root package's dev-dependency, the envelope
 //! tests (tests/estimator_envelope.rs) and the float-twin cancellation search
-//! (tests/model_vs_float_twin.rs): one definition, so both test the same corners.
+//! (tests/model_vs_float_twin.rs): one definition, so all of them test the same corners.
 
 use fixed::types::{I16F16, I32F32};
 use liftfw::estimator::{EstimatorConfig, MotorConfig};

@@ -6,7 +6,7 @@
 //! time ([`init_font`]: `$HOST_SIM_FONT`, else DejaVu Sans where Debian's `fonts-dejavu-core`
 //! puts it, which `scripts/deps` installs).
 
-use crate::paper::{CaseResult, Envelope};
+use super::{CaseResult, Envelope};
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 use std::error::Error;

@@ -1,8 +1,8 @@
-//! PNG plots in the layout of seed 001's Figs 2 and 14–21, in the style of [`crate::plots`]
+//! PNG plots in the layout of seed 001's Figs 2 and 14–21, in the style of [`crate::studies::paper::plots`]
 //! (plotters bitmap backend, the same font lookup).
 
 use super::study::{Study, BALL33};
-use crate::plots::{init_font, range, FONT};
+use crate::studies::paper::plots::{init_font, range, FONT};
 use plotters::prelude::*;
 use std::error::Error;
 use std::path::Path;

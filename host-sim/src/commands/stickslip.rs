@@ -1,0 +1,145 @@
+//! `host-sim stickslip`: the core's stick-slip detector scored against the plant's truth, and
+//! the `speed` reaction against `log`.
+
+use crate::studies::stickslip::{self as score, Mitigation, ScoreConfig};
+use rayon::prelude::*;
+use std::error::Error;
+use std::time::Instant as WallClock;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Number of scenarios in the scored set.
+    #[arg(long, default_value_t = 64)]
+    scenarios: usize,
+    /// Seed of the scenario generator.
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// Run the regression test's small set instead.
+    #[arg(long)]
+    quick: bool,
+    /// Print one line per run.
+    #[arg(long)]
+    verbose: bool,
+    /// Also run the mitigation demonstration (reaction `log` against `speed`).
+    #[arg(long)]
+    mitigation: bool,
+    /// Integration step, s.
+    #[arg(long, default_value_t = 4e-6)]
+    dt: f64,
+    /// Override the detector's slip threshold `stickslip.drop`, N·m (for tuning).
+    #[arg(long)]
+    drop: Option<f64>,
+    /// Parallel jobs [default: one per core].
+    #[arg(long)]
+    jobs: Option<usize>,
+}
+
+/// Runs `host-sim stickslip`.
+pub fn run(a: &Args) -> Result<(), Box<dyn Error>> {
+    let wall = WallClock::now();
+    let sc = ScoreConfig {
+        dt: a.dt,
+        drop_threshold: a.drop,
+        ..ScoreConfig::default()
+    };
+    let set = if a.quick {
+        score::quick_set()
+    } else {
+        score::scenario_set(a.scenarios, a.seed)
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.jobs.unwrap_or(0))
+        .build()?;
+    let t = &sc.truth;
+    println!(
+        "host-sim stickslip: {} scenarios (seed {}), dt = {:.0e} s; episode = ≥ {} cycles of drop ≥ {} N·m and period ≥ {} ms, breakaways ≤ {} s apart, ≥ {} ms long",
+        set.len(),
+        a.seed,
+        sc.dt,
+        t.min_cycles,
+        t.min_drop,
+        t.min_period * 1e3,
+        t.max_gap,
+        t.min_duration * 1e3
+    );
+    let results: Vec<score::RunResult> =
+        pool.install(|| set.par_iter().map(|s| score::run(s, &sc)).collect());
+    if a.verbose {
+        for r in &results {
+            println!("{}", score::run_line(r));
+        }
+    }
+    let s = score::score(&results);
+    println!("{s}");
+    if !s.missed.is_empty() {
+        println!(
+            "missed      {}",
+            s.missed
+                .iter()
+                .map(|(id, t)| format!("#{id} at {t:.3} s"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    let goals = [
+        ("precision ≥ 95 %", s.precision() >= 0.95),
+        ("recall ≥ 95 %", s.recall() >= 0.95),
+        ("median latency ≤ 50 ms", s.median_latency() <= 0.050),
+        ("no false alarm on smooth runs", s.smooth_alarms == 0),
+    ];
+    println!(
+        "goals       {}",
+        goals
+            .iter()
+            .map(|(g, ok)| format!("{g}: {}", if *ok { "met" } else { "MISSED" }))
+            .collect::<Vec<_>>()
+            .join("; ")
+    );
+    if a.mitigation {
+        let set = score::mitigation_set();
+        let jobs: Vec<(score::Scenario, bool)> =
+            set.iter().flat_map(|s| [(*s, false), (*s, true)]).collect();
+        let runs: Vec<score::RunResult> = pool.install(|| {
+            jobs.par_iter()
+                .map(|(s, speed)| {
+                    let s = score::Scenario {
+                        reaction: if *speed {
+                            liftfw::detect::stickslip::Reaction::ChangeSpeed
+                        } else {
+                            liftfw::detect::stickslip::Reaction::Log
+                        },
+                        ..*s
+                    };
+                    score::run(&s, &sc)
+                })
+                .collect()
+        });
+        println!(
+            "mitigation  reaction `speed` (escape {} rad/s) against `log`: stick-slip after the first onset until STOP",
+            sc.escape_speed
+        );
+        for pair in runs.chunks(2) {
+            let m = Mitigation {
+                scenario: pair[0].scenario,
+                log: pair[0].clone(),
+                speed: pair[1].clone(),
+            };
+            let t_on = m.speed.onsets.first().map_or(f64::NAN, |o| o.0);
+            let (a_log, n_log) = Mitigation::stick_slip_after(&m.log, t_on);
+            let (a_spd, n_spd) = Mitigation::stick_slip_after(&m.speed, t_on);
+            println!(
+                "  {}: onset {:.3} s; log {:.3} s of stick-slip ({} cycles) → speed {:.3} s ({} cycles); screw speed late {:.2} → {:.2} rad/s",
+                m.scenario.name(),
+                t_on,
+                a_log,
+                n_log,
+                a_spd,
+                n_spd,
+                m.log.late_speed,
+                m.speed.late_speed
+            );
+        }
+    }
+    println!("wall time   {:.1} s", wall.elapsed().as_secs_f64());
+    Ok(())
+}

@@ -1,0 +1,6 @@
+//! The twin measured: the papers' studies and the core's detector scored against the truth.
+
+pub mod convergence;
+pub mod load_distribution;
+pub mod paper;
+pub mod stickslip;

@@ -28,6 +28,15 @@ pub struct Args {
     /// Skip the plot.
     #[arg(long)]
     no_plot: bool,
+    /// Inject a fault: KIND@TIME[:SIZE][+DURATION] (s, size per kind), e.g. encoder-loss@2,
+    /// current-offset@1.5:4, supply-sag@3:9.5+0.5, jam@4, overload@2:500,
+    /// lower-switch-dead@0, watchdog-stall@3:0.2; repeat the flag for more.
+    #[arg(long, value_name = "FAULT", value_parser = parse_fault)]
+    fault: Vec<crate::inject::Injection>,
+}
+
+fn parse_fault(s: &str) -> Result<crate::inject::Injection, String> {
+    s.parse()
 }
 
 /// Runs `host-sim lift`.
@@ -39,6 +48,7 @@ pub fn run(a: Args) -> Result<(), Box<dyn Error>> {
         to_mm: a.to_mm,
         seed: a.seed,
         plot: (!a.no_plot).then_some(a.plot),
+        faults: a.fault,
     })
     .map(|_| ())
     .map_err(Into::into)

@@ -37,10 +37,9 @@
 //! Everything is integer: Q16 N·m, tick counters; no division on the hot path. The float64
 //! twins and the property tests that hold this to them are in this module's tests.
 
+use crate::keys::{self, check_bounds, Bound, ConfigError};
 use crate::model::friction::CompiledLaw;
 use crate::units::{NewtonMetres, RadiansPerSecond, Ratio, Q};
-use crate::ConfigError;
-use crate::{check_bounds, Bound};
 
 /// What the controller does when an episode starts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -101,14 +100,14 @@ impl StickSlipConfig {
             Bound::new(
                 NewtonMetres::lit("0.2").to_bits(),
                 NewtonMetres::lit("50").to_bits(),
-                "stickslip.drop",
+                &keys::STICKSLIP_DROP,
             ),
             // A `u32` above `i32::MAX` wraps negative: refused like any value below 100.
-            Bound::new(100, 10_000, "stickslip.window_ms"),
+            Bound::new(100, 10_000, &keys::STICKSLIP_WINDOW_MS),
             Bound::new(
                 RadiansPerSecond::lit("0.2").to_bits(),
                 RadiansPerSecond::lit("20").to_bits(),
-                "stickslip.escape_speed",
+                &keys::STICKSLIP_ESCAPE_SPEED,
             ),
         ];
         check_bounds(
@@ -455,7 +454,7 @@ impl StickSlipDetector {
     /// of line (16 B less than inlined into `Controller::new`).
     #[inline(never)]
     pub fn new(cfg: &StickSlipConfig, tick_us: u32) -> StickSlipDetector {
-        let ticks = |ms: u32| crate::control::ms_to_ticks(ms, tick_us).max(1);
+        let ticks = |ms: u32| crate::units::ms_to_ticks(ms, tick_us).max(1);
         let threshold = cfg.drop_threshold.to_bits().max(1);
         StickSlipDetector {
             threshold,
@@ -523,10 +522,9 @@ impl StickSlipDetector {
 
     /// One tick. `law` is the configured friction law (for the branch of μ(θ̇)), the same on
     /// every call of a detector (the branch test's halves run on two successive ticks). Total:
-    /// no panic, no wrap, whatever the inputs. Compiled for speed, out of line: inlined into
+    /// no panic, no wrap, whatever the inputs. Out of line: inlined into
     /// `Controller::step` it took 272 B more flash (docs/qemu.md "Optimisation level").
     #[inline(never)]
-    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn step(&mut self, x: &DetectorInputs, law: &CompiledLaw) -> StickSlipOutput {
         self.out.onset = false;
         self.out.slip = false;

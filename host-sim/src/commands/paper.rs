@@ -71,7 +71,7 @@ pub fn run(a: &Args) -> Result<(), Box<dyn Error>> {
     std::fs::create_dir_all(&a.out)?;
     let plots = !a.no_plots;
     if plots {
-        match plots::init_font() {
+        match crate::plotting::init_font() {
             Ok(p) => println!("font        {}", p.display()),
             Err(e) => return Err(e.into()),
         }
@@ -186,7 +186,7 @@ pub fn run(a: &Args) -> Result<(), Box<dyn Error>> {
             .unwrap_or_else(|| repo_doc("paper-reproduction.md"));
         let ball = doc.with_file_name("ballscrew-reproduction.md");
         let ball = std::fs::read_to_string(&ball).ok();
-        let text = paper::reproduction_markdown(&main, steady.as_ref(), &m, ball.as_deref());
+        let text = paper::reproduction_markdown(&main, steady.as_ref(), &m, ball.as_deref())?;
         std::fs::write(&doc, text)?;
         println!("report      {}", doc.display());
     }

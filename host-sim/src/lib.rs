@@ -8,7 +8,8 @@
 //!   stick-slip episodes labelled from the plant's phase log ([`truth`]).
 //! - [`apps`]: the twin in use — `host-sim lift` ([`apps::lift`]) and the simulated board with
 //!   the core's console on loopback TCP ([`apps::serve`]).
-//! - [`commands`]: the `host-sim` command line, one module per subcommand.
+//! - [`commands`]: the `host-sim` command line, one module per subcommand; [`plotting`]: what
+//!   the apps' and the studies' plots share (the font).
 //! - [`studies`]: the twin measured — seed 000's matrix and its reproduction report
 //!   ([`studies::paper`]), the step-size convergence study ([`studies::convergence`]), the core's
 //!   stick-slip detector scored against the truth ([`studies::stickslip`]) and the ball-screw
@@ -21,6 +22,7 @@
 pub mod apps;
 pub mod cli;
 pub mod commands;
+pub mod plotting;
 pub mod studies;
 pub mod twin;
 

@@ -71,7 +71,7 @@ pub fn run(a: &Args) -> Result<(), Box<dyn Error>> {
     std::fs::create_dir_all(&a.out)?;
     let plots = !a.no_plots;
     if plots {
-        match plots::init_font() {
+        match crate::plotting::init_font() {
             Ok(p) => println!("font        {}", p.display()),
             Err(e) => return Err(e.into()),
         }

@@ -36,10 +36,9 @@
 //! Everything is integer: Q16 N·m, tick counters; no division on the hot path. The float64
 //! twins and the property tests that hold this to them are in this module's tests.
 
+use crate::keys::{self, check_bounds, Bound, ConfigError};
 use crate::model::friction::CompiledLaw;
 use crate::units::{NewtonMetres, RadiansPerSecond, Ratio, Q};
-use crate::ConfigError;
-use crate::{check_bounds, Bound};
 
 /// What the controller does when an episode starts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -100,14 +99,14 @@ impl StickSlipConfig {
             Bound::new(
                 NewtonMetres::lit("0.2").to_bits(),
                 NewtonMetres::lit("50").to_bits(),
-                "stickslip.drop",
+                &keys::STICKSLIP_DROP,
             ),
             // A `u32` above `i32::MAX` wraps negative: refused like any value below 100.
-            Bound::new(100, 10_000, "stickslip.window_ms"),
+            Bound::new(100, 10_000, &keys::STICKSLIP_WINDOW_MS),
             Bound::new(
                 RadiansPerSecond::lit("0.2").to_bits(),
                 RadiansPerSecond::lit("20").to_bits(),
-                "stickslip.escape_speed",
+                &keys::STICKSLIP_ESCAPE_SPEED,
             ),
         ];
         check_bounds(
@@ -429,7 +428,7 @@ impl StickSlipDetector {
     /// of line (16 B less than inlined into `Controller::new`).
     #[inline(never)]
     pub fn new(cfg: &StickSlipConfig, tick_us: u32) -> StickSlipDetector {
-        let ticks = |ms: u32| crate::control::ms_to_ticks(ms, tick_us).max(1);
+        let ticks = |ms: u32| crate::units::ms_to_ticks(ms, tick_us).max(1);
         let threshold = cfg.drop_threshold.to_bits().max(1);
         StickSlipDetector {
             threshold,

@@ -86,13 +86,13 @@ static CONSOLE_REPLY: ConstStaticCell<Reply> = ConstStaticCell::new(Reply(heaple
 /// they are written with `write_str` alone (`liftfw::text`, `console::fill`), never with
 /// `write!`, so `write_fmt` takes a plain string only (anything else is an error, the reply is
 /// then marked cut) instead of linking `core::fmt::write`'s argument loop into the sink's
-/// vtable (≈ 0.2 KiB of flash), and `write_char` goes through `write_str`.
+/// vtable, and `write_char` goes through `write_str`.
 struct Reply(heapless::String<REPLY_LEN>);
 
 impl core::fmt::Write for Reply {
     // `write_str` and `write_char` are not inlined: the reply is the firmware's only dyn
     // `Write`, so LTO turns the core's `out.write_*` calls into direct calls of these and
-    // inlined heapless's `push_str`/`push` into each (40 B more flash in all).
+    // would otherwise inline heapless's `push_str`/`push` into each of them.
     #[inline(never)]
     fn write_str(&mut self, s: &str) -> core::fmt::Result {
         self.0.push_str(s).map_err(|_| core::fmt::Error)
@@ -132,8 +132,7 @@ static EXECUTOR: StaticCell<Executor> = StaticCell::new();
 
 /// Entry: boot, then run the tasks. Boot awaits nothing (the store is blocking, like the
 /// flash), so it runs as the executor's `init` rather than as a task of its own (what
-/// `#[embassy_executor::main]` makes of it: a task pool, a spawn and a poll; 88 B of flash and
-/// 40 B of RAM more).
+/// `#[embassy_executor::main]` makes of it: a task pool, a spawn and a poll, for nothing).
 #[cortex_m_rt::entry]
 fn main() -> ! {
     EXECUTOR.init(Executor::new()).run(boot)
@@ -171,10 +170,8 @@ fn boot(spawner: Spawner) {
     spawn_tasks(spawner, board, lift, console, greeting, boot, parked);
 }
 
-/// A HAL error for the defmt log. embassy-stm32 is built without its `defmt` feature: with
-/// it, each of the HAL's internal assertions and unwraps logged a message of its own before
-/// panicking (1.4 KiB of flash); without it they panic like the core does (a HardFault on
-/// `scripts/fw-build`'s default route, panic-probe's message with `FW_PANIC=handler`). The two
+/// A HAL error for the defmt log. embassy-stm32 is built without its `defmt` feature (its
+/// assertions and unwraps panic like the core's, and panic-probe logs the message): the two
 /// HAL errors the firmware logs are named here instead of by the HAL's derive.
 struct HalError<E>(E);
 
@@ -210,7 +207,6 @@ impl defmt::Format for HalError<usart::ConfigError> {
 #[inline(never)]
 fn bring_up() -> (&'static mut Board, ConsolePins, Peri<'static, FLASH>, bool) {
     let p = embassy_stm32::init(board::clock_config());
-    board::vectors::disable_past_table();
     info!("liftfw {} booting", env!("CARGO_PKG_VERSION"));
     let watchdog_reset = board::Watchdog::caused_last_reset();
     let (board, console, flash) = Board::new(p);
@@ -354,9 +350,8 @@ fn spawn_tasks(
 }
 
 /// A task's spawn token. Each task is spawned once, into a pool of one, so this cannot fail;
-/// if it did, it panics plainly (a HardFault on `scripts/fw-build`'s default route, the
-/// message through panic-probe with `FW_PANIC=handler`) rather than through `defmt::unwrap!`'s
-/// own message (≈ 30 B of flash per spawn).
+/// if it did, it panics (panic-probe logs the message, then the HardFault handler stops the
+/// bridge).
 #[inline(always)]
 fn token<S>(spawned: Result<SpawnToken<S>, SpawnError>) -> SpawnToken<S> {
     match spawned {
@@ -377,7 +372,7 @@ fn token<S>(spawned: Result<SpawnToken<S>, SpawnError>) -> SpawnToken<S> {
 #[inline(never)]
 fn install_controller(config: &ControlConfig, parked: Option<i32>) -> &'static mut Controller {
     // Opaque to the optimiser, so that the constructor is not specialised to the static's
-    // address: 328 B less flash, measured with scripts/fw-build.
+    // address (a second copy of it, for no speed that matters at boot).
     let slot = core::hint::black_box(CONTROLLER.uninit());
     // The running configuration was validated already; the factory one is the fallback.
     if construct(slot, config, parked).is_err() {
@@ -388,8 +383,7 @@ fn install_controller(config: &ControlConfig, parked: Option<i32>) -> &'static m
         Ok(controller) => controller,
         // Cannot happen: the factory configuration is valid (the core's unit test
         // `factory_configuration_passes_validation`; host-sim builds its controllers from it).
-        // If it did, a plain panic, as in `token`, rather than `defmt::panic!` with the error
-        // (the message and `ConfigError`'s defmt formatter: 72 B of flash).
+        // If it did, a plain panic, as in `token`.
         Err(_) => panic!("factory configuration refused"),
     }
 }
@@ -468,7 +462,7 @@ async fn control(board: &'static mut Board, lift: &'static SharedController, mut
 
 /// An event of the tick to the defmt log and, for faults, homing and the stick-slip and
 /// lubrication warnings, to the console. Out of line: a tick rarely has an event, and the
-/// logging calls were inlined into the control task's poll (issue 5).
+/// logging calls would otherwise be inlined into the control task's poll.
 #[inline(never)]
 fn report_event(e: Event) {
     // Stick-slip with the reactions `warn` and `speed`, and the lubrication warning: warnings.
@@ -645,7 +639,7 @@ async fn console_task(
             if outcome.reply.is_err() {
                 // The reply outgrew the buffer: say so rather than cut it silently. Cut at the
                 // last char boundary within REPLY_LEN − 24 bytes (what popping chars until it
-                // fits leaves, without decoding chars backwards: 0.1 KiB less flash).
+                // fits leaves, without decoding chars backwards).
                 let mut cut = reply.0.len().min(REPLY_LEN - 24);
                 while !reply.0.is_char_boundary(cut) {
                     cut -= 1;

@@ -8,6 +8,7 @@
 //! what is only integers in decimal and one hex word. The output is the same as `write!`'s
 //! (`{}`, `{:0w$}`, `{:08x}`); the tests below compare them.
 
+use crate::units::Metres;
 use core::fmt::{self, Write};
 
 /// `v` in decimal, zero-padded to at least `width` digits (`{v:0width$}` for `width ≤ 20`;
@@ -130,6 +131,184 @@ pub fn is_utf8(mut b: &[u8]) -> bool {
         }
     }
     true
+}
+
+/// Words of a line as the user typed them, for messages: UTF-8 kept as bytes. The console's parser checks
+/// a line with [`is_utf8`] and then works on its bytes, so the firmware links no
+/// `core::str::from_utf8` (≈ 0.6 KiB of flash with its table). Made only from a checked line or
+/// a `&str` (`From`), so it is always valid UTF-8; `Debug` shows it as the `&str` it is.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub struct Words<'a>(pub(crate) &'a [u8]);
+
+impl<'a> Words<'a> {
+    /// The bytes (valid UTF-8).
+    pub fn as_bytes(self) -> &'a [u8] {
+        self.0
+    }
+}
+
+impl<'a> From<&'a str> for Words<'a> {
+    fn from(s: &'a str) -> Self {
+        Words(s.as_bytes())
+    }
+}
+
+impl fmt::Debug for Words<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match core::str::from_utf8(self.0) {
+            Ok(s) => fmt::Debug::fmt(s, f),
+            // Not made by this module (its words are checked): shown as bytes.
+            Err(_) => fmt::Debug::fmt(self.0, f),
+        }
+    }
+}
+
+/// At most 24 characters of user text in a message (the rest as `...`), char by char (the
+/// words are bytes, see [`Words`]).
+fn clip(out: &mut dyn Write, s: Words<'_>) -> fmt::Result {
+    let mut rest = s.0;
+    let mut n = 0;
+    while let Some((c, tail)) = next_char(rest) {
+        if n == 24 {
+            return out.write_str("...");
+        }
+        // A control character is shown, not sent: a terminal would act on ESC, BEL, NUL.
+        match u8::try_from(c) {
+            Ok(b) if b < 0x20 || (0x7F..0xA0).contains(&b) => escape(out, b)?,
+            _ => out.write_char(c)?,
+        }
+        n += 1;
+        rest = tail;
+    }
+    Ok(())
+}
+
+/// A byte as `\xNN` (upper-case hex), for control characters in replies.
+pub(crate) fn escape(out: &mut dyn Write, b: u8) -> fmt::Result {
+    const HEX: &[u8; 16] = b"0123456789ABCDEF";
+    out.write_str("\\x")?;
+    out.write_char(char::from(HEX[usize::from(b >> 4)]))?;
+    out.write_char(char::from(HEX[usize::from(b & 15)]))
+}
+
+/// A height for a reply: in mm (the caller writes the unit) if the position is known, else
+/// `unknown` (an unhomed board's height is its homing assumption, not the head's).
+pub(crate) fn height_arg(h: Metres, homed: bool) -> Arg<'static> {
+    if homed {
+        Arg::Mm(h)
+    } else {
+        Arg::Str("unknown")
+    }
+}
+
+/// One value in a reply template ([`fill`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Arg<'a> {
+    /// Text as it is.
+    Str(&'a str),
+    /// A name as one `key=value` word ([`write_word`]).
+    Word(&'a str),
+    /// User text, at most 24 characters of it ([`clip`]).
+    Clip(Words<'a>),
+    /// An unsigned integer in decimal.
+    Uint(u32),
+    /// A fixed-point value: its bits, fractional bits and the decimals shown
+    /// ([`fixed_decimal`]).
+    Fixed(i32, u8, u8),
+    /// A height in mm with one decimal.
+    Mm(Metres),
+    /// An integer count of 10^−d units with `d` decimals (`Deci(-5, 1)`: `-0.5`).
+    Deci(i32, u8),
+}
+
+/// The placeholder in a [`fill`] template.
+pub(crate) const SLOT: u8 = 0x01;
+
+/// `template` with each [`SLOT`] byte replaced by the next of `args` (a slot without an
+/// argument writes nothing). One call with one string per reply instead of a `write_str` per
+/// piece: on the board each piece cost ≈ 16 B of code, an argument ≈ half that.
+pub(crate) fn fill(out: &mut dyn Write, template: &str, args: &[Arg<'_>]) -> fmt::Result {
+    let mut args = args.iter();
+    let mut rest = template;
+    loop {
+        // SLOT is ASCII: the split is at a char boundary (checked, so that no panic is linked).
+        let Some((piece, tail)) = rest
+            .bytes()
+            .position(|b| b == SLOT)
+            .and_then(|i| rest.split_at_checked(i))
+        else {
+            return out.write_str(rest);
+        };
+        out.write_str(piece)?;
+        // A number as its count of 10^−dec and dec.
+        let number = match args.next() {
+            Some(Arg::Str(t)) => out.write_str(t).map(|_| None)?,
+            Some(Arg::Word(t)) => write_word(out, t).map(|_| None)?,
+            Some(&Arg::Clip(t)) => clip(out, t).map(|_| None)?,
+            Some(&Arg::Uint(v)) => Some((i64::from(v), 0)),
+            Some(&Arg::Fixed(bits, frac, dec)) => Some((
+                fixed_decimal(bits, u32::from(frac), u32::from(dec)),
+                u32::from(dec),
+            )),
+            // 0.1 mm is the resolution a person reads heights in (rounded half up).
+            Some(Arg::Mm(m)) => Some(((i64::from(m.to_bits()) * 10_000 + (1 << 23)) >> 24, 1)),
+            Some(&Arg::Deci(v, d)) => Some((i64::from(v), u32::from(d))),
+            None => None,
+        };
+        if let Some((q, dec)) = number {
+            write_decimal(out, q, dec)?;
+        }
+        rest = tail.get(1..).unwrap_or("");
+    }
+}
+
+/// A name as one `key=value` word: spaces become `-` ("encoder lost" → `encoder-lost`).
+fn write_word(out: &mut dyn Write, name: &str) -> fmt::Result {
+    // Piece by piece between ASCII whitespace bytes (char boundaries; no char decoding).
+    let mut rest = name;
+    while let Some((piece, tail)) = rest
+        .bytes()
+        .position(|b| b.is_ascii_whitespace())
+        .and_then(|i| rest.split_at_checked(i))
+    {
+        out.write_str(piece)?;
+        out.write_char('-')?;
+        rest = tail.get(1..).unwrap_or("");
+    }
+    out.write_str(rest)
+}
+
+/// A fixed-point value `bits·2^−frac` rounded to `dec` decimals (ties away from zero), as a
+/// count of `10^−dec` ([`write_decimal`] prints it), for status lines.
+fn fixed_decimal(bits: i32, frac: u32, dec: u32) -> i64 {
+    // dec ≤ 5 in every reply: fits.
+    let scale = ten_to(dec).unwrap_or(1) as i64;
+    let v = i64::from(bits) * scale;
+    let half = 1i64 << (frac - 1);
+    if v >= 0 {
+        (v + half) >> frac
+    } else {
+        -((-v + half) >> frac)
+    }
+}
+
+/// `q·10^−dec` in decimal: the sign, the whole part, and `dec` digits after the point (no
+/// point for 0). Every number of the replies goes through here.
+fn write_decimal(out: &mut dyn Write, q: i64, dec: u32) -> fmt::Result {
+    if q < 0 {
+        out.write_char('-')?;
+    }
+    decimal(out, q.unsigned_abs(), dec as usize)
+}
+
+/// `10^k`, `None` above `u64::MAX` (one small loop in place of `u64::pow` and
+/// `u64::checked_pow`: ≈ 0.2 KiB less on the board; at most 20 rounds).
+pub(crate) fn ten_to(k: u32) -> Option<u64> {
+    let mut p = 1u64;
+    for _ in 0..k {
+        p = p.checked_mul(10)?;
+    }
+    Some(p)
 }
 
 #[cfg(test)]
@@ -258,5 +437,65 @@ mod tests {
         assert!(uint(&mut s, 1234).is_err());
         assert!(uint(&mut s, 123).is_ok());
         assert_eq!(s.as_str(), "123");
+    }
+
+    /// User text in messages is cut after 24 characters (not bytes), as `char_indices` cut it.
+    #[test]
+    fn clip_cuts_after_24_characters() {
+        let twin = |s: &str| match s.char_indices().nth(24) {
+            Some((i, _)) => format!("{}...", &s[..i]),
+            None => String::from(s),
+        };
+        for s in [
+            "",
+            "short",
+            "exactly-twenty-four-char",
+            "exactly-twenty-five-chars",
+            "äöüäöüäöüäöüäöüäöüäöüäöüäöü",
+            "°°°°°°°°°°°°°°°°°°°°°°°°",
+            "°°°°°°°°°°°°°°°°°°°°°°°°x",
+            "a𝄞b𝄞c𝄞d𝄞e𝄞f𝄞g𝄞h𝄞i𝄞j𝄞k𝄞l𝄞m𝄞",
+        ] {
+            let mut out = String::new();
+            clip(&mut out, s.into()).unwrap();
+            assert_eq!(out, twin(s), "{s}");
+        }
+    }
+
+    /// Names become one word: each ASCII whitespace character a `-` (the `chars` form's twin).
+    #[test]
+    fn words_replace_ascii_whitespace() {
+        for name in [
+            "",
+            "idle",
+            "encoder lost",
+            " a  b\tc\n",
+            "ü ö",
+            "limit switch before x ",
+        ] {
+            let mut out = String::new();
+            write_word(&mut out, name).unwrap();
+            assert_eq!(
+                out,
+                name.chars()
+                    .map(|c| if c.is_whitespace() { '-' } else { c })
+                    .collect::<String>(),
+                "{name:?}"
+            );
+        }
+    }
+
+    /// Heights keep their sign below one millimetre (they lost it before `write_decimal`).
+    #[test]
+    fn small_negative_heights_keep_their_sign() {
+        let text = |mm: f64| {
+            let mut s = String::new();
+            fill(&mut s, "\x01", &[Arg::Mm(Metres::from_f64(mm / 1000.0))]).unwrap();
+            s
+        };
+        assert_eq!(text(-0.3), "-0.3");
+        assert_eq!(text(-12.34), "-12.3");
+        assert_eq!(text(0.04), "0.0");
+        assert_eq!(text(416.44), "416.4");
     }
 }

@@ -42,6 +42,13 @@ impl Instant {
     }
 }
 
+/// `ms` milliseconds in ticks of `tick_us` µs, rounded down: `ms·1000/tick_us`, the product
+/// saturated. Out of line: one copy for every configured duration.
+#[inline(never)]
+pub fn ms_to_ticks(ms: u32, tick_us: u32) -> u32 {
+    ms.saturating_mul(1000) / tick_us.max(1)
+}
+
 /// A quantity on the defmt log: its raw bits, Q format and unit (the host tool shows
 /// `bits/2^frac unit`). One out-of-line copy for every quantity type: each type's own
 /// `defmt::write!` was ≈ 60 B of flash (the same log line either way).

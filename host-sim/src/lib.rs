@@ -8,7 +8,8 @@
 //!   stick-slip episodes labelled from the plant's phase log ([`truth`]).
 //! - [`apps`]: the twin in use — `host-sim lift` ([`apps::lift`]) and the simulated board with
 //!   the core's console on loopback TCP ([`apps::serve`]).
-//! - [`commands`]: the `host-sim` command line, one module per subcommand.
+//! - [`commands`]: the `host-sim` command line, one module per subcommand; [`plotting`]: what
+//!   the apps' and the studies' plots share (the font).
 //! - [`inject`]: faults a user injects into a closed-loop run (sensors, supply, jam, overload,
 //!   a hung control task).
 //! - [`studies`]: the twin measured — seed 000's matrix and its reproduction report
@@ -24,6 +25,7 @@ pub mod apps;
 pub mod cli;
 pub mod commands;
 pub mod inject;
+pub mod plotting;
 pub mod studies;
 pub mod twin;
 

@@ -43,7 +43,8 @@ fn report_states_every_claim_and_includes_the_ball_screw_file_verbatim() {
         assert!(!r.plot.torque.is_empty() && !r.plot.torque_zoom.is_empty());
     }
     let ball = "### Ball screw\n\nSome *verbatim* text | with a table |\n";
-    let doc = paper::reproduction_markdown(&results, None, &cfg, Some(ball));
+    let doc = paper::reproduction_markdown(&results, None, &cfg, Some(ball))
+        .expect("the template and the generator agree");
     for claim in 1..=7 {
         assert!(doc.contains(&format!("\n| {claim} | ")), "claim {claim}");
     }
@@ -52,7 +53,8 @@ fn report_states_every_claim_and_includes_the_ball_screw_file_verbatim() {
         .expect("ball-screw heading");
     assert!(head.contains("Arm length") && head.contains("Motor (screw) speed"));
     assert!(tail.contains(ball.trim_end()));
-    let without = paper::reproduction_markdown(&results, None, &cfg, None);
+    let without = paper::reproduction_markdown(&results, None, &cfg, None)
+        .expect("the template and the generator agree");
     assert!(without.contains("## Ball-screw variant (seeds 001, 002)"));
     assert!(without.contains("docs/ballscrew-reproduction.md"));
 }

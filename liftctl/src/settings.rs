@@ -335,7 +335,8 @@ mod tests {
         .unwrap();
         let keys: Vec<&str> = p.iter().map(|c| c.id.key()).collect();
         assert_eq!(keys, ["limits.upper", "limits.lower"]);
-        // The example is outside this mechanism: refused with the firmware's words.
+        // Stops past both ends of the mechanism (133.5..416.4 mm): refused with the firmware's
+        // words.
         let e = plan(
             &run,
             &[ch("limits.upper", "450mm"), ch("limits.lower", "120mm")],

@@ -2,7 +2,6 @@
 
 use crate::board::{Board, Error, Status};
 use plotters::prelude::*;
-use plotters::style::FontStyle;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -140,40 +139,12 @@ pub fn line(s: &Sample) -> String {
     )
 }
 
-const FONT: &str = "sans-serif";
+const FONT: &str = liftfw_plotfont::FAMILY;
 
-/// Where fonts usually are (as host-sim's plots): Debian/Ubuntu, Fedora, Arch, macOS, Windows.
-const FONT_PATHS: [&str; 6] = [
-    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/dejavu-sans-fonts/DejaVuSans.ttf",
-    "/usr/share/fonts/TTF/DejaVuSans.ttf",
-    "/usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf",
-    "/Library/Fonts/Arial Unicode.ttf",
-    "C:\\Windows\\Fonts\\arial.ttf",
-];
-
-/// Register a TrueType font for the plot's labels: `$LIFTCTL_FONT`, else a usual system one.
+/// Register a TrueType font for the plot's labels: `$LIFTCTL_FONT`, else a system sans-serif
+/// face.
 pub fn init_font() -> Result<PathBuf, String> {
-    static FOUND: std::sync::OnceLock<Result<PathBuf, String>> = std::sync::OnceLock::new();
-    FOUND
-        .get_or_init(|| {
-            let env = std::env::var_os("LIFTCTL_FONT").map(PathBuf::from);
-            for path in env.into_iter().chain(FONT_PATHS.iter().map(PathBuf::from)) {
-                if let Ok(bytes) = std::fs::read(&path) {
-                    let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-                    if plotters::style::register_font(FONT, FontStyle::Normal, bytes).is_ok() {
-                        return Ok(path);
-                    }
-                }
-            }
-            Err(
-                "no TrueType font for the plot's labels: install one (Debian: \
-                 fonts-dejavu-core, which scripts/deps installs) or set \
-                 LIFTCTL_FONT=/path/to/font.ttf"
-                    .to_string(),
-            )
-        })
-        .clone()
+    liftfw_plotfont::register("LIFTCTL_FONT")
 }
 
 fn bounds(v: impl Iterator<Item = f64>) -> (f64, f64) {

@@ -61,52 +61,16 @@ cross_select_route() {
     esac
 }
 
-# Target spec (Debian route). rustc's built-in thumbv7em-none-eabihf spec says
-# "frame-pointer": "always" (and `-Cforce-frame-pointers` can only add frame pointers, never
-# remove them): every function with a frame then sets up r7 as a frame pointer and has one
-# register less. Nothing here walks frame pointers (probe-rs and defmt unwind with the ELF's
-# DWARF CFI; the stack bound reads the disassembly), so the Debian route, which rebuilds core
-# anyway (-Zbuild-std), builds for a copy of that spec with "may-omit" (1.9 KiB less flash,
-# ≈ 100 B less stack per task) and with the chip's core named, "cpu": "cortex-m4" (the
-# built-in spec leaves it generic ARMv7E-M; LLVM's Cortex-M4 model: 0.2 KiB less flash);
-# BENCHMARKS.md "Firmware footprint". The copy is named like the built-in target, so cargo's
-# output paths (<target-dir>/thumbv7em-none-eabihf/...) and CARGO_TARGET_THUMBV7EM_NONE_EABIHF_*
-# settings stay the same; it is rewritten only when the compiler's spec changes (an unchanged
-# file keeps cargo's fingerprints). FW_FRAME_POINTERS=keep builds for the built-in target
-# instead.
-cross_target_spec() {
-    if [ "${FW_FRAME_POINTERS:-omit}" = keep ]; then
-        printf '%s\n' "$CROSS_TARGET"
-        return
-    fi
-    local dir=${CARGO_TARGET_DIR:-$PWD/target}/target-spec
-    local spec=$dir/$CROSS_TARGET.json
-    mkdir -p "$dir"
-    RUSTC_BOOTSTRAP=1 /usr/bin/rustc -Zunstable-options --print target-spec-json \
-        --target "$CROSS_TARGET" >"$spec.new"
-    if grep -q '"cpu"' "$spec.new" || ! grep -q '"frame-pointer": "always",' "$spec.new"; then
-        # A compiler whose spec already differs: build for its built-in target rather than
-        # guess at an edit (larger flash and stack, same code).
-        cross_log "target spec: not the expected built-in spec (rustc changed?), using the built-in target: $spec.new"
-        printf '%s\n' "$CROSS_TARGET"
-        return
-    fi
-    sed -i 's/"frame-pointer": "always",/"cpu": "cortex-m4",\n  "frame-pointer": "may-omit",/' "$spec.new"
-    if cmp -s "$spec.new" "$spec"; then rm "$spec.new"; else mv "$spec.new" "$spec"; fi
-    printf '%s\n' "$spec"
-}
-
+# Both routes build the same code with the same profile (Cargo.toml) for rustc's built-in
+# thumbv7em-none-eabihf target; the Debian route's only difference is that it compiles core
+# itself (`-Zbuild-std=core`, which needs RUSTC_BOOTSTRAP=1) because it has no prebuilt one.
 cross_cargo_build() {
     if [ "$CROSS_ROUTE" = rustup ]; then
         cargo build --release --target "$CROSS_TARGET" "$@"
     else
-        local target json_flag=()
-        target=$(cross_target_spec)
-        [ "$target" = "$CROSS_TARGET" ] || json_flag=(-Zjson-target-spec)
         # -Zbuild-std belongs on the command line, never in .cargo/config.toml [unstable]:
         # with RUSTC_BOOTSTRAP=1 that would break host builds (TOOLCHAIN.md).
         RUSTC=/usr/bin/rustc RUSTDOC=/usr/bin/rustdoc RUSTC_BOOTSTRAP=1 \
-            /usr/bin/cargo build --release -Zbuild-std=core "${json_flag[@]}" \
-            --target "$target" "$@"
+            /usr/bin/cargo build --release -Zbuild-std=core --target "$CROSS_TARGET" "$@"
     fi
 }

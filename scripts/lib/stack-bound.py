@@ -25,7 +25,7 @@ The bound of a root is its frame plus the largest bound of its callees, found de
 Limits, printed with the result: indirect calls (`blx rN`: trait objects, function pointers,
 fmt::Write) are not followed, a call cycle (recursion) stops the walk and is reported, and the
 frames of interrupt handlers that may nest on top are not included (pass their names as roots
-to see them). Used by scripts/fw-build for the control task (issue 8 item 4); docs/qemu.md
+to see them). Used by scripts/fw-build for every task (the RAM budget); docs/qemu.md
 compares it with the stack painting measured under QEMU.
 """
 

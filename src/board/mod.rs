@@ -25,14 +25,21 @@
 //! | PB9  | GPIO out          | holding-brake coil driver (high = released)     |
 //!
 //! Timers: TIM1 = bridge PWM (its CH4, no pin, triggers the current ADC), TIM2 = embassy-time
-//! driver (cargo feature `time-driver-tim2`), TIM4 = encoder. SWD stays on PA13/PA14.
+//! driver (cargo feature `time-driver-tim2`), TIM4 = encoder, TIM3 = encoder edge timestamps
+//! (no pins). SWD stays on PA13/PA14.
+//!
+//! Every peripheral goes through embassy-stm32's drivers. Through the PAC, because the crate
+//! has no driver for them: TIM4's master mode (`sensors.rs`), the IWDG's debug freeze
+//! (DBGMCU) and the reset flags (RCC_CSR) in [`Watchdog`], the flash ECC flag in the NMI
+//! handler, and GPIOB's set/reset register in the HardFault handler (which cannot reach the
+//! drivers the tasks own).
 
 pub mod bridge;
 pub mod sensors;
-pub mod vectors;
 
 use embassy_stm32::peripherals::{FLASH, PA2, PA3, USART2};
 use embassy_stm32::time::Hertz;
+use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{Peri, Peripherals};
 
 pub use bridge::HBridge;
@@ -193,9 +200,8 @@ unsafe fn NonMaskableInt() {
     cortex_m::peripheral::SCB::sys_reset();
 }
 
-/// Every fault exception ends here, and so does every panic when core is built with
-/// `-Cpanic=immediate-abort` (scripts/fw-build's default on the Debian route; panic-probe's
-/// handler also ends in a HardFault). The bridge's enables go low at once (BTS7960 R_EN =
+/// Every fault exception ends here, and so does every panic (panic-probe logs the message
+/// over defmt, then faults). The bridge's enables go low at once (BTS7960 R_EN =
 /// PB12, L_EN = PB13: both half-bridges off, the motor coasts), and so does the holding
 /// brake's output (PB9: the brake engages), instead of the last duty running
 /// on until the watchdog resets the chip (up to [`WATCHDOG_TIMEOUT_US`]); then wait for that
@@ -213,59 +219,33 @@ unsafe fn HardFault() -> ! {
     }
 }
 
-/// IWDG prescaler (PR value) and reload (RLR) for [`WATCHDOG_TIMEOUT_US`]: the values
-/// embassy-stm32's `IndependentWatchdog::new` computes at run time (the smallest prescaler
-/// 4…256 whose longest period reaches the timeout, then the reload for it, same integer
-/// arithmetic), here at compile time. For 50 ms at 32 kHz: PR = 0 (÷4), RLR = 399.
-const IWDG_SETUP: (u8, u16) = {
-    let lsi = embassy_stm32::rcc::LSI_FREQ.0;
-    let mut power = 2;
-    while WATCHDOG_TIMEOUT_US > 1_000_000 * (0xFFF + 1) / (lsi / (1 << power)) {
-        power += 1;
-        assert!(power <= 8, "IWDG timeout beyond the 256 prescaler");
-    }
-    let psc = 1u32 << power;
-    (
-        (power - 2) as u8,
-        (WATCHDOG_TIMEOUT_US / psc * lsi / 1_000_000) as u16 - 1,
-    )
-};
-const _: () = assert!(IWDG_SETUP.0 == 0 && IWDG_SETUP.1 == 399);
-
-/// The IWDG, fed only on the core's say-so ([`liftfw::control::Outputs::feed_watchdog`]).
-///
-/// Written to through the PAC with the register writes of embassy-stm32's
-/// `IndependentWatchdog` (unlock, PR, RLR; start and reload keys), whose constructor found the
-/// prescaler at run time with a search loop and a panic path (≈ 0.2 KiB of flash).
+/// The IWDG, fed only on the core's say-so ([`liftfw::control::Outputs::feed_watchdog`]):
+/// embassy-stm32's `IndependentWatchdog` (for 50 ms at the 32 kHz LSI it picks prescaler ÷4,
+/// PR = 0, and reload 399). The debug freeze and the reset flag have no driver in
+/// embassy-stm32: they are one register field each, through the PAC.
 pub struct Watchdog {
-    _iwdg: Peri<'static, embassy_stm32::peripherals::IWDG>,
+    iwdg: IndependentWatchdog<'static, embassy_stm32::peripherals::IWDG>,
 }
 
 impl Watchdog {
     fn new(iwdg: Peri<'static, embassy_stm32::peripherals::IWDG>) -> Self {
-        use embassy_stm32::pac::iwdg::vals::{Key, Pr};
         // Freeze the IWDG while a debugger halts the core, so a breakpoint does not reset
         // the chip. No effect without a debugger attached.
         embassy_stm32::pac::DBGMCU
             .apb1lfzr()
             .modify(|w| w.set_iwdg(true));
-        let wdg = embassy_stm32::pac::IWDG;
-        let (pr, rl) = IWDG_SETUP;
-        wdg.kr().write(|w| w.set_key(Key::ENABLE));
-        wdg.pr().write(|w| w.set_pr(Pr::from_bits(pr)));
-        wdg.rlr().write(|w| w.set_rl(rl));
-        Self { _iwdg: iwdg }
+        Self {
+            iwdg: IndependentWatchdog::new(iwdg, WATCHDOG_TIMEOUT_US),
+        }
     }
 
     /// Start it (it cannot be stopped again): the control task does so right before its first
     /// tick, after the configuration was loaded from flash.
     pub fn start(&mut self) {
-        embassy_stm32::pac::IWDG
-            .kr()
-            .write(|w| w.set_key(embassy_stm32::pac::iwdg::vals::Key::START));
+        self.iwdg.unleash();
     }
 
-    /// True when the last reset came from the IWDG; clears the reset flags.
+    /// True when the last reset came from the IWDG (RCC_CSR.IWDGRSTF); clears the reset flags.
     pub fn caused_last_reset() -> bool {
         let rcc = embassy_stm32::pac::RCC;
         let by_iwdg = rcc.csr().read().iwdgrstf();
@@ -277,8 +257,6 @@ impl Watchdog {
     /// [`WATCHDOG_TIMEOUT_US`] resets the MCU; its pins then float, and the 10 kΩ
     /// pull-downs on R_EN/L_EN (docs/board.md) make the bridge coast.
     pub fn feed(&mut self) {
-        embassy_stm32::pac::IWDG
-            .kr()
-            .write(|w| w.set_key(embassy_stm32::pac::iwdg::vals::Key::RESET));
+        self.iwdg.pet();
     }
 }

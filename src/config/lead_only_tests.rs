@@ -11,11 +11,12 @@ use std::string::String;
 use std::vec::Vec;
 
 use super::record::{self, HEADER_LEN};
-use super::settings::{self, BALL_KEYS, NEEDS_BALL_SCREW, OPAQUE_COUNT, SETTINGS};
+use super::settings::{self, BALL_KEYS, OPAQUE_COUNT, SETTINGS};
 use super::sim_flash::{SimFlash, ERASE_SIZE};
 use super::store::{ConfigStore, Parked, Source, StoreError};
 use super::ValidatedConfig;
 use crate::console::service;
+use crate::control::config::NEEDS_BALL_SCREW;
 use crate::control::config::{ControlConfig, ScrewKind};
 use crate::control::{Bridge, Command, Controller, FaultKind, Inputs, Refusal, State};
 use crate::model::friction::{FrictionLaw, LawVariable};

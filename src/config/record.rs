@@ -19,6 +19,7 @@
 
 use crate::config::settings::{self, Setting, BALL_KEYS, OPAQUE_COUNT, SETTINGS};
 use crate::control::config::ControlConfig;
+use crate::keys;
 
 /// Record magic, "LFCF".
 pub const MAGIC: [u8; 4] = *b"LFCF";
@@ -83,7 +84,7 @@ pub(crate) const fn starts_with(key: &str, prefix: &str) -> bool {
 
 /// The format version that added a stored setting (1: there from the start).
 const fn added_in(key: &str) -> u16 {
-    if starts_with(key, "drive.screw") && key.len() == "drive.screw".len() {
+    if starts_with(key, keys::DRIVE_SCREW.name) && key.len() == keys::DRIVE_SCREW.name.len() {
         2
     } else if starts_with(key, "ballscrew.") {
         3

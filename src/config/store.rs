@@ -17,6 +17,7 @@ use crate::config::record::{self, DecodeError, MAX_RECORD_LEN};
 use crate::config::settings::SETTINGS;
 use crate::config::ValidatedConfig;
 use crate::control::config::ControlConfig;
+pub use crate::control::park::Parked;
 use crate::ConfigError;
 use core::future::Future;
 use core::ops::Range;
@@ -37,16 +38,6 @@ pub const POSITION_KEY: u8 = 2;
 /// Position record: magic, sequence, kind, counts, geometry stamp, CRC-32.
 const POSITION_LEN: usize = 4 + 4 + 1 + 4 + 4 + 4;
 const POSITION_MAGIC: [u8; 4] = *b"LFPS";
-
-/// What the lift's position was when the power went.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum Parked {
-    /// At rest at this encoder position (counts).
-    At(i32),
-    /// A motion had started and had not been recorded as finished: the position is unknown.
-    Moving,
-}
 
 /// A position record as stored: the parked state, its sequence number, and the stamp of the
 /// geometry it was counted in.
@@ -391,10 +382,10 @@ impl Source {
         const CORRUPT: &str = "stored configuration is corrupt (";
         let (head, cause) = match self {
             Source::Stored { seq, both_copies } => {
-                crate::console::fill(
+                crate::text::fill(
                     out,
                     "configuration #\x01 loaded from flash",
-                    &[crate::console::Arg::Uint(*seq)],
+                    &[crate::text::Arg::Uint(*seq)],
                 )?;
                 if !both_copies {
                     out.write_str(" (its second copy is older or damaged; `save` rewrites it)")?;
@@ -648,7 +639,7 @@ where
             }
             Err(e) => return Err(Source::Corrupt(Corruption::Record(e))),
         };
-        if let Err(e) = crate::config::settings::check_variant(&cfg) {
+        if let Err(e) = crate::control::config::check_variant(&cfg) {
             return Err(Source::NeedsBallScrew(e));
         }
         match ValidatedConfig::new(cfg) {

@@ -1,10 +1,10 @@
 //! The replies: each `write_*` formats one into any [`core::fmt::Write`] sink, most through one
 //! template ([`fill`]).
 
-use super::{value, HelpTopic, ParseError, Words, MAX_LINE};
+use super::{value, HelpTopic, ParseError, MAX_LINE};
 use crate::config::settings::{self, Kind, SettingId};
 use crate::config::ValidatedConfig;
-use crate::text;
+use crate::text::{escape, fill, height_arg, Arg};
 use crate::units::{Amperes, Angle, Metres, NewtonMetres, RadiansPerSecond, Ratio};
 use crate::ConfigError;
 use core::fmt::{self, Write};
@@ -116,34 +116,6 @@ fn write_expected(out: &mut dyn Write, id: SettingId) -> fmt::Result {
     write_unit(out, &s.kind)?;
     out.write_str(", range ")?;
     out.write_str(s.range)
-}
-
-/// At most 24 characters of user text in a message (the rest as `...`), char by char (the
-/// words are bytes, see [`Words`]).
-fn clip(out: &mut dyn Write, s: Words<'_>) -> fmt::Result {
-    let mut rest = s.0;
-    let mut n = 0;
-    while let Some((c, tail)) = text::next_char(rest) {
-        if n == 24 {
-            return out.write_str("...");
-        }
-        // A control character is shown, not sent: a terminal would act on ESC, BEL, NUL.
-        match u8::try_from(c) {
-            Ok(b) if b < 0x20 || (0x7F..0xA0).contains(&b) => escape(out, b)?,
-            _ => out.write_char(c)?,
-        }
-        n += 1;
-        rest = tail;
-    }
-    Ok(())
-}
-
-/// A byte as `\xNN` (upper-case hex), for control characters in replies.
-fn escape(out: &mut dyn Write, b: u8) -> fmt::Result {
-    const HEX: &[u8; 16] = b"0123456789ABCDEF";
-    out.write_str("\\x")?;
-    out.write_char(char::from(HEX[usize::from(b >> 4)]))?;
-    out.write_char(char::from(HEX[usize::from(b & 15)]))
 }
 
 /// `key = value` for `get`.
@@ -332,29 +304,6 @@ pub struct StatusView {
     pub ball_f: Option<(Ratio, Ratio)>,
 }
 
-/// A fixed-point value `bits·2^−frac` rounded to `dec` decimals (ties away from zero), as a
-/// count of `10^−dec` ([`write_decimal`] prints it), for status lines.
-fn fixed_decimal(bits: i32, frac: u32, dec: u32) -> i64 {
-    // dec ≤ 5 in every reply: fits.
-    let scale = value::ten_to(dec).unwrap_or(1) as i64;
-    let v = i64::from(bits) * scale;
-    let half = 1i64 << (frac - 1);
-    if v >= 0 {
-        (v + half) >> frac
-    } else {
-        -((-v + half) >> frac)
-    }
-}
-
-/// `q·10^−dec` in decimal: the sign, the whole part, and `dec` digits after the point (no
-/// point for 0). Every number of the replies goes through here.
-fn write_decimal(out: &mut dyn Write, q: i64, dec: u32) -> fmt::Result {
-    if q < 0 {
-        out.write_char('-')?;
-    }
-    text::decimal(out, q.unsigned_abs(), dec as usize)
-}
-
 /// The reply to `status`: one line, `key=value` pairs a person and a script can read (a fault
 /// name's spaces are written as `-`, so every value is one word).
 pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
@@ -412,93 +361,6 @@ pub fn write_lube_warning(out: &mut dyn Write, f: Ratio, law: Ratio) -> fmt::Res
             Arg::Fixed(law.to_bits(), 28, 5),
         ],
     )
-}
-
-/// A height for a reply: in mm (the caller writes the unit) if the position is known, else
-/// `unknown` (an unhomed board's height is its homing assumption, not the head's).
-pub(crate) fn height_arg(h: Metres, homed: bool) -> Arg<'static> {
-    if homed {
-        Arg::Mm(h)
-    } else {
-        Arg::Str("unknown")
-    }
-}
-
-/// One value in a reply template ([`fill`]).
-#[derive(Clone, Copy, Debug)]
-pub(crate) enum Arg<'a> {
-    /// Text as it is.
-    Str(&'a str),
-    /// A name as one `key=value` word ([`write_word`]).
-    Word(&'a str),
-    /// User text, at most 24 characters of it ([`clip`]).
-    Clip(Words<'a>),
-    /// An unsigned integer in decimal.
-    Uint(u32),
-    /// A fixed-point value: its bits, fractional bits and the decimals shown
-    /// ([`fixed_decimal`]).
-    Fixed(i32, u8, u8),
-    /// A height in mm with one decimal.
-    Mm(Metres),
-    /// An integer count of 10^−d units with `d` decimals (`Deci(-5, 1)`: `-0.5`).
-    Deci(i32, u8),
-}
-
-/// The placeholder in a [`fill`] template.
-pub(crate) const SLOT: u8 = 0x01;
-
-/// `template` with each [`SLOT`] byte replaced by the next of `args` (a slot without an
-/// argument writes nothing). One call with one string per reply instead of a `write_str` per
-/// piece: on the board each piece cost ≈ 16 B of code, an argument ≈ half that.
-pub(crate) fn fill(out: &mut dyn Write, template: &str, args: &[Arg<'_>]) -> fmt::Result {
-    let mut args = args.iter();
-    let mut rest = template;
-    loop {
-        // SLOT is ASCII: the split is at a char boundary (checked, so that no panic is linked).
-        let Some((piece, tail)) = rest
-            .bytes()
-            .position(|b| b == SLOT)
-            .and_then(|i| rest.split_at_checked(i))
-        else {
-            return out.write_str(rest);
-        };
-        out.write_str(piece)?;
-        // A number as its count of 10^−dec and dec.
-        let number = match args.next() {
-            Some(Arg::Str(t)) => out.write_str(t).map(|_| None)?,
-            Some(Arg::Word(t)) => write_word(out, t).map(|_| None)?,
-            Some(&Arg::Clip(t)) => clip(out, t).map(|_| None)?,
-            Some(&Arg::Uint(v)) => Some((i64::from(v), 0)),
-            Some(&Arg::Fixed(bits, frac, dec)) => Some((
-                fixed_decimal(bits, u32::from(frac), u32::from(dec)),
-                u32::from(dec),
-            )),
-            // 0.1 mm is the resolution a person reads heights in (rounded half up).
-            Some(Arg::Mm(m)) => Some(((i64::from(m.to_bits()) * 10_000 + (1 << 23)) >> 24, 1)),
-            Some(&Arg::Deci(v, d)) => Some((i64::from(v), u32::from(d))),
-            None => None,
-        };
-        if let Some((q, dec)) = number {
-            write_decimal(out, q, dec)?;
-        }
-        rest = tail.get(1..).unwrap_or("");
-    }
-}
-
-/// A name as one `key=value` word: spaces become `-` ("encoder lost" → `encoder-lost`).
-fn write_word(out: &mut dyn Write, name: &str) -> fmt::Result {
-    // Piece by piece between ASCII whitespace bytes (char boundaries; no char decoding).
-    let mut rest = name;
-    while let Some((piece, tail)) = rest
-        .bytes()
-        .position(|b| b.is_ascii_whitespace())
-        .and_then(|i| rest.split_at_checked(i))
-    {
-        out.write_str(piece)?;
-        out.write_char('-')?;
-        rest = tail.get(1..).unwrap_or("");
-    }
-    out.write_str(rest)
 }
 
 /// The console warning of a motion whose cruise the motor cannot reach
@@ -783,60 +645,6 @@ mod tests {
                 )
             );
         }
-    }
-
-    /// User text in messages is cut after 24 characters (not bytes), as `char_indices` cut it.
-    #[test]
-    fn clip_cuts_after_24_characters() {
-        let twin = |s: &str| match s.char_indices().nth(24) {
-            Some((i, _)) => format!("{}...", &s[..i]),
-            None => String::from(s),
-        };
-        for s in [
-            "",
-            "short",
-            "exactly-twenty-four-char",
-            "exactly-twenty-five-chars",
-            "äöüäöüäöüäöüäöüäöüäöüäöüäöü",
-            "°°°°°°°°°°°°°°°°°°°°°°°°",
-            "°°°°°°°°°°°°°°°°°°°°°°°°x",
-            "a𝄞b𝄞c𝄞d𝄞e𝄞f𝄞g𝄞h𝄞i𝄞j𝄞k𝄞l𝄞m𝄞",
-        ] {
-            let mut out = String::new();
-            clip(&mut out, s.into()).unwrap();
-            assert_eq!(out, twin(s), "{s}");
-        }
-    }
-
-    /// Names become one word: each ASCII whitespace character a `-` (the `chars` form's twin).
-    #[test]
-    fn words_replace_ascii_whitespace() {
-        for name in [
-            "",
-            "idle",
-            "encoder lost",
-            " a  b\tc\n",
-            "ü ö",
-            "limit switch before x ",
-        ] {
-            let mut out = String::new();
-            write_word(&mut out, name).unwrap();
-            assert_eq!(out, reference::word(name), "{name:?}");
-        }
-    }
-
-    /// Heights keep their sign below one millimetre (they lost it before `write_decimal`).
-    #[test]
-    fn small_negative_heights_keep_their_sign() {
-        let text = |mm: f64| {
-            let mut s = String::new();
-            fill(&mut s, "\x01", &[Arg::Mm(Metres::from_f64(mm / 1000.0))]).unwrap();
-            s
-        };
-        assert_eq!(text(-0.3), "-0.3");
-        assert_eq!(text(-12.34), "-12.3");
-        assert_eq!(text(0.04), "0.0");
-        assert_eq!(text(416.44), "416.4");
     }
 
     /// A number's unit text (one pass over the unit's spec) is the one its `Unit` accessors

@@ -19,14 +19,14 @@
 //!   speaks another one, and the settings schema so it knows whether its own registry matches.
 
 use super::{
-    fill, height_arg, parse, write_get, write_help, write_limits, write_parse_error, write_refused,
-    write_status, Arg, Feed, ParseError, Request, StatusView,
+    parse, write_get, write_help, write_limits, write_parse_error, write_refused, write_status,
+    Feed, ParseError, Request, StatusView,
 };
 use crate::config::store::StoreError;
 use crate::config::{record, settings, ValidatedConfig};
 use crate::control::config::ControlConfig;
 use crate::control::{Command, Controller, Fault, Refusal, Status};
-use crate::text;
+use crate::text::{self, fill, height_arg, Arg};
 use crate::units::Metres;
 use core::fmt::{self, Write};
 

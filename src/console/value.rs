@@ -7,6 +7,7 @@
 //! shortest decimal that converts back to the same bits, so `get` → `set` is exact.
 
 use crate::config::settings::{Kind, Unit};
+use crate::text::ten_to;
 use core::fmt::{self, Write};
 
 /// Why a value was refused before any range check.
@@ -61,16 +62,6 @@ struct Decimal {
 /// Most significant digits a typed number may have (`10^18 − 1` fits the `u64` mantissa with
 /// room for the conversion's doubling).
 pub const MAX_DIGITS: u32 = 18;
-
-/// `10^k`, `None` above `u64::MAX` (one small loop in place of `u64::pow` and
-/// `u64::checked_pow`: ≈ 0.2 KiB less on the board; at most 20 rounds).
-pub(crate) fn ten_to(k: u32) -> Option<u64> {
-    let mut p = 1u64;
-    for _ in 0..k {
-        p = p.checked_mul(10)?;
-    }
-    Some(p)
-}
 
 /// `m·10^k`, `None` if it exceeds `u64` (checked steps of ×10: for `m ≥ 1` at most 20 rounds
 /// before it overflows).

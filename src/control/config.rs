@@ -5,14 +5,14 @@
 //! (or [`ControlConfig::validate`]), before a single tick runs with it; the hot path never
 //! re-checks. Every refusal names the setting's console key and its range.
 
-use crate::check_range as range;
 use crate::detect::stickslip::StickSlipConfig;
 use crate::estimator::EstimatorConfig;
+use crate::keys::{self, check_bounds, check_range, Bound, ConfigError};
 use crate::model::ballscrew::BallScrewConfig;
+use crate::model::friction::LawVariable;
 use crate::model::geometry::Geometry;
 #[cfg_attr(not(feature = "ball-screw"), allow(unused_imports))]
 use crate::units::{Amperes, Kilograms, Metres, Newtons, RadiansPerSecond, Ratio, Volts};
-use crate::{check_bounds, Bound, ConfigError};
 
 pub use super::lube::LubeConfig;
 
@@ -85,7 +85,7 @@ impl BrakeConfig {
 
     /// Check the delay.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        range(self.delay_ms, 5, 1000, "drive.brake_ms", "5..1000 ms")
+        check_range(self.delay_ms, 5, 1000, &keys::DRIVE_BRAKE_MS)
     }
 }
 
@@ -153,30 +153,20 @@ impl LimitStops {
     /// [`LimitStops::validate`], returning the lower stop, the upper stop and the lower switch
     /// in encoder counts (the controller's form of them: mapped once, where they are checked).
     pub fn counts(&self, geometry: &Geometry) -> Result<(i32, i32, i32), ConfigError> {
-        let out_of_range = |field| ConfigError::OutOfRange {
-            field,
-            range: "the mechanism's height range (see `limits`)",
-        };
         let lower = geometry
             .counts_for_height(self.lower)
-            .ok_or(out_of_range("limits.lower"))?;
+            .ok_or(keys::LIMITS_LOWER.out_of_range())?;
         let upper = geometry
             .counts_for_height(self.upper)
-            .ok_or(out_of_range("limits.upper"))?;
+            .ok_or(keys::LIMITS_UPPER.out_of_range())?;
         if self.lower.sat_add(Self::MIN_GAP) > self.upper {
-            return Err(ConfigError::Conflict {
-                field: "limits.lower",
-                reason: "must be at least 10 mm below limits.upper",
-            });
+            return Err(keys::LIMITS_LOWER.conflict("must be at least 10 mm below limits.upper"));
         }
         let switch = geometry
             .counts_for_height(self.switch_lower)
-            .ok_or(out_of_range("limits.switch_lower"))?;
+            .ok_or(keys::LIMITS_SWITCH_LOWER.out_of_range())?;
         if self.switch_lower.sat_add(Self::SWITCH_GAP) > self.lower {
-            return Err(ConfigError::Conflict {
-                field: "limits.switch_lower",
-                reason: "must be at least 0.5 mm below limits.lower (the switch is the backstop under the soft stop)",
-            });
+            return Err(keys::LIMITS_SWITCH_LOWER.conflict("must be at least 0.5 mm below limits.lower (the switch is the backstop under the soft stop)"));
         }
         Ok((lower, upper, switch))
     }
@@ -332,7 +322,6 @@ impl ControlConfig {
     /// configuration itself (console, store) keeps the law as the user gave it.
     #[cfg(feature = "ball-screw")]
     pub fn model_estimator(&self) -> Result<EstimatorConfig, ConfigError> {
-        use crate::model::friction::LawVariable;
         let mut e = self.estimator;
         if self.screw == ScrewKind::Ball && e.law.variable == LawVariable::Lubrication {
             let f = self
@@ -375,69 +364,69 @@ impl ControlConfig {
             Bound::new(
                 Kilograms::lit("10").to_bits(),
                 Kilograms::lit("5000").to_bits(),
-                "load.rated",
+                &keys::LOAD_RATED,
             ),
             Bound::new(
                 RadiansPerSecond::lit("0.2").to_bits(),
                 RadiansPerSecond::lit("20").to_bits(),
-                "motion.cruise_speed",
+                &keys::MOTION_CRUISE_SPEED,
             ),
-            Bound::new(10, 2000, "motion.ramp_ms"),
+            Bound::new(10, 2000, &keys::MOTION_RAMP_MS),
             Bound::new(
                 Amperes::lit("1").to_bits(),
                 Amperes::lit("60").to_bits(),
-                "protect.overcurrent",
+                &keys::PROTECT_OVERCURRENT,
             ),
             Bound::new(
                 Amperes::lit("1").to_bits(),
                 Amperes::lit("60").to_bits(),
-                "protect.current_limit",
+                &keys::PROTECT_CURRENT_LIMIT,
             ),
         ];
         static STALL_SUPPLY: [Bound; 6] = [
             Bound::new(
                 Ratio::lit("0.05").to_bits(),
                 Ratio::ONE.to_bits(),
-                "protect.stall_duty",
+                &keys::PROTECT_STALL_DUTY,
             ),
-            Bound::new(20, 5000, "protect.stall_ms"),
+            Bound::new(20, 5000, &keys::PROTECT_STALL_MS),
             Bound::new(
                 RadiansPerSecond::lit("10").to_bits(),
                 RadiansPerSecond::lit("5000").to_bits(),
-                "protect.max_motor_speed",
+                &keys::PROTECT_MAX_MOTOR_SPEED,
             ),
             Bound::new(
                 Volts::lit("8").to_bits(),
                 Volts::lit("16").to_bits(),
-                "protect.supply_start_min",
+                &keys::PROTECT_SUPPLY_START_MIN,
             ),
             Bound::new(
                 Volts::lit("6").to_bits(),
                 Volts::lit("16").to_bits(),
-                "protect.supply_run_min",
+                &keys::PROTECT_SUPPLY_RUN_MIN,
             ),
             Bound::new(
                 Volts::lit("12").to_bits(),
                 Volts::lit("20").to_bits(),
-                "protect.supply_max",
+                &keys::PROTECT_SUPPLY_MAX,
             ),
         ];
         static OVERLOAD_SENSE: [Bound; 7] = [
-            Bound::new(1, 1000, "protect.supply_ms"),
+            Bound::new(1, 1000, &keys::PROTECT_SUPPLY_MS),
             Bound::new(
                 Ratio::lit("0.05").to_bits(),
                 Ratio::lit("2").to_bits(),
-                "protect.overload_margin",
+                &keys::PROTECT_OVERLOAD_MARGIN,
             ),
-            Bound::new(10, 5000, "protect.overload_ms"),
+            Bound::new(10, 5000, &keys::PROTECT_OVERLOAD_MS),
             Bound::new(
                 Metres::lit("0.00001").to_bits(),
                 Metres::lit("0.01").to_bits(),
-                "protect.runaway_travel",
+                &keys::PROTECT_RUNAWAY_TRAVEL,
             ),
-            Bound::new(0, 4095, "sense.current_zero"),
-            Bound::new(1, 1_000_000, "sense.current_ua_per_code"),
-            Bound::new(1, 100_000, "sense.supply_uv_per_code"),
+            Bound::new(0, 4095, &keys::SENSE_CURRENT_ZERO),
+            Bound::new(1, 1_000_000, &keys::SENSE_CURRENT_UA_PER_CODE),
+            Bound::new(1, 100_000, &keys::SENSE_SUPPLY_UV_PER_CODE),
         ];
         let m = &self.motion;
         let p = &self.protection;
@@ -453,10 +442,7 @@ impl ControlConfig {
             &LOAD_MOTION_CURRENT,
         )?;
         if p.current_limit > p.overcurrent {
-            return Err(ConfigError::Conflict {
-                field: "protect.current_limit",
-                reason: "must not exceed protect.overcurrent",
-            });
+            return Err(keys::PROTECT_CURRENT_LIMIT.conflict("must not exceed protect.overcurrent"));
         }
         check_bounds(
             [
@@ -470,16 +456,12 @@ impl ControlConfig {
             &STALL_SUPPLY,
         )?;
         if p.supply_run_min > p.supply_start_min {
-            return Err(ConfigError::Conflict {
-                field: "protect.supply_run_min",
-                reason: "must not exceed protect.supply_start_min",
-            });
+            return Err(
+                keys::PROTECT_SUPPLY_RUN_MIN.conflict("must not exceed protect.supply_start_min")
+            );
         }
         if p.supply_start_min >= p.supply_max {
-            return Err(ConfigError::Conflict {
-                field: "protect.supply_start_min",
-                reason: "must be below protect.supply_max",
-            });
+            return Err(keys::PROTECT_SUPPLY_START_MIN.conflict("must be below protect.supply_max"));
         }
         check_bounds(
             [
@@ -500,10 +482,32 @@ impl ControlConfig {
             self.lube.validate()?;
             check_tau_needs_ball(self)?;
         }
-        crate::config::settings::check_variant(self)?;
+        check_variant(self)?;
         self.brake.validate()?;
         self.limits.counts(geometry)
     }
+}
+
+/// The refusal's reason, in a build without the `ball-screw` feature, of a value only the
+/// ball-screw variant runs.
+pub const NEEDS_BALL_SCREW: &str = "needs the ball-screw firmware (this is the lead-screw image)";
+
+/// Whether this build can run `cfg`: without the `ball-screw` feature, `drive.screw = ball` and
+/// the `tau` law variable (the `ball` friction preset's) are refused with [`NEEDS_BALL_SCREW`]
+/// (part of [`ControlConfig::validate`]; the store checks it before anything else, see
+/// [`crate::config::store::Source::NeedsBallScrew`]). Always `Ok` with the feature.
+pub fn check_variant(cfg: &ControlConfig) -> Result<(), ConfigError> {
+    if cfg!(feature = "ball-screw") {
+        return Ok(());
+    }
+    let key = if cfg.screw == ScrewKind::Ball {
+        &keys::DRIVE_SCREW
+    } else if cfg.estimator.law.variable == LawVariable::Lubrication {
+        &keys::FRICTION_VARIABLE
+    } else {
+        return Ok(());
+    };
+    Err(key.conflict(NEEDS_BALL_SCREW))
 }
 
 /// The refusal's reason, in the ball-screw build, of the τ law variable on a lead screw.
@@ -513,16 +517,12 @@ pub const TAU_NEEDS_BALL: &str = "tau (the ball-screw law) needs drive.screw = b
 /// The ball-screw build's refusal of a law in τ (the `ball` preset, `friction.variable = tau`)
 /// on a lead screw: only the ball screw's model is written in τ; the estimator feeds its law
 /// |θ̇| (Q16 bits), which a τ law reads as τ = |θ̇|/4096. Without the feature
-/// [`crate::config::settings::check_variant`] refuses τ on any screw, with its own reason
+/// [`check_variant`] refuses τ on any screw, with its own reason
 /// (the lead-screw image's record lock-out).
 #[cfg(feature = "ball-screw")]
 fn check_tau_needs_ball(cfg: &ControlConfig) -> Result<(), ConfigError> {
-    use crate::model::friction::LawVariable;
     if cfg.screw == ScrewKind::Lead && cfg.estimator.law.variable == LawVariable::Lubrication {
-        return Err(ConfigError::Conflict {
-            field: "friction.variable",
-            reason: TAU_NEEDS_BALL,
-        });
+        return Err(keys::FRICTION_VARIABLE.conflict(TAU_NEEDS_BALL));
     }
     Ok(())
 }
@@ -687,7 +687,7 @@ mod tests {
         #[cfg(feature = "ball-screw")]
         let reason = TAU_NEEDS_BALL;
         #[cfg(not(feature = "ball-screw"))]
-        let reason = crate::config::settings::NEEDS_BALL_SCREW;
+        let reason = NEEDS_BALL_SCREW;
         let want = ConfigError::Conflict {
             field: "friction.variable",
             reason,

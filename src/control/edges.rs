@@ -107,7 +107,6 @@ impl EdgeInterpolator {
 
     /// As [`EdgeInterpolator::update`], the position's fraction of a count above `count`, Q16
     /// (what the speed filter takes).
-    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn update_fraction(&mut self, now: Instant, count: i32, age_us: u16) -> u16 {
         if let Some((prev, prev_t)) = self.last {
             if prev != count {

@@ -60,7 +60,7 @@ impl BrakeState {
     pub(super) fn new(cfg: &BrakeConfig, tick_us: u32) -> BrakeState {
         BrakeState {
             present: cfg.present,
-            delay: super::ms_to_ticks(cfg.delay_ms, tick_us).max(1),
+            delay: crate::units::ms_to_ticks(cfg.delay_ms, tick_us).max(1),
             release: false,
             ticks: u32::MAX,
             wound: false,

@@ -32,13 +32,14 @@
 
 // The ball-screw build uses every import; the lead-screw build only the configuration's.
 #![cfg_attr(not(feature = "ball-screw"), allow(unused_imports))]
-use crate::control::config::ControlConfig;
+use crate::estimator::MotorConfig;
+use crate::keys::{self, check_range, ConfigError};
 #[cfg(feature = "ball-screw")]
 use crate::model::ballscrew::{BallScrew, FrictionIdentifier};
 use crate::units::{
     qmul, sat32, Amperes, Kilograms, NewtonMetres, Newtons, RadiansPerSecond, Ratio, Q,
 };
-use crate::ConfigError;
+use fixed::types::I16F16;
 
 /// The identification's and the warning's settings.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -68,26 +69,23 @@ impl LubeConfig {
 
     /// Check the ranges.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        crate::check_range(
+        check_range(
             self.band,
             const { Ratio::lit("0.05") },
             const { Ratio::lit("4") },
-            "ballscrew.lube_band",
-            "0.05..4",
+            &keys::BALLSCREW_LUBE_BAND,
         )?;
-        crate::check_range(
+        check_range(
             self.min_speed,
             const { RadiansPerSecond::lit("0.05") },
             const { RadiansPerSecond::lit("20") },
-            "ballscrew.ident_min_speed",
-            "0.05..20 rad/s",
+            &keys::BALLSCREW_IDENT_MIN_SPEED,
         )?;
-        crate::check_range(
+        check_range(
             self.no_load_current,
             Amperes::ZERO,
             const { Amperes::lit("20") },
-            "ballscrew.no_load_current",
-            "0..20 A",
+            &keys::BALLSCREW_NO_LOAD_CURRENT,
         )
     }
 }
@@ -260,14 +258,13 @@ pub struct LubeInputs {
 
 #[cfg(feature = "ball-screw")]
 impl LubeMonitor {
-    /// A monitor for a (validated) configuration.
-    pub fn new(cfg: &ControlConfig) -> LubeMonitor {
-        let tick_us = cfg.estimator.tick_us;
-        let t = |ms: u32| super::ms_to_ticks(ms, tick_us);
+    /// A monitor for (validated) settings: the drive friction's no-load current (`cfg`), the
+    /// motor's k_t and gear efficiency, the gear ratio and the tick.
+    pub fn new(cfg: &LubeConfig, m: &MotorConfig, gear_ratio: I16F16, tick_us: u32) -> LubeMonitor {
+        let t = |ms: u32| crate::units::ms_to_ticks(ms, tick_us);
         // k_t·I₀·n at the screw (Q16), then through the gearbox either way.
-        let m = &cfg.estimator.motor;
-        let t_motor: NewtonMetres = qmul(cfg.lube.no_load_current, m.torque_constant);
-        let n = i64::from(cfg.estimator.drive.gear_ratio.to_bits()); // Q16
+        let t_motor: NewtonMetres = qmul(cfg.no_load_current, m.torque_constant);
+        let n = i64::from(gear_ratio.to_bits()); // Q16
         let t0 = NewtonMetres::from_raw(sat32((i64::from(t_motor.bits()) * n) >> 16));
         let eta = m.gear_efficiency.max(const { Ratio::lit("0.1") });
         LubeMonitor {
@@ -502,11 +499,12 @@ mod tests {
     #[test]
     fn a_lift_and_a_lowering_make_a_pair_and_the_lower_stop_forgets_them() {
         let bs = BallScrewConfig::SEED_001_4008.compile().unwrap();
-        let mut c = ControlConfig::DEFAULT;
-        c.estimator.tick_us = 1000;
-        c.lube.no_load_current = Amperes::ZERO;
-        let mut m = LubeMonitor::new(&c);
-        let cfg = c.lube;
+        let e = crate::estimator::EstimatorConfig::DEFAULT;
+        let cfg = LubeConfig {
+            no_load_current: Amperes::ZERO,
+            ..LubeConfig::DEFAULT
+        };
+        let mut m = LubeMonitor::new(&cfg, &e.motor, e.drive.gear_ratio, 1000);
         let rated = Kilograms::lit("1000");
         // The reference is constant from tick 101: 200 settling ticks, then 149 samples: too few.
         motion(&mut m, &bs, true, 6000.0, 350);

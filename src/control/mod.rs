@@ -36,7 +36,8 @@ use crate::estimator::{Estimator, Measurements, TickEstimate};
 use crate::model::ballscrew::BallScrew;
 use crate::model::Scale;
 use crate::units::{
-    qmul, sat32, Amperes, Instant, Metres, NewtonMetres, Radians, RadiansPerSecond, Ratio, Volts, Q,
+    ms_to_ticks, qmul, sat32, Amperes, Instant, Metres, NewtonMetres, Radians, RadiansPerSecond,
+    Ratio, Volts, Q,
 };
 use crate::ConfigError;
 use config::{ButtonMode, ControlConfig};
@@ -44,6 +45,7 @@ use edges::EdgeInterpolator;
 use profile::Profile;
 pub use protect::FaultKind;
 use protect::{Limits, Monitors, Sample};
+pub use sense::Switches;
 use sense::{Adc, Debouncer, EncoderTracker};
 use speed::{SpeedGains, SpeedInputs, SpeedLoop};
 
@@ -64,30 +66,6 @@ pub struct Inputs {
     pub supply_raw: u16,
     /// Digital inputs (limit switches, buttons), already debounced or not: see [`Switches`].
     pub switches: Switches,
-}
-
-/// Digital input levels as a bit set (1 = active), independent of the pins' polarity.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Switches(pub u8);
-
-impl Switches {
-    /// Upper limit switch.
-    pub const LIMIT_UPPER: u8 = 1 << 0;
-    /// Lower limit switch.
-    pub const LIMIT_LOWER: u8 = 1 << 1;
-    /// UP push button.
-    pub const BUTTON_UP: u8 = 1 << 2;
-    /// DOWN push button.
-    pub const BUTTON_DOWN: u8 = 1 << 3;
-    /// STOP push button (normally-closed wiring is resolved by the board).
-    pub const BUTTON_STOP: u8 = 1 << 4;
-
-    /// Whether every bit of `mask` is active.
-    #[inline]
-    pub fn is_active(self, mask: u8) -> bool {
-        self.0 & mask == mask
-    }
 }
 
 /// What the H-bridge should do for the next tick.
@@ -347,14 +325,6 @@ const BRAKE_AMPS: i32 = 30;
 /// Overload monitoring starts this long after a motion starts (breakaway, winding the coupling).
 const OVERLOAD_HOLDOFF_MS: u32 = 250;
 
-/// `ms` milliseconds in ticks of `tick_us` µs, rounded down: `ms·1000/tick_us`, the product
-/// saturated. One out-of-line copy for every configured duration (the constructors converted
-/// eighteen of them inline).
-#[inline(never)]
-pub(crate) fn ms_to_ticks(ms: u32, tick_us: u32) -> u32 {
-    ms.saturating_mul(1000) / tick_us.max(1)
-}
-
 /// The supervisor's durations in control ticks.
 #[derive(Clone, Copy, Debug)]
 struct TickCounts {
@@ -599,7 +569,12 @@ impl Controller {
             #[cfg(feature = "ball-screw")]
             ball_screw,
             #[cfg(feature = "ball-screw")]
-            lube: lube::LubeMonitor::new(cfg),
+            lube: lube::LubeMonitor::new(
+                &cfg.lube,
+                &cfg.estimator.motor,
+                cfg.estimator.drive.gear_ratio,
+                tick_us,
+            ),
             #[cfg(feature = "ball-screw")]
             lube_notice: false,
             brake: hold::BrakeState::new(&cfg.brake, tick_us),
@@ -1045,7 +1020,6 @@ impl Controller {
 
     /// One control tick. Never panics, whatever the inputs.
     #[inline(never)]
-    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn step(&mut self, now: Instant, inputs: &Inputs) -> Outputs {
         // 1. Sense.
         let delta = self.enc.update(inputs.encoder_count);
@@ -1395,7 +1369,6 @@ impl Controller {
 
     /// One step of the speed loop toward `reference` with `error_counts` of position error:
     /// the duty for moving and, for a ball screw, for holding at rest (`hold.rs`).
-    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     fn speed_duty(&mut self, reference: RadiansPerSecond, error_counts: i32) -> i16 {
         self.speed.step(
             &self.gains,

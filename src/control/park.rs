@@ -9,7 +9,16 @@
 //! The firmware writes only the newest request; a newer one replaces one not yet written.
 
 use super::{State, Status};
-use crate::config::store::Parked;
+
+/// What the lift's position was when the power went.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Parked {
+    /// At rest at this encoder position (counts).
+    At(i32),
+    /// A motion had started and had not been recorded as finished: the position is unknown.
+    Moving,
+}
 
 /// Ticks at rest with an unchanged encoder before the position is recorded (0.5 s at 1 kHz:
 /// longer than the 300 ms settling the supervisor allows after a stop).

@@ -228,7 +228,6 @@ impl Profile {
     }
 
     /// Advance one tick.
-    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn step(&mut self) -> Reference {
         if !self.done {
             self.step_trapezoid();

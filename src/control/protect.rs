@@ -120,7 +120,7 @@ impl Limits {
         nut_metres_per_count_q40: i64,
         cruise: RadiansPerSecond,
     ) -> Limits {
-        let ticks = |ms: u32| super::ms_to_ticks(ms, tick_us).max(1);
+        let ticks = |ms: u32| crate::units::ms_to_ticks(ms, tick_us).max(1);
         // counts/tick = ω·(counts/rad)·T.
         let max_counts = (i64::from(p.max_motor_speed.bits()) * counts_per_motor_rad_q16 >> 32)
             * i64::from(tick_us)

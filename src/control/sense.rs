@@ -2,8 +2,31 @@
 //! encoder counter → an unbounded position, and debounced switches.
 
 use super::config::SensingConfig;
-use super::Switches;
 use crate::units::{Amperes, Volts, Q};
+
+/// Digital input levels as a bit set (1 = active), independent of the pins' polarity.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Switches(pub u8);
+
+impl Switches {
+    /// Upper limit switch.
+    pub const LIMIT_UPPER: u8 = 1 << 0;
+    /// Lower limit switch.
+    pub const LIMIT_LOWER: u8 = 1 << 1;
+    /// UP push button.
+    pub const BUTTON_UP: u8 = 1 << 2;
+    /// DOWN push button.
+    pub const BUTTON_DOWN: u8 = 1 << 3;
+    /// STOP push button (normally-closed wiring is resolved by the board).
+    pub const BUTTON_STOP: u8 = 1 << 4;
+
+    /// Whether every bit of `mask` is active.
+    #[inline]
+    pub fn is_active(self, mask: u8) -> bool {
+        self.0 & mask == mask
+    }
+}
 
 /// ADC scalings, quantised once.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

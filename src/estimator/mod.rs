@@ -19,6 +19,7 @@
 mod filter;
 mod pose;
 
+use crate::keys::{self, ConfigError};
 use crate::math::div128;
 use crate::model::friction::{CompiledLaw, FrictionLaw, MuTable};
 use crate::model::geometry::{
@@ -30,7 +31,6 @@ use crate::units::{
     narrow, qmul, sat32, Amperes, Factor, Instant, Kilograms, KilogramsPerSecond, Metres,
     NewtonMetres, Newtons, RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
 };
-use crate::ConfigError;
 use pose::{Node, PoseBudget, PoseCtx, PoseSegment, NO_NODE};
 
 /// Motor and gearbox constants.
@@ -265,45 +265,27 @@ impl Estimator {
         let m = &cfg.motor;
         if !(m.torque_constant >= const { Ratio::lit("0.001") } && m.torque_constant <= Ratio::ONE)
         {
-            return Err(ConfigError::OutOfRange {
-                field: "motor.kt",
-                range: "0.001..1 Nm/A",
-            });
+            return Err(keys::MOTOR_KT.out_of_range());
         }
         if !(m.gear_efficiency >= const { Ratio::lit("0.1") } && m.gear_efficiency <= Ratio::ONE) {
-            return Err(ConfigError::OutOfRange {
-                field: "motor.gear_efficiency",
-                range: "0.1..1",
-            });
+            return Err(keys::MOTOR_GEAR_EFFICIENCY.out_of_range());
         }
         if !(m.resistance >= const { Ratio::lit("0.001") }
             && m.resistance <= const { Ratio::lit("4") })
         {
-            return Err(ConfigError::OutOfRange {
-                field: "motor.resistance",
-                range: "0.001..4 ohm",
-            });
+            return Err(keys::MOTOR_RESISTANCE.out_of_range());
         }
         if !(100..=10_000).contains(&cfg.tick_us) {
-            return Err(ConfigError::OutOfRange {
-                field: "control.tick_us",
-                range: "100..10000 us",
-            });
+            return Err(keys::CONTROL_TICK_US.out_of_range());
         }
         let tick_hz = 1_000_000 / cfg.tick_us;
         if cfg.speed_bandwidth_hz < 1 || cfg.speed_bandwidth_hz > tick_hz / 10 {
-            return Err(ConfigError::OutOfRange {
-                field: "control.speed_bandwidth",
-                range: "1..tick rate/10 Hz",
-            });
+            return Err(keys::CONTROL_SPEED_BANDWIDTH.out_of_range());
         }
         if !(cfg.rest_speed >= RadiansPerSecond::ZERO
             && cfg.rest_speed <= const { RadiansPerSecond::lit("50") })
         {
-            return Err(ConfigError::OutOfRange {
-                field: "control.rest_speed",
-                range: "0..50 rad/s",
-            });
+            return Err(keys::CONTROL_REST_SPEED.out_of_range());
         }
         // c_x·r_m·tan λ in Q20: c_x (kg/s)·r (Q24)·t (Q28) / 2^32 (≤ 58 544·0.0182·2^20).
         let r_bits = i128::from(screw.pitch_radius().bits());
@@ -347,10 +329,8 @@ impl Estimator {
         // 1/(n·η) in Q28 must stay below 8: n·η > 1/8 (2^41 in Q44). Each factor alone is in
         // range (n ≥ 1, η ≥ 0.1), but a direct drive with a lossy coupling is not.
         if n_eta_q44 <= 1i128 << 41 {
-            return Err(ConfigError::Conflict {
-                field: "motor.gear_efficiency",
-                reason: "drive.gear_ratio x motor.gear_efficiency must exceed 0.125",
-            });
+            return Err(keys::MOTOR_GEAR_EFFICIENCY
+                .conflict("drive.gear_ratio x motor.gear_efficiency must exceed 0.125"));
         }
         let inv_n_eta = Ratio::from_raw(div128(1i128 << 72, n_eta_q44) as i32);
 

@@ -21,10 +21,10 @@
 
 // The ball-screw build uses every import; the lead-screw build only the configuration's.
 #![cfg_attr(not(feature = "ball-screw"), allow(unused_imports))]
+use crate::keys::{self, check_range, ConfigError};
 use crate::model::friction::{CompiledLaw, FrictionLaw, LawVariable};
 use crate::model::Scale;
 use crate::units::{qmul, Angle, Metres, NewtonMetres, Newtons, RadiansPerSecond, Ratio, Q};
-use crate::ConfigError;
 use fixed::types::{I16F16, I32F32};
 
 /// The ball screw's geometry and lubricant, as the user gives them.
@@ -66,55 +66,45 @@ impl BallScrewConfig {
     /// Validate and quantise once.
     #[cfg(feature = "ball-screw")]
     pub fn compile(&self) -> Result<BallScrew, ConfigError> {
-        use crate::check_range as range;
-        range(
+        check_range(
             self.r_m,
             const { Metres::lit("0.002") },
             const { Metres::lit("0.1") },
-            "ballscrew.r_m",
-            "2..100 mm",
+            &keys::BALLSCREW_R_M,
         )?;
-        range(
+        check_range(
             self.r_b,
             const { Metres::lit("0.0005") },
             const { Metres::lit("0.02") },
-            "ballscrew.r_b",
-            "0.5..20 mm",
+            &keys::BALLSCREW_R_B,
         )?;
         if self.r_b >= self.r_m {
-            return Err(ConfigError::Conflict {
-                field: "ballscrew.r_b",
-                reason: "must be less than ballscrew.r_m",
-            });
+            return Err(keys::BALLSCREW_R_B.conflict("must be less than ballscrew.r_m"));
         }
-        range(
+        check_range(
             self.contact_angle_deg,
             const { I16F16::lit("20") },
             const { I16F16::lit("80") },
-            "ballscrew.contact_angle",
-            "20..80 deg",
+            &keys::BALLSCREW_CONTACT_ANGLE,
         )?;
-        range(
+        check_range(
             self.lead,
             const { Metres::lit("0.0005") },
             const { Metres::lit("0.05") },
-            "ballscrew.lead",
-            "0.5..50 mm",
+            &keys::BALLSCREW_LEAD,
         )?;
-        range(self.loaded_balls, 1, 1000, "ballscrew.balls", "1..1000")?;
-        range(
+        check_range(self.loaded_balls, 1, 1000, &keys::BALLSCREW_BALLS)?;
+        check_range(
             self.preload,
             Newtons::ZERO,
             const { Newtons::lit("100000") },
-            "ballscrew.preload",
-            "0..100 kN",
+            &keys::BALLSCREW_PRELOAD,
         )?;
-        range(
+        check_range(
             self.viscosity,
             const { I32F32::lit("0.0001") },
             const { I32F32::lit("10") },
-            "ballscrew.viscosity",
-            "1e-4..10 Pa.s",
+            &keys::BALLSCREW_VISCOSITY,
         )?;
         if self.law.variable != LawVariable::Lubrication {
             return Err(ConfigError::Conflict {
@@ -128,11 +118,11 @@ impl BallScrewConfig {
             self.r_m,
             Ratio::ONE,
             &[
-                "ballscrew.f_base",
-                "ballscrew.f_amp",
-                "ballscrew.f_rate",
-                "ballscrew.f_slope",
-                "ballscrew.f_s_max",
+                &keys::BALLSCREW_F_BASE,
+                &keys::BALLSCREW_F_AMP,
+                &keys::BALLSCREW_F_RATE,
+                &keys::BALLSCREW_F_SLOPE,
+                &keys::BALLSCREW_F_S_MAX,
             ],
         )?;
 
@@ -525,7 +515,6 @@ impl FrictionIdentifier {
     }
 
     /// Feed one measurement (screw torque, axial load R, direction). Returns whether it was used.
-    #[cfg_attr(liftfw_speed_attr, optimize(speed))]
     pub fn update(
         &mut self,
         bs: &BallScrew,

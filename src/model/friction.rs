@@ -7,10 +7,10 @@
 //! [`CompiledLaw`] folds the variable's conversion into the constants so that a tick costs one
 //! e^(−y), two 32×32 products and a clamp.
 
+use crate::keys::{self, ConfigError, Key};
 use crate::math::exp_neg_q16;
 use crate::model::Scale;
 use crate::units::{Metres, RadiansPerSecond, Ratio, Q};
-use crate::ConfigError;
 use fixed::types::I32F32;
 
 /// The variable a law is written in.
@@ -96,46 +96,31 @@ impl FrictionLaw {
         &self,
         r_m: Metres,
         cos_lambda: Ratio,
-        keys: &[&'static str; 5],
+        keys: &[&'static Key; 5],
     ) -> Result<CompiledLaw, ConfigError> {
         let in_range = |v: I32F32, lo: I32F32, hi: I32F32| v >= lo && v <= hi;
         if !(self.base >= Ratio::ZERO && self.base <= Ratio::ONE) {
-            return Err(ConfigError::OutOfRange {
-                field: keys[0],
-                range: "0..1",
-            });
+            return Err(keys[0].out_of_range());
         }
         if !(self.amp >= Ratio::ONE.sat_neg() && self.amp <= Ratio::ONE) {
-            return Err(ConfigError::OutOfRange {
-                field: keys[1],
-                range: "-1..1",
-            });
+            return Err(keys[1].out_of_range());
         }
         if !in_range(self.rate, I32F32::ZERO, const { I32F32::lit("1000000") }) {
-            return Err(ConfigError::OutOfRange {
-                field: keys[2],
-                range: "0..1e6",
-            });
+            return Err(keys[2].out_of_range());
         }
         if !in_range(
             self.slope,
             const { I32F32::lit("-1000") },
             const { I32F32::lit("1000") },
         ) {
-            return Err(ConfigError::OutOfRange {
-                field: keys[3],
-                range: "-1000..1000",
-            });
+            return Err(keys[3].out_of_range());
         }
         // Above 10⁶ only "none" (the largest value): every setting's value then has at most 18
         // significant digits, as the console's 64-bit number parser takes them.
         if self.s_max <= I32F32::ZERO
             || (self.s_max > const { I32F32::lit("1000000") } && self.s_max != I32F32::MAX)
         {
-            return Err(ConfigError::OutOfRange {
-                field: keys[4],
-                range: ">0..1e6",
-            });
+            return Err(keys[4].out_of_range());
         }
         // The law's input bits: |θ̇| in Q16 for speed laws, τ in Q28 for the lubrication law.
         // k = s per unit of input (as num/den), in_frac = fractional bits of the input.
@@ -181,12 +166,12 @@ impl FrictionLaw {
 }
 
 /// The estimator's law's keys, in [`FrictionLaw::compile_keyed`]'s order.
-pub(crate) const FRICTION_KEYS: [&str; 5] = [
-    "friction.base",
-    "friction.amp",
-    "friction.rate",
-    "friction.slope",
-    "friction.s_max",
+pub(crate) const FRICTION_KEYS: [&Key; 5] = [
+    &keys::FRICTION_BASE,
+    &keys::FRICTION_AMP,
+    &keys::FRICTION_RATE,
+    &keys::FRICTION_SLOPE,
+    &keys::FRICTION_S_MAX,
 ];
 
 /// A law with its variable folded into the constants: evaluated from raw input bits.

@@ -6,11 +6,10 @@
 //! control tick the coupling's twist is ignored for position (θ ≈ θ_i: 160 N·m/rad gives
 //! ≤ 0.05 mm of nut travel at 50 N·m).
 
-use crate::check_range as check;
+use crate::keys::{self, check_range, ConfigError};
 use crate::math::{first_quadrant_angle, mul128, sqrt_rsqrt_q30};
 use crate::model::Scale;
 use crate::units::{sat32, Angle, Kilograms, KilogramsPerSecond, Metres, Newtons, Ratio, Q};
-use crate::ConfigError;
 use fixed::types::I16F16;
 
 /// Standard gravity in Q16 m/s².
@@ -146,68 +145,49 @@ pub struct Pose {
 impl Geometry {
     /// Validate a configuration once; every later call is total.
     pub fn new(cfg: GeometryConfig, drive: DriveConfig) -> Result<Geometry, ConfigError> {
-        check(
+        check_range(
             cfg.length,
             const { Metres::lit("0.05") },
             const { Metres::lit("2") },
-            "geometry.length",
-            "0.05..2 m",
+            &keys::GEOMETRY_LENGTH,
         )?;
-        check(
+        check_range(
             cfg.alpha0_deg,
             const { I16F16::lit("12") },
             const { I16F16::lit("60") },
-            "geometry.alpha0",
-            "12..60 deg",
+            &keys::GEOMETRY_ALPHA0,
         )?;
-        check(
+        check_range(
             cfg.alpha_max_deg,
             cfg.alpha0_deg.saturating_add(const { I16F16::lit("5") }),
             const { I16F16::lit("89") },
-            "geometry.alpha_max",
-            "alpha0+5..89 deg",
+            &keys::GEOMETRY_ALPHA_MAX,
         )?;
-        check(
+        check_range(
             cfg.h0,
             Metres::ZERO,
             const { Metres::lit("1") },
-            "geometry.h0",
-            "0..1 m",
+            &keys::GEOMETRY_H0,
         )?;
-        check(
-            cfg.mu_pin,
-            Ratio::ZERO,
-            Ratio::ONE,
-            "geometry.mu_pin",
-            "0..1",
-        )?;
-        check(
-            drive.counts_per_rev,
-            4,
-            65_536,
-            "drive.counts_per_rev",
-            "4..65536",
-        )?;
-        check(
+        check_range(cfg.mu_pin, Ratio::ZERO, Ratio::ONE, &keys::GEOMETRY_MU_PIN)?;
+        check_range(drive.counts_per_rev, 4, 65_536, &keys::DRIVE_COUNTS_PER_REV)?;
+        check_range(
             drive.gear_ratio,
             I16F16::ONE,
             const { I16F16::lit("1000") },
-            "drive.gear_ratio",
-            "1..1000",
+            &keys::DRIVE_GEAR_RATIO,
         )?;
-        check(
+        check_range(
             drive.pitch_radius,
             const { Metres::lit("0.001") },
             const { Metres::lit("0.05") },
-            "drive.pitch_radius",
-            "1..50 mm",
+            &keys::DRIVE_PITCH_RADIUS,
         )?;
-        check(
+        check_range(
             drive.lead_angle_deg,
             const { I16F16::lit("0.5") },
             const { I16F16::lit("20") },
-            "drive.lead_angle",
-            "0.5..20 deg",
+            &keys::DRIVE_LEAD_ANGLE,
         )?;
 
         let alpha0 = Angle::from_degrees(cfg.alpha0_deg);

@@ -7,6 +7,7 @@
 //! `r_m·W·ξ`; friction torque about the screw axis `T_r = μ_s·|N|·r_m·cos λ`
 //! (= μ_s·|W|·r_m/(1 ∓ μ_s tan λ): cos λ cancels). docs/model.md derives it.
 
+use crate::keys::{self, ConfigError};
 use crate::model::geometry::DriveConfig;
 use crate::model::Scale;
 use crate::units::{narrow, sat32};
@@ -14,7 +15,6 @@ use crate::units::{
     qmul, Angle, Kilograms, KilogramsPerSecond, Metres, MetresPerSecond, NewtonMetres, Newtons,
     RadiansPerSecond, RadiansPerSecond2, Ratio, Q,
 };
-use crate::ConfigError;
 
 /// Mechanical constants of the screw assembly (seed 000).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -95,36 +95,35 @@ pub struct Contact {
 impl ScrewModel {
     /// Validate and quantise once.
     pub fn new(drive: &DriveConfig, mech: &MechanicsConfig) -> Result<ScrewModel, ConfigError> {
-        let oor = |field, range| Err(ConfigError::OutOfRange { field, range });
         if !(0..=100_000).contains(&mech.inertia_ukgm2) {
-            return oor("mech.inertia", "0..100000 ukgm2");
+            return Err(keys::MECH_INERTIA.out_of_range());
         }
         if !(0..=1_000_000).contains(&mech.damping_unms) {
-            return oor("mech.damping", "0..1e6 uNms/rad");
+            return Err(keys::MECH_DAMPING.out_of_range());
         }
         if !(mech.support_torque >= NewtonMetres::ZERO
             && mech.support_torque <= const { NewtonMetres::lit("10") })
         {
-            return oor("mech.support_torque", "0..10 Nm");
+            return Err(keys::MECH_SUPPORT_TORQUE.out_of_range());
         }
         if !(mech.nut_mass >= Kilograms::ZERO && mech.nut_mass <= const { Kilograms::lit("5") }) {
-            return oor("mech.nut_mass", "0..5 kg");
+            return Err(keys::MECH_NUT_MASS.out_of_range());
         }
         if !(mech.coupling_stiffness >= const { NewtonMetres::lit("1") }
             && mech.coupling_stiffness <= const { NewtonMetres::lit("10000") })
         {
-            return oor("mech.coupling_stiffness", "1..10000 Nm/rad");
+            return Err(keys::MECH_COUPLING_STIFFNESS.out_of_range());
         }
         if !(drive.pitch_radius >= const { Metres::lit("0.001") }
             && drive.pitch_radius <= const { Metres::lit("0.05") })
         {
-            return oor("drive.pitch_radius", "1..50 mm");
+            return Err(keys::DRIVE_PITCH_RADIUS.out_of_range());
         }
         let lambda = Angle::from_degrees(drive.lead_angle_deg);
         if !(lambda >= Angle::from_degrees(const { fixed::types::I16F16::lit("0.5") })
             && lambda <= Angle::from_degrees(const { fixed::types::I16F16::lit("20") }))
         {
-            return oor("drive.lead_angle", "0.5..20 deg");
+            return Err(keys::DRIVE_LEAD_ANGLE.out_of_range());
         }
         let (cos_l, sin_l) = lambda.cos_sin();
         let tan_q28 = (i64::from(sin_l.bits()) << 28) / i64::from(cos_l.bits());

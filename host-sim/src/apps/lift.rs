@@ -6,8 +6,8 @@
 
 use crate::inject::{Injection, Plan};
 use crate::physics::{Geometry, Lubricant};
+use crate::plotting;
 use crate::sim::{Driver, Sim, SimConfig};
-use crate::studies::paper::plots;
 use liftfw::console::service::write_fault;
 use liftfw::control::config::ControlConfig;
 use liftfw::control::{Command, Controller, Event, Refusal, State};
@@ -336,7 +336,7 @@ enum End {
 }
 
 fn plot(path: &Path, a: &LiftArgs, s: &[Sample]) -> Result<(), String> {
-    plots::init_font()?;
+    plotting::init_font()?;
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     }
@@ -345,7 +345,7 @@ fn plot(path: &Path, a: &LiftArgs, s: &[Sample]) -> Result<(), String> {
         root.fill(&WHITE)?;
         let (top, bottom) = root.split_vertically(380);
         let t_end = s.last().map_or(1.0, |x| x.t);
-        let (h_lo, h_hi) = plots::range(s.iter().flat_map(|x| [x.true_height, x.core_height]));
+        let (h_lo, h_hi) = plotting::range(s.iter().flat_map(|x| [x.true_height, x.core_height]));
         let mut c = ChartBuilder::on(&top)
             .caption(
                 format!(
@@ -354,7 +354,7 @@ fn plot(path: &Path, a: &LiftArgs, s: &[Sample]) -> Result<(), String> {
                     a.load_kg,
                     a.to_mm
                 ),
-                (plots::FONT, 18),
+                (plotting::FONT, 18),
             )
             .margin(10)
             .x_label_area_size(30)
@@ -363,7 +363,7 @@ fn plot(path: &Path, a: &LiftArgs, s: &[Sample]) -> Result<(), String> {
         c.configure_mesh()
             .x_desc("t, s")
             .y_desc("height, mm")
-            .label_style((plots::FONT, 13))
+            .label_style((plotting::FONT, 13))
             .draw()?;
         c.draw_series(LineSeries::new(
             s.iter().map(|x| (x.t, x.true_height)),
@@ -384,15 +384,15 @@ fn plot(path: &Path, a: &LiftArgs, s: &[Sample]) -> Result<(), String> {
         c.configure_series_labels()
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
-            .label_font((plots::FONT, 13))
+            .label_font((plotting::FONT, 13))
             .position(SeriesLabelPosition::LowerRight)
             .draw()?;
 
-        let (t_lo, t_hi) = plots::range(s.iter().flat_map(|x| [x.true_tr, x.core_tr]));
+        let (t_lo, t_hi) = plotting::range(s.iter().flat_map(|x| [x.true_tr, x.core_tr]));
         let mut c = ChartBuilder::on(&bottom)
             .caption(
                 "thread friction torque T_r: plant vs the core's real-time estimate",
-                (plots::FONT, 18),
+                (plotting::FONT, 18),
             )
             .margin(10)
             .x_label_area_size(30)
@@ -401,7 +401,7 @@ fn plot(path: &Path, a: &LiftArgs, s: &[Sample]) -> Result<(), String> {
         c.configure_mesh()
             .x_desc("t, s")
             .y_desc("T_r, N·m")
-            .label_style((plots::FONT, 13))
+            .label_style((plotting::FONT, 13))
             .draw()?;
         c.draw_series(LineSeries::new(s.iter().map(|x| (x.t, x.true_tr)), &BLUE))?
             .label("plant T_r")
@@ -412,7 +412,7 @@ fn plot(path: &Path, a: &LiftArgs, s: &[Sample]) -> Result<(), String> {
         c.configure_series_labels()
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
-            .label_font((plots::FONT, 13))
+            .label_font((plotting::FONT, 13))
             .position(SeriesLabelPosition::UpperRight)
             .draw()?;
         root.present()?;

@@ -2,9 +2,9 @@
 //! reproduction report.
 
 use super::{repo_doc, SimArgs};
-use crate::physics::Lubricant;
-use crate::plant::StructureDamping;
 use crate::studies::paper::{self, plots, CaseResult, MatrixConfig, Steady};
+use crate::twin::physics::Lubricant;
+use crate::twin::plant::StructureDamping;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use std::error::Error;
@@ -71,7 +71,7 @@ pub fn run(a: &Args) -> Result<(), Box<dyn Error>> {
     std::fs::create_dir_all(&a.out)?;
     let plots = !a.no_plots;
     if plots {
-        match plots::init_font() {
+        match crate::plotting::init_font() {
             Ok(p) => println!("font        {}", p.display()),
             Err(e) => return Err(e.into()),
         }
@@ -186,7 +186,7 @@ pub fn run(a: &Args) -> Result<(), Box<dyn Error>> {
             .unwrap_or_else(|| repo_doc("paper-reproduction.md"));
         let ball = doc.with_file_name("ballscrew-reproduction.md");
         let ball = std::fs::read_to_string(&ball).ok();
-        let text = paper::reproduction_markdown(&main, steady.as_ref(), &m, ball.as_deref());
+        let text = paper::reproduction_markdown(&main, steady.as_ref(), &m, ball.as_deref())?;
         std::fs::write(&doc, text)?;
         println!("report      {}", doc.display());
     }

@@ -22,7 +22,7 @@ use crate::units::{
 use crate::ConfigError;
 use fixed::types::{I16F16, I32F32};
 use registry::slot;
-pub(crate) use registry::{key_index, opaque_get, opaque_set};
+pub(crate) use registry::{opaque_get, opaque_set};
 pub use registry::{stored_at, BALL_KEYS, LAW_PRESETS, OPAQUE_COUNT, SETTINGS};
 pub use unit::*;
 
@@ -149,31 +149,6 @@ pub fn apply(
         });
     }
     ValidatedConfig::new(next)
-}
-
-/// The refusal's reason, in a build without the `ball-screw` feature, of a value only the
-/// ball-screw variant runs.
-pub const NEEDS_BALL_SCREW: &str = "needs the ball-screw firmware (this is the lead-screw image)";
-
-/// Whether this build can run `cfg`: without the `ball-screw` feature, `drive.screw = ball` and
-/// the `tau` law variable (the `ball` friction preset's) are refused with [`NEEDS_BALL_SCREW`]
-/// (part of [`ControlConfig::validate`]; the store checks it before anything else, see
-/// [`crate::config::store::Source::NeedsBallScrew`]). Always `Ok` with the feature.
-pub fn check_variant(cfg: &ControlConfig) -> Result<(), ConfigError> {
-    if cfg!(feature = "ball-screw") {
-        return Ok(());
-    }
-    let field = if cfg.screw == ScrewKind::Ball {
-        "drive.screw"
-    } else if cfg.estimator.law.variable == LawVariable::Lubrication {
-        "friction.variable"
-    } else {
-        return Ok(());
-    };
-    Err(ConfigError::Conflict {
-        field,
-        reason: NEEDS_BALL_SCREW,
-    })
 }
 
 /// The console's message template for a key [`find`] does not know (`\x01`: the key, then the

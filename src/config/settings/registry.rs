@@ -1,8 +1,9 @@
-//! The registry: every setting's key, kind, range text, help line and field, in the order
-//! the flash record stores them.
+//! The registry: every setting's key and range ([`crate::keys`]), kind, help line and field,
+//! in the order the flash record stores them.
 
 use super::slot::{field_slot, field_stored, Slot};
 use super::*;
+use crate::keys;
 
 const fn num(frac: u8, unit: UnitId) -> Kind {
     Kind::Number {
@@ -22,7 +23,8 @@ const LEN: Kind = Kind::Number {
 };
 
 /// [`SETTINGS`] and the function that reaches a setting's field by its index (`index => key,
-/// kind, range, help line, [accessor]`). One `match` for both directions instead of a `get`
+/// kind, help line, [accessor]`; the key names the [`crate::keys`] constant that holds the
+/// console key and the range text). One `match` for both directions instead of a `get`
 /// and a `set` function per setting (or a `match` per direction): on the board the table is 8
 /// bytes per setting smaller and each setting's field access is one address and tag.
 ///
@@ -32,31 +34,28 @@ const LEN: Kind = Kind::Number {
 /// fields at the same positions and the record carries their raw words through
 /// ([`BALL_KEYS`], [`opaque_get`]).
 macro_rules! registry {
-    ($($n:literal => $key:literal, $kind:expr, $range:literal, $about:literal, [$($acc:tt)+];)*
-     ball_screw: $($bn:literal => $bkey:literal, $bkind:expr, $brange:literal, $babout:literal, [$($bacc:tt)+];)*) => {
+    ($($n:literal => $key:ident, $kind:expr, $about:literal, [$($acc:tt)+];)*
+     ball_screw: $($bn:literal => $bkey:ident, $bkind:expr, $babout:literal, [$($bacc:tt)+];)*) => {
         /// Every setting. The flash record's layout follows this order (the `stored` ones):
         /// changing it changes the record's schema fingerprint (see [`crate::config::record`]).
         pub static SETTINGS: [Setting; SETTINGS_LEN] = [$(
             Setting {
-                key: $key,
+                key: keys::$key.name,
                 kind: $kind,
-                range: $range,
+                range: keys::$key.range,
                 #[cfg(feature = "help-text")]
                 about: $about,
             },
         )* $(
             #[cfg(feature = "ball-screw")]
             Setting {
-                key: $bkey,
+                key: keys::$bkey.name,
                 kind: $bkind,
-                range: $brange,
+                range: keys::$bkey.range,
                 #[cfg(feature = "help-text")]
                 about: $babout,
             },
         )*];
-
-        /// The keys of [`SETTINGS`]' own entries, for [`key_index`] at compile time (no flash).
-        const KEYS: [&str; BALL_FIRST] = [$($key),*];
 
         /// Number of [`SETTINGS`].
         const SETTINGS_LEN: usize = BALL_FIRST + if cfg!(feature = "ball-screw") {
@@ -71,7 +70,7 @@ macro_rules! registry {
 
         /// The ball-screw variant's settings' keys, in registry order (all stored). Without the
         /// feature only the record's schema word uses them (at compile time: no flash).
-        pub const BALL_KEYS: [&str; [$($bn),*].len()] = [$($bkey),*];
+        pub const BALL_KEYS: [&str; [$($bn),*].len()] = [$(keys::$bkey.name),*];
 
         /// Bit `i`: setting `i` is stored in the flash record.
         /// (One statement per setting, so that an entry can carry attributes such as `cfg`.)
@@ -119,27 +118,6 @@ macro_rules! registry {
     };
 }
 
-/// The position in [`SETTINGS`] of the setting with this key (exact spelling); a compile-time
-/// error in a `const` if there is none. For the range tables ([`crate::Bound`]) that name a
-/// setting instead of carrying its key and range text.
-pub(crate) const fn key_index(key: &str) -> u8 {
-    let mut i = 0;
-    while i < KEYS.len() {
-        let (a, b) = (KEYS[i].as_bytes(), key.as_bytes());
-        if a.len() == b.len() {
-            let mut j = 0;
-            while j < a.len() && a[j] == b[j] {
-                j += 1;
-            }
-            if j == a.len() {
-                return i as u8;
-            }
-        }
-        i += 1;
-    }
-    panic!("no setting has this key")
-}
-
 /// Whether the setting at `index` of [`SETTINGS`] is stored in the flash record
 /// ([`Setting::stored`]; `const` for the record's compile-time layout tables).
 pub const fn stored_at(index: usize) -> bool {
@@ -183,221 +161,221 @@ pub const LAW_PRESETS: [FrictionLaw; 4] = [
 ];
 
 registry! {
-    0 => "limits.lower", LEN, "the mechanism's height range (see `limits`)",
+    0 => LIMITS_LOWER, LEN,
         "lowest head height the lift drives to",
         [q32 limits.lower];
-    1 => "limits.upper", LEN, "the mechanism's height range (see `limits`)",
+    1 => LIMITS_UPPER, LEN,
         "highest head height the lift drives to",
         [q32 limits.upper];
-    2 => "limits.switch_lower", LEN, "the mechanism's height range, at least 0.5 mm below limits.lower",
+    2 => LIMITS_SWITCH_LOWER, LEN,
         "head height where the lower limit switch closes (the homing reference)",
         [q32 limits.switch_lower];
-    3 => "load.rated", num(12, KILOGRAMS), "10..5000 kg",
+    3 => LOAD_RATED, num(12, KILOGRAMS),
         "rated load of the lift",
         [q32 rated_load];
-    4 => "motion.cruise_speed", num(16, RAD_PER_S), "0.2..20 rad/s",
+    4 => MOTION_CRUISE_SPEED, num(16, RAD_PER_S),
         "cruise screw speed",
         [q32 motion.cruise_speed];
-    5 => "motion.ramp_ms", num(0, MILLIS), "10..2000 ms",
+    5 => MOTION_RAMP_MS, num(0, MILLIS),
         "time from rest to cruise speed (and back)",
         [int u32, motion.ramp_ms];
-    6 => "motion.ramp_shape", Kind::Choice(ChoiceId(0)), "trapezoid or scurve",
+    6 => MOTION_RAMP_SHAPE, Kind::Choice(ChoiceId(0)),
         "speed ramp: constant acceleration or jerk-limited",
         [choice motion.ramp_shape];
-    7 => "motion.buttons", Kind::Choice(ChoiceId(1)), "hold or latched",
+    7 => MOTION_BUTTONS, Kind::Choice(ChoiceId(1)),
         "UP/DOWN buttons: hold-to-run or latched until STOP",
         [choice motion.buttons];
-    8 => "protect.overcurrent", num(16, AMPS), "1..60 A",
+    8 => PROTECT_OVERCURRENT, num(16, AMPS),
         "motor current that trips the over-current fault",
         [q32 protection.overcurrent];
-    9 => "protect.current_limit", num(16, AMPS), "1..60 A",
+    9 => PROTECT_CURRENT_LIMIT, num(16, AMPS),
         "current the speed loop never asks for (at most protect.overcurrent)",
         [q32 protection.current_limit];
-    10 => "protect.stall_duty", num(28, RATIO), "0.05..1",
+    10 => PROTECT_STALL_DUTY, num(28, RATIO),
         "duty at or above which no encoder motion counts as a stall",
         [q32 protection.stall_duty];
-    11 => "protect.stall_ms", num(0, MILLIS), "20..5000 ms",
+    11 => PROTECT_STALL_MS, num(0, MILLIS),
         "time stalled before the fault",
         [int u32, protection.stall_ms];
-    12 => "protect.max_motor_speed", num(16, RAD_PER_S), "10..5000 rad/s",
+    12 => PROTECT_MAX_MOTOR_SPEED, num(16, RAD_PER_S),
         "fastest plausible motor-shaft speed",
         [q32 protection.max_motor_speed];
-    13 => "protect.supply_start_min", num(16, VOLTS), "8..16 V",
+    13 => PROTECT_SUPPLY_START_MIN, num(16, VOLTS),
         "refuse to start below this supply voltage",
         [q32 protection.supply_start_min];
-    14 => "protect.supply_run_min", num(16, VOLTS), "6..16 V",
+    14 => PROTECT_SUPPLY_RUN_MIN, num(16, VOLTS),
         "stop while moving below this supply voltage",
         [q32 protection.supply_run_min];
-    15 => "protect.supply_max", num(16, VOLTS), "12..20 V",
+    15 => PROTECT_SUPPLY_MAX, num(16, VOLTS),
         "stop above this supply voltage",
         [q32 protection.supply_max];
-    16 => "protect.supply_ms", num(0, MILLIS), "1..1000 ms",
+    16 => PROTECT_SUPPLY_MS, num(0, MILLIS),
         "supply out of range this long trips the fault",
         [int u32, protection.supply_ms];
-    17 => "protect.overload_margin", num(28, RATIO), "0.05..2",
+    17 => PROTECT_OVERLOAD_MARGIN, num(28, RATIO),
         "overload: measured torque above the rated-load model by this fraction",
         [q32 protection.overload_margin];
-    18 => "protect.overload_ms", num(0, MILLIS), "10..5000 ms",
+    18 => PROTECT_OVERLOAD_MS, num(0, MILLIS),
         "overload held this long trips the fault",
         [int u32, protection.overload_ms];
-    19 => "protect.runaway_travel", LEN, "0.01..10 mm",
+    19 => PROTECT_RUNAWAY_TRAVEL, LEN,
         "uncommanded nut travel before the runaway fault",
         [q32 protection.runaway_travel];
-    20 => "sense.current_zero", num(0, COUNTS), "0..4095 codes",
+    20 => SENSE_CURRENT_ZERO, num(0, COUNTS),
         "current-sense ADC code at 0 A",
         [int u16, sensing.current_zero_code];
-    21 => "sense.current_ua_per_code", num(0, MICROAMPS), "1..1000000 uA",
+    21 => SENSE_CURRENT_UA_PER_CODE, num(0, MICROAMPS),
         "motor current per ADC code",
         [int u32, sensing.current_ua_per_code];
-    22 => "sense.supply_uv_per_code", num(0, MICROVOLTS), "1..100000 uV",
+    22 => SENSE_SUPPLY_UV_PER_CODE, num(0, MICROVOLTS),
         "supply voltage per ADC code",
         [int u32, sensing.supply_uv_per_code];
-    23 => "geometry.length", LEN, "0.05..2 m",
+    23 => GEOMETRY_LENGTH, LEN,
         "Eq 1's length L (twice the arm length)",
         [q32 estimator.geometry.length];
-    24 => "geometry.alpha0", num(16, DEGREES), "12..60 deg",
+    24 => GEOMETRY_ALPHA0, num(16, DEGREES),
         "arm angle fully down",
         [q32 estimator.geometry.alpha0_deg];
-    25 => "geometry.alpha_max", num(16, DEGREES), "alpha0+5..89 deg",
+    25 => GEOMETRY_ALPHA_MAX, num(16, DEGREES),
         "largest arm angle of the mechanism",
         [q32 estimator.geometry.alpha_max_deg];
-    26 => "geometry.h0", LEN, "0..1 m",
+    26 => GEOMETRY_H0, LEN,
         "head height with the arms collapsed",
         [q32 estimator.geometry.h0];
-    27 => "geometry.mu_pin", num(28, RATIO), "0..1",
+    27 => GEOMETRY_MU_PIN, num(28, RATIO),
         "pin friction coefficient (Eq 6)",
         [q32 estimator.geometry.mu_pin];
-    28 => "drive.counts_per_rev", num(0, COUNTS), "4..65536",
+    28 => DRIVE_COUNTS_PER_REV, num(0, COUNTS),
         "encoder counts per motor turn",
         [int u32, estimator.drive.counts_per_rev];
-    29 => "drive.gear_ratio", num(16, NUMBER), "1..1000",
+    29 => DRIVE_GEAR_RATIO, num(16, NUMBER),
         "motor turns per screw turn",
         [q32 estimator.drive.gear_ratio];
-    30 => "drive.pitch_radius", LEN, "1..50 mm",
+    30 => DRIVE_PITCH_RADIUS, LEN,
         "screw pitch radius r_m",
         [q32 estimator.drive.pitch_radius];
-    31 => "drive.lead_angle", num(16, DEGREES), "0.5..20 deg",
+    31 => DRIVE_LEAD_ANGLE, num(16, DEGREES),
         "screw lead angle",
         [q32 estimator.drive.lead_angle_deg];
-    32 => "drive.screw", Kind::Choice(ChoiceId(2)), "lead or ball",
+    32 => DRIVE_SCREW, Kind::Choice(ChoiceId(2)),
         "screw type: lead (self-locking) or ball (held actively at rest)",
         [choice screw];
-    33 => "drive.brake", Kind::Choice(ChoiceId(3)), "none or spring",
+    33 => DRIVE_BRAKE, Kind::Choice(ChoiceId(3)),
         "holding brake: none, or spring-applied (engaged unless the brake output is on)",
         [choice brake.present];
-    34 => "drive.brake_ms", num(0, MILLIS), "5..1000 ms",
+    34 => DRIVE_BRAKE_MS, num(0, MILLIS),
         "time the brake takes to release or engage",
         [int u32, brake.delay_ms];
-    35 => "mech.inertia", num(0, MICRO_KGM2), "0..100000 ukgm2",
+    35 => MECH_INERTIA, num(0, MICRO_KGM2),
         "screw inertia I",
         [int i32, estimator.mechanics.inertia_ukgm2];
-    36 => "mech.damping", num(0, MICRO_NMS), "0..1e6 uNms/rad",
+    36 => MECH_DAMPING, num(0, MICRO_NMS),
         "screw support damping c",
         [int i32, estimator.mechanics.damping_unms];
-    37 => "mech.support_torque", num(16, NEWTON_METRES), "0..10 Nm",
+    37 => MECH_SUPPORT_TORQUE, num(16, NEWTON_METRES),
         "support friction torque T0",
         [q32 estimator.mechanics.support_torque];
-    38 => "mech.nut_mass", num(12, KILOGRAMS), "0..5 kg",
+    38 => MECH_NUT_MASS, num(12, KILOGRAMS),
         "translating (nut) mass m",
         [q32 estimator.mechanics.nut_mass];
-    39 => "mech.coupling_stiffness", num(16, NM_PER_RAD), "1..10000 Nm/rad",
+    39 => MECH_COUPLING_STIFFNESS, num(16, NM_PER_RAD),
         "torsional stiffness k of the coupling",
         [q32 estimator.mechanics.coupling_stiffness];
-    40 => "friction.law", Kind::Choice(ChoiceId(4)), "dry, ptfe, lithium or ball",
+    40 => FRICTION_LAW, Kind::Choice(ChoiceId(4)),
         "load a preset friction law (shows `custom` after edits)",
         [preset estimator.law];
-    41 => "friction.variable", Kind::Choice(ChoiceId(5)), "rate, speed or tau",
+    41 => FRICTION_VARIABLE, Kind::Choice(ChoiceId(5)),
         "law variable: screw rate |w| rad/s, sliding speed m/s, or tau",
         [choice estimator.law.variable];
-    42 => "friction.base", num(28, RATIO), "0..1",
+    42 => FRICTION_BASE, num(28, RATIO),
         "law: constant term",
         [q32 estimator.law.base];
-    43 => "friction.amp", num(28, RATIO), "-1..1",
+    43 => FRICTION_AMP, num(28, RATIO),
         "law: exponential (Stribeck) amplitude",
         [q32 estimator.law.amp];
-    44 => "friction.rate", num(32, NUMBER), "0..1e6",
+    44 => FRICTION_RATE, num(32, NUMBER),
         "law: exponential rate per unit of the variable",
         [q64 estimator.law.rate];
-    45 => "friction.slope", num(32, NUMBER), "-1000..1000",
+    45 => FRICTION_SLOPE, num(32, NUMBER),
         "law: viscous slope per unit of the variable",
         [q64 estimator.law.slope];
-    46 => "friction.s_max", Kind::Number { frac: 32, pow10: 0, unit: NUMBER, none_at_max: true },
-        ">0..1e6", "law: viscous term flat beyond this (none: never)",
+    46 => FRICTION_S_MAX, Kind::Number { frac: 32, pow10: 0, unit: NUMBER, none_at_max: true },
+        "law: viscous term flat beyond this (none: never)",
         [q64 estimator.law.s_max];
-    47 => "motor.kt", num(28, NM_PER_AMP), "0.001..1 Nm/A",
+    47 => MOTOR_KT, num(28, NM_PER_AMP),
         "motor torque constant",
         [q32 estimator.motor.torque_constant];
-    48 => "motor.gear_efficiency", num(28, RATIO), "0.1..1",
+    48 => MOTOR_GEAR_EFFICIENCY, num(28, RATIO),
         "gearbox efficiency",
         [q32 estimator.motor.gear_efficiency];
-    49 => "motor.resistance", num(28, OHMS), "0.001..4 ohm",
+    49 => MOTOR_RESISTANCE, num(28, OHMS),
         "motor loop resistance (armature, bridge, battery)",
         [q32 estimator.motor.resistance];
-    50 => "control.tick_us", num(0, MICROS), "100..10000 us",
+    50 => CONTROL_TICK_US, num(0, MICROS),
         "control tick period",
         [int u32, estimator.tick_us];
-    51 => "control.speed_bandwidth", num(0, HERTZ), "1..tick rate/10 Hz",
+    51 => CONTROL_SPEED_BANDWIDTH, num(0, HERTZ),
         "speed filter bandwidth",
         [int u32, estimator.speed_bandwidth_hz];
-    52 => "control.rest_speed", num(16, RAD_PER_S), "0..50 rad/s",
+    52 => CONTROL_REST_SPEED, num(16, RAD_PER_S),
         "screw speed below which the screw counts as at rest",
         [q32 estimator.rest_speed];
-    53 => "stickslip.reaction", Kind::Choice(ChoiceId(6)), "log, warn or speed",
+    53 => STICKSLIP_REACTION, Kind::Choice(ChoiceId(6)),
         "on stick-slip: log it, also warn on the console, or also change to the escape speed",
         [choice stick_slip.reaction];
-    54 => "stickslip.drop", num(16, NEWTON_METRES), "0.2..50 Nm",
+    54 => STICKSLIP_DROP, num(16, NEWTON_METRES),
         "smallest fall of the measured screw torque that counts as a slip",
         [q32 stick_slip.drop_threshold];
-    55 => "stickslip.window_ms", num(0, MILLIS), "100..10000 ms",
+    55 => STICKSLIP_WINDOW_MS, num(0, MILLIS),
         "slips further apart start a new chain",
         [int u32, stick_slip.window_ms];
-    56 => "stickslip.escape_speed", num(16, RAD_PER_S), "0.2..20 rad/s",
+    56 => STICKSLIP_ESCAPE_SPEED, num(16, RAD_PER_S),
         "cruise speed for the rest of a motion after stick-slip (reaction speed)",
         [q32 stick_slip.escape_speed];
     ball_screw:
-    57 => "ballscrew.r_m", LEN, "2..100 mm",
+    57 => BALLSCREW_R_M, LEN,
         "ball screw: ball-centre circle radius r_m",
         [q32 ball_screw.r_m];
-    58 => "ballscrew.r_b", LEN, "0.5..20 mm",
+    58 => BALLSCREW_R_B, LEN,
         "ball screw: ball radius r_b (less than r_m)",
         [q32 ball_screw.r_b];
-    59 => "ballscrew.contact_angle", num(16, DEGREES), "20..80 deg",
+    59 => BALLSCREW_CONTACT_ANGLE, num(16, DEGREES),
         "ball screw: contact angle alpha",
         [q32 ball_screw.contact_angle_deg];
-    60 => "ballscrew.lead", LEN, "0.5..50 mm",
+    60 => BALLSCREW_LEAD, LEN,
         "ball screw: lead (nut travel per screw turn)",
         [q32 ball_screw.lead];
-    61 => "ballscrew.balls", num(0, COUNTS), "1..1000",
+    61 => BALLSCREW_BALLS, num(0, COUNTS),
         "ball screw: number of loaded balls M",
         [int u16, ball_screw.loaded_balls];
-    62 => "ballscrew.preload", num(8, NEWTONS), "0..100 kN",
+    62 => BALLSCREW_PRELOAD, num(8, NEWTONS),
         "ball screw: preload F_p",
         [q32 ball_screw.preload];
-    63 => "ballscrew.viscosity", num(32, PASCAL_SECONDS), "1e-4..10 Pa.s",
+    63 => BALLSCREW_VISCOSITY, num(32, PASCAL_SECONDS),
         "ball screw: lubricant dynamic viscosity eta0",
         [q64 ball_screw.viscosity];
-    64 => "ballscrew.f_base", num(28, RATIO), "0..1",
+    64 => BALLSCREW_F_BASE, num(28, RATIO),
         "ball screw f(tau): constant term",
         [q32 ball_screw.law.base];
-    65 => "ballscrew.f_amp", num(28, RATIO), "-1..1",
+    65 => BALLSCREW_F_AMP, num(28, RATIO),
         "ball screw f(tau): exponential amplitude",
         [q32 ball_screw.law.amp];
-    66 => "ballscrew.f_rate", num(32, NUMBER), "0..1e6",
+    66 => BALLSCREW_F_RATE, num(32, NUMBER),
         "ball screw f(tau): exponential rate per unit of tau",
         [q64 ball_screw.law.rate];
-    67 => "ballscrew.f_slope", num(32, NUMBER), "-1000..1000",
+    67 => BALLSCREW_F_SLOPE, num(32, NUMBER),
         "ball screw f(tau): slope per unit of tau",
         [q64 ball_screw.law.slope];
-    68 => "ballscrew.f_s_max", Kind::Number { frac: 32, pow10: 0, unit: NUMBER, none_at_max: true },
-        ">0..1e6", "ball screw f(tau): flat beyond this tau (none: never)",
+    68 => BALLSCREW_F_S_MAX, Kind::Number { frac: 32, pow10: 0, unit: NUMBER, none_at_max: true },
+        "ball screw f(tau): flat beyond this tau (none: never)",
         [q64 ball_screw.law.s_max];
-    69 => "ballscrew.lube_band", num(28, RATIO), "0.05..4",
+    69 => BALLSCREW_LUBE_BAND, num(28, RATIO),
         "warn when the identified f leaves law*(1 +- band)",
         [q32 lube.band];
-    70 => "ballscrew.ident_min_speed", num(16, RAD_PER_S), "0.05..20 rad/s",
+    70 => BALLSCREW_IDENT_MIN_SPEED, num(16, RAD_PER_S),
         "slowest cruise whose motor current identifies f",
         [q32 lube.min_speed];
-    71 => "ballscrew.no_load_current", num(16, AMPS), "0..20 A",
+    71 => BALLSCREW_NO_LOAD_CURRENT, num(16, AMPS),
         "motor current at cruise speed with the gearbox output free (drive friction)",
         [q32 lube.no_load_current];
 }
@@ -594,7 +572,7 @@ mod tests {
             .all(|s| !s.key.starts_with(BALL_PREFIX)));
         assert_eq!(OPAQUE_COUNT, 0);
         // The feature's checks are off.
-        assert_eq!(check_variant(&cfg), Ok(()));
+        assert_eq!(crate::control::config::check_variant(&cfg), Ok(()));
         assert_eq!(
             unknown_key_template(b"ballscrew.x"),
             "unknown key '\x01'\x01"

@@ -115,7 +115,7 @@ pub fn register_name(addr: u32) -> String {
 /// Registers that take narrower accesses: the NVIC/SCB byte registers, the timers' 16-bit
 /// registers (CNT, PSC, ARR, CCRx: stm32-metapac declares them 16 bits wide, a half-word store
 /// at their address; the upper half is reserved or, on TIM2, zero-extended as the bus does),
-/// USART's data registers.
+/// USART's and the ADCs' data registers.
 fn narrow_ok(dev: Dev, off: u32, lane: u32) -> bool {
     match dev {
         Dev::Scs => true,
@@ -123,6 +123,8 @@ fn narrow_ok(dev: Dev, off: u32, lane: u32) -> bool {
             lane == 0 && matches!(off, 0x24 | 0x28 | 0x2C | 0x30 | 0x34 | 0x38 | 0x3C | 0x40)
         }
         Dev::Usart2 => lane == 0 && matches!(off, 0x24 | 0x28),
+        // The ADCs' data registers (16-bit fields: embassy-stm32 reads DR as a half-word).
+        Dev::Adc1 | Dev::Adc2 => lane == 0 && matches!(off, 0x40 | 0x80 | 0x84 | 0x88 | 0x8C),
         _ => false,
     }
 }

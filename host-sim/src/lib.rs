@@ -10,6 +10,8 @@
 //!   the core's console on loopback TCP ([`apps::serve`]).
 //! - [`commands`]: the `host-sim` command line, one module per subcommand; [`plotting`]: what
 //!   the apps' and the studies' plots share (the font).
+//! - [`inject`]: faults a user injects into a closed-loop run (sensors, supply, jam, overload,
+//!   a hung control task).
 //! - [`studies`]: the twin measured — seed 000's matrix and its reproduction report
 //!   ([`studies::paper`]), the step-size convergence study ([`studies::convergence`]), the core's
 //!   stick-slip detector scored against the truth ([`studies::stickslip`]) and the ball-screw
@@ -22,6 +24,7 @@
 pub mod apps;
 pub mod cli;
 pub mod commands;
+pub mod inject;
 pub mod plotting;
 pub mod studies;
 pub mod twin;

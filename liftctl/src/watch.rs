@@ -27,7 +27,8 @@ pub fn csv_row(s: &Sample) -> String {
         "{:.3},{},{},{},{},{},{},{}",
         s.t,
         st.state,
-        st.height_mm,
+        // Empty while the board is unhomed (it does not know the height).
+        st.height_mm.map(|h| h.to_string()).unwrap_or_default(),
         st.speed,
         st.current,
         st.friction_torque,
@@ -92,6 +93,8 @@ pub fn watch(board: &mut Board, o: &WatchOptions, stop: &AtomicBool) -> Result<V
                     break;
                 }
             }
+            // Ctrl-C during a poll: the watch ends as between polls.
+            Err(Error::Interrupted { .. }) => break,
             Err(e @ (Error::Timeout { .. } | Error::Garbled { .. })) => {
                 misses += 1;
                 eprintln!("liftctl watch: {e}; sample skipped");
@@ -121,10 +124,13 @@ pub fn watch(board: &mut Board, o: &WatchOptions, stop: &AtomicBool) -> Result<V
 pub fn line(s: &Sample) -> String {
     let st = &s.status;
     format!(
-        "{:8.2} s  {:<8}  {:7.1} mm  {:6.2} rad/s  {:6.2} A  T_r {:6.3} Nm  stick-slip {:<3}  fault {}",
+        "{:8.2} s  {:<8}  {:>10}  {:6.2} rad/s  {:6.2} A  T_r {:6.3} Nm  stick-slip {:<3}  fault {}",
         s.t,
         st.state,
-        st.height_mm,
+        match st.height_mm {
+            Some(h) => format!("{h:7.1} mm"),
+            None => "unhomed".to_string(),
+        },
         st.speed,
         st.current,
         st.friction_torque,
@@ -162,13 +168,19 @@ pub fn plot(path: &Path, samples: &[Sample]) -> Result<(), Box<dyn std::error::E
     let t_end = samples.last().map_or(1.0, |s| s.t).max(1e-3);
     type Get = fn(&Status) -> f64;
     let series: [(&str, Get, RGBColor); 4] = [
-        ("height, mm", |s| s.height_mm, BLUE),
+        // Unhomed samples have no height: NaN, left out of the bounds and the line.
+        ("height, mm", |s| s.height_mm.unwrap_or(f64::NAN), BLUE),
         ("screw speed, rad/s", |s| s.speed, GREEN),
         ("motor current, A", |s| s.current, RED),
         ("friction torque T_r, N·m", |s| s.friction_torque, MAGENTA),
     ];
     for (area, (label, get, color)) in panels.iter().zip(series) {
-        let (lo, hi) = bounds(samples.iter().map(|s| get(&s.status)));
+        let (lo, hi) = bounds(
+            samples
+                .iter()
+                .map(|s| get(&s.status))
+                .filter(|v| v.is_finite()),
+        );
         let mut chart = ChartBuilder::on(area)
             .margin(8)
             .x_label_area_size(30)
@@ -182,7 +194,10 @@ pub fn plot(path: &Path, samples: &[Sample]) -> Result<(), Box<dyn std::error::E
             .axis_desc_style((FONT, 14))
             .draw()?;
         chart.draw_series(LineSeries::new(
-            samples.iter().map(|s| (s.t, get(&s.status))),
+            samples
+                .iter()
+                .map(|s| (s.t, get(&s.status)))
+                .filter(|(_, v)| v.is_finite()),
             color.stroke_width(2),
         ))?;
     }

@@ -150,7 +150,8 @@ pub enum Refusal {
     Faulted,
     /// The supply is below the start threshold.
     SupplyLow,
-    /// Already at (or past) that limit stop, or its limit switch is closed.
+    /// Already at or beyond that limit stop (a direction command never moves the other way),
+    /// or its limit switch is closed.
     AtLimit,
     /// The target lies outside the limit stops.
     OutsideLimits,
@@ -175,7 +176,9 @@ impl Refusal {
         match self {
             Refusal::Faulted => "refused: a fault is latched (see `fault`, then `fault clear`)",
             Refusal::SupplyLow => "refused: supply below the start threshold",
-            Refusal::AtLimit => "refused: already at that limit",
+            Refusal::AtLimit => {
+                "refused: already at or beyond that limit; `goto` a height between the stops"
+            }
             Refusal::OutsideLimits => "refused: target outside the limit stops",
             Refusal::Moving => "refused: moving the other way, stop first",
             Refusal::NoFault => "no fault latched",
@@ -214,6 +217,8 @@ pub struct Fault {
     pub position: i32,
     /// Head height (model).
     pub height: Metres,
+    /// The position was known (false: `height` is the homing assumption, not the head's).
+    pub homed: bool,
     /// Measured screw speed.
     pub screw_speed: RadiansPerSecond,
     /// Motor current.
@@ -247,6 +252,12 @@ pub enum Event {
     Homed {
         /// The encoder position the switch height maps to, counts.
         position: i32,
+    },
+    /// The motor cannot reach `motion.cruise_speed` at this load and supply: the motion runs
+    /// at this screw speed (it may rise a little as the limit settles).
+    CruiseLimited {
+        /// The cruise speed the motion runs at.
+        speed: RadiansPerSecond,
     },
     /// A stick-slip episode started (`crate::detect::stickslip`).
     StickSlip {
@@ -292,6 +303,9 @@ pub struct Status {
     pub position: i32,
     /// The position is known (false: homing on the lower limit switch is required).
     pub homed: bool,
+    /// The motion under way (or the last one) runs slower than `motion.cruise_speed`: the
+    /// screw speed the motor reached at the present load and supply (`limit_cruise`).
+    pub cruise_limit: Option<RadiansPerSecond>,
     /// Ball screw: the friction coefficient identified from the current and the law's, once a
     /// lift/lowering pair has been solved (`lube`).
     #[cfg(feature = "ball-screw")]
@@ -405,6 +419,15 @@ pub struct Controller {
     stick_slip: StickSlipDetector,
     cruise_q32: i64,
     escape_q32: i64,
+    /// The cruise speed of the motion under way when the motor cannot reach the configured one
+    /// (`limit_cruise`).
+    cruise_limit: Option<RadiansPerSecond>,
+    /// How far the reference may lead the screw before the planner waits for it, counts.
+    lag_counts: i32,
+    /// The motion's [`Event::CruiseLimited`] was reported.
+    cruise_reported: bool,
+    /// The last driving tick found the screw lagging (the planner waited): a stall sign.
+    lagging: bool,
     /// The ball screw (`cfg.ball_screw`, compiled) and the identification of its friction.
     #[cfg(feature = "ball-screw")]
     ball_screw: BallScrew,
@@ -457,6 +480,9 @@ impl Controller {
             ) as i64
         };
         let cruise_q32 = per_tick_q32(cfg.motion.cruise_speed);
+        // The planner waits while the screw lags its reference by more than 0.25 rad of the
+        // screw (≈ 0.08 mm of nut on the S12x2; at least the arrival window), see `drive`.
+        let lag_counts = sat32(counts_per_rad_q16 >> 18).max(ARRIVED_COUNTS);
         let escape_q32 = per_tick_q32(cfg.stick_slip.escape_speed);
         let ramp_ticks = ms_to_ticks(cfg.motion.ramp_ms, tick_us);
         let gear_ratio = cfg.estimator.drive.gear_ratio;
@@ -536,6 +562,10 @@ impl Controller {
             stick_slip: StickSlipDetector::new(&cfg.stick_slip, tick_us),
             cruise_q32,
             escape_q32,
+            cruise_limit: None,
+            lag_counts,
+            cruise_reported: false,
+            lagging: false,
             #[cfg(feature = "ball-screw")]
             ball_screw,
             #[cfg(feature = "ball-screw")]
@@ -657,6 +687,7 @@ impl Controller {
             fault: self.fault.map(|f| f.kind),
             position: self.enc.position(),
             homed: self.homed,
+            cruise_limit: self.cruise_limit,
             #[cfg(feature = "ball-screw")]
             lube: if self.holds_actively() {
                 self.lube.report()
@@ -744,6 +775,15 @@ impl Controller {
         self.latch(now, FaultKind::WatchdogReset);
     }
 
+    /// Report that the stored configuration could not be used and the factory defaults run
+    /// instead ([`crate::config::store::Source::lost_stored`]): latches
+    /// [`FaultKind::FactoryDefaults`], so that no motion starts on stops the user did not set
+    /// until `fault clear` acknowledges it (docs/console.md "Factory defaults after a lost
+    /// configuration").
+    pub fn report_factory_defaults(&mut self, now: Instant) {
+        self.latch(now, FaultKind::FactoryDefaults);
+    }
+
     /// Report that the stored configuration needs the ball-screw firmware (an image without the
     /// `ball-screw` feature booted on a ball-screw record, [`crate::config::store::Source::NeedsBallScrew`]):
     /// latches [`FaultKind::NeedsBallScrew`], which no command clears. The fault state brakes
@@ -787,11 +827,22 @@ impl Controller {
                 let span = self.lower_counts.saturating_sub(self.switch_counts);
                 self.start(self.enc.position().saturating_add(span), true)
             }
-            Command::Up | Command::GoTo(_) if !self.homed => Err(Refusal::NotHomed),
+            Command::Up | Command::GoTo(_) if !self.homed && self.fault.is_none() => {
+                Err(Refusal::NotHomed)
+            }
             // Homing: aim one full stroke below the stop; the lower switch ends the run.
             Command::Down if !self.homed => {
                 let stroke = self.upper_counts.saturating_sub(self.switch_counts);
                 self.start(self.enc.position().saturating_sub(stroke), false)
+            }
+            // A direction command moves only in its direction: with the head above a lowered
+            // upper stop `up` would lower to it (and `down` lift to a raised lower stop).
+            // (A latched fault is the first reason, `start`'s.)
+            Command::Up if self.fault.is_none() && self.upper_counts <= self.screw_position() => {
+                Err(Refusal::AtLimit)
+            }
+            Command::Down if self.fault.is_none() && self.lower_counts >= self.screw_position() => {
+                Err(Refusal::AtLimit)
             }
             Command::Up => self.start(self.upper_counts, false),
             Command::Down => self.start(self.lower_counts, false),
@@ -837,7 +888,10 @@ impl Controller {
         }
         if !moving {
             self.profile.reset(here);
+            self.last_ref_counts = here;
             self.profile.set_cruise(self.cruise_q32);
+            self.cruise_limit = None;
+            self.cruise_reported = false;
             if !self.keeps_integrator(None) {
                 self.speed.reset();
             }
@@ -852,6 +906,50 @@ impl Controller {
             State::Lowering
         });
         Ok(())
+    }
+
+    /// The lift lags its reference by more than `lag_counts`: the motor cannot reach the
+    /// profile's cruise at this load and supply (or a heavier car than the rated one). The
+    /// reference waits this tick (the caller skips the planner), and the cruise steps toward
+    /// the screw's measured speed + 1/16: down by at most 1/16 a lagging tick (a stick-slip
+    /// stick, where the screw stands for a few ticks, barely lowers it), up to it at once (so
+    /// the reference keeps leading a little and the limit finds what the motor reaches), never
+    /// above `motion.cruise_speed`. The first limit of a motion is reported
+    /// ([`Event::CruiseLimited`]). A profile faster than the lift ran
+    /// ahead of it: the reference reached the target and the settling time ran out with the
+    /// head short of it, and lowering, the reference's ramp-down made the lagging lift look
+    /// like a runaway. Out of line: only on lagging ticks, which skip the planner's step.
+    #[cold]
+    #[inline(never)]
+    fn limit_cruise(&mut self) {
+        let cruise = self.cfg.motion.cruise_speed;
+        let prev = self.cruise_limit.unwrap_or(cruise);
+        let step = prev.sat_sub(RadiansPerSecond::from_raw(prev.bits() >> 4));
+        // Only while the reference cruises (not in its ramps: accelerating from rest the
+        // screw lags and is slow for a moment whatever the motor can do).
+        if self.last_ref_rad.sat_abs() < step {
+            return;
+        }
+        let w = self.estimate.screw_speed.sat_abs();
+        let seen = w.sat_add(RadiansPerSecond::from_raw(w.bits() >> 4));
+        let w = seen
+            .max(step)
+            .min(cruise)
+            .max(const { RadiansPerSecond::lit("0.2") });
+        if w == prev || w >= cruise {
+            return;
+        }
+        // Reported once it has settled on what the screw does.
+        if !self.cruise_reported && seen >= step && self.pending_event.is_none() {
+            self.cruise_reported = true;
+            self.pending_event = Some(Event::CruiseLimited { speed: w });
+        }
+        self.cruise_limit = Some(w);
+        self.profile.set_cruise(crate::math::mul_div_u64(
+            self.cruise_q32.unsigned_abs(),
+            w.bits().unsigned_abs().into(),
+            cruise.bits().unsigned_abs().max(1).into(),
+        ) as i64);
     }
 
     /// Screw position estimate: the encoder less the coupling twist while driving. The twist
@@ -900,6 +998,7 @@ impl Controller {
             state: self.state,
             position: self.enc.position(),
             height: self.estimate.height,
+            homed: self.homed,
             screw_speed: self.estimate.screw_speed,
             current: self.current,
             supply: self.supply,
@@ -992,6 +1091,7 @@ impl Controller {
             overload_armed: moving
                 && matches!(self.last_bridge, Bridge::Drive(_))
                 && self.motion_ticks > holdoff,
+            lagging: moving && self.lagging,
         };
         if self.state != State::Fault {
             if let Some(kind) = self.monitors.check(&self.limits, &sample) {
@@ -1230,13 +1330,31 @@ impl Controller {
         if let Some(releasing) = self.releasing_brake() {
             return releasing;
         }
-        let r = self.profile.step();
-        self.last_ref_rad =
-            RadiansPerSecond::from_raw(self.speed_scale.apply32(sat32(r.speed >> 16)));
-        self.last_ref_counts = r.counts();
+        // The planner waits while the screw lags its reference by more than `lag_counts` (a
+        // heavier load or a lower supply than `reachable_cruise` assumed): the reference never
+        // runs ahead to the target and "arrives" with the head short of it, and lowering, its
+        // ramp-down never leaves a lagging lift looking like a runaway.
+        let dir = if self.state == State::Lowering { -1 } else { 1 };
+        let behind = self
+            .last_ref_counts
+            .saturating_sub(self.screw_position())
+            .saturating_mul(dir);
+        let mut done = false;
+        // The planner holds a stuck screw's lag near `lag_counts`: past half of it, the drive
+        // is pushing (the stall monitor's sign, steady while the planner steps and waits).
+        self.lagging = behind > self.lag_counts >> 1;
+        if behind <= self.lag_counts {
+            let r = self.profile.step();
+            self.last_ref_rad =
+                RadiansPerSecond::from_raw(self.speed_scale.apply32(sat32(r.speed >> 16)));
+            self.last_ref_counts = r.counts();
+            done = r.done;
+        } else {
+            self.limit_cruise();
+        }
         let reference = self.last_ref_rad;
-        let error_counts = r.counts().saturating_sub(self.screw_position());
-        if r.done {
+        let error_counts = self.last_ref_counts.saturating_sub(self.screw_position());
+        if done {
             self.settle_ticks = self.settle_ticks.saturating_add(1);
             let still = self.estimate.screw_speed.sat_abs() < self.cfg.estimator.rest_speed;
             if (error_counts.abs() <= ARRIVED_COUNTS && still)

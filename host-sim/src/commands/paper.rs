@@ -2,9 +2,9 @@
 //! reproduction report.
 
 use super::{repo_doc, SimArgs};
-use crate::physics::Lubricant;
-use crate::plant::StructureDamping;
 use crate::studies::paper::{self, plots, CaseResult, MatrixConfig, Steady};
+use crate::twin::physics::Lubricant;
+use crate::twin::plant::StructureDamping;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use std::error::Error;

@@ -210,6 +210,15 @@ impl Adc {
         Ok(())
     }
 
+    /// The interrupt line (ADC1_2, IRQ 18): a flag with its enable.
+    pub fn line(&mut self, env: &Env) -> bool {
+        if self.ier == 0 {
+            return false;
+        }
+        let _ = self.settle(env);
+        self.isr & self.ier != 0
+    }
+
     fn jsq(&self, rank: usize) -> u32 {
         self.jsqr >> (9 + 6 * rank) & 0x1F
     }

@@ -351,6 +351,35 @@ impl Bus {
         r
     }
 
+    /// ADC `which`'s interrupt line.
+    fn adc1_line(&mut self, which: u8) -> bool {
+        let Ok(adc_clk) = self.adc_clk() else {
+            return false;
+        };
+        let now = self.now();
+        let this: &Bus = self;
+        let input = |ch: u32| this.adc_input(which, ch);
+        let cc4 = |t: u64| this.tim1.last_match(3, t);
+        let env = adc::Env {
+            now,
+            adc_clk,
+            input: &input,
+            tim1_cc4_before: &cc4,
+        };
+        let mut a = if which == 1 {
+            self.adc1.clone()
+        } else {
+            self.adc2.clone()
+        };
+        let l = a.line(&env);
+        if which == 1 {
+            self.adc1 = a;
+        } else {
+            self.adc2 = a;
+        }
+        l
+    }
+
     /// A CPU read of `size` bytes at `addr` (a mapped peripheral region).
     pub fn read(&mut self, addr: u32, size: usize) -> u32 {
         let r = self.read_inner(addr, size);
@@ -585,6 +614,9 @@ impl Bus {
         }
         if self.usart2.line() {
             lines.push(38);
+        }
+        if self.adc1_line(1) || self.adc1_line(2) {
+            lines.push(18);
         }
         for irq in lines {
             if !self.scs.is_active(scs::IRQ0 + irq) {

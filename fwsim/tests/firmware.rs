@@ -15,7 +15,7 @@ use fwsim::TICK_HZ;
 use host_sim::physics::Lubricant;
 use host_sim::sim::{Driver, Sim, SimConfig};
 use liftfw::control::config::ControlConfig;
-use liftfw::control::{Bridge, Command, Controller, Inputs, Outputs, State, Switches};
+use liftfw::control::{Bridge, Command, Controller, Inputs, Outputs, Switches};
 use liftfw::units::{Instant, Metres};
 use std::sync::{Arc, Mutex};
 
@@ -135,22 +135,29 @@ fn homing_then_a_lift_halts_where_the_core_in_the_loop_does() {
 
     // The same with the core in the loop: DOWN held until homed, then the same goto.
     let cfg = plant_config(Lubricant::Dry, 1000.0, 150.0, 1).unwrap();
-    let mut phase = 0;
-    let (sim, t_end, _) = core_in_the_loop(cfg, None, r.t, move |_t, c| match phase {
-        0 if c.status().homed => {
-            phase = 1;
-            0
+    // The firmware's scenario: DOWN released at the "homed" notice, `goto` 0.5 s later.
+    let mut homed_at: Option<f64> = None;
+    let mut sent = false;
+    let (sim, t_end, _) = core_in_the_loop(cfg, None, r.t, move |t, c| {
+        // After its first ticks (the core refuses motion before it has read the supply).
+        if t < 0.05 {
+            return 0;
         }
-        0 => Switches::BUTTON_DOWN,
-        1 => {
-            if c.state() != State::Lowering {
-                phase = 2;
-                c.command(Command::GoTo(Metres::from_f64(target * 1e-3)))
-                    .unwrap();
+        match homed_at {
+            None if c.status().homed => {
+                homed_at = Some(t);
+                0
             }
-            0
+            None => Switches::BUTTON_DOWN,
+            Some(h) => {
+                if !sent && t >= h + 0.5 {
+                    sent = true;
+                    c.command(Command::GoTo(Metres::from_f64(target * 1e-3)))
+                        .unwrap();
+                }
+                0
+            }
         }
-        _ => 0,
     });
     let core = sim.record(t_end).height * 1e3;
     println!(

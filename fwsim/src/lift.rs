@@ -158,7 +158,8 @@ pub fn main(
     let reply = rig.command(&format!("goto {}mm", a.to_mm), 1.0)?;
     println!("console: goto {} mm → {reply}\n", a.to_mm);
     if reply.starts_with("error") {
-        return Err(format!("goto refused: {reply}"));
+        let fault = rig.command("fault", 1.0)?;
+        return Err(format!("goto refused: {reply} ({fault})"));
     }
     println!(
         "{:>6}  {:>10} {:>10}  {:>9} {:>9}  {:>9} {:>9}  {:>7}  state",

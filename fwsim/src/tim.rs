@@ -287,8 +287,8 @@ impl Timer {
         best
     }
 
-    /// Times in (from, to] at which channel `ch`'s compare matched, the latest first: for
-    /// triggers (TIM1_CC4 starting the injected ADC sequence).
+    /// The latest time at or before `to` at which channel `ch`'s compare matched: the trigger
+    /// time of TIM1_CC4 for the injected ADC sequence.
     pub fn last_match(&self, ch: usize, to: u64) -> Option<u64> {
         if !self.running() || !self.is_output(ch) {
             return None;
@@ -298,16 +298,15 @@ impl Timer {
         if v >= m {
             return None;
         }
-        let n = self.index(to);
-        let k = if n % m >= v {
-            n - n % m + v
-        } else {
-            (n - n % m + v).checked_sub(m)?
-        };
-        if k < self.anchor_n {
-            return None;
-        }
-        Some(self.anchor_t + (k - self.anchor_n) * self.tpc())
+        // Matches fall at index j·m + v of the count that started at t0 (signed: `to` may lie
+        // before the last re-anchoring; the period is taken as unchanged before it).
+        let tpc = i128::from(self.tpc());
+        let t0 = i128::from(self.anchor_t) - i128::from(self.anchor_n) * tpc;
+        let (m, v) = (i128::from(m), i128::from(v));
+        let counts = (i128::from(to) - t0).div_euclid(tpc);
+        let j = (counts - v).div_euclid(m);
+        let t = t0 + (j * m + v) * tpc;
+        u64::try_from(t).ok()
     }
 
     /// The interrupt lines' state: (update, capture/compare, trigger/commutation, break) for
@@ -604,6 +603,20 @@ mod tests {
         assert_eq!(t.read(0x10, 8 * 4250).unwrap() & 3, 2);
         assert_eq!(t.read(0x10, 8 * 8500).unwrap() & 3, 3);
         assert_eq!(t.read(0x24, 8 * 8501).unwrap(), 1);
+    }
+
+    #[test]
+    fn the_last_compare_match_is_found_across_an_update() {
+        let mut t = Timer::new("TIM1", Kind::Advanced);
+        t.write(0x2C, 99, 0).unwrap();
+        t.write(0x1C, 0x7000, 0).unwrap();
+        t.write(0x40, 50, 0).unwrap();
+        t.write(0x00, CEN, 0).unwrap();
+        // 100 counts of 8 ticks per period; CC4 at count 50.
+        t.advance(800 + 10);
+        assert_eq!(t.last_match(3, 800 + 10), Some(400));
+        assert_eq!(t.last_match(3, 800 + 400), Some(1200));
+        assert_eq!(t.last_match(3, 399), None);
     }
 
     #[test]

@@ -9,6 +9,7 @@ use std::process::ExitCode;
 
 mod ballscrew;
 mod convergence;
+mod firmware;
 mod lift;
 mod paper;
 mod run;

@@ -2,7 +2,7 @@
 
 use crate::apps::lift::{self, LiftArgs};
 use crate::cli::Lube;
-use crate::physics::Lubricant;
+use crate::twin::physics::Lubricant;
 use std::error::Error;
 use std::path::PathBuf;
 

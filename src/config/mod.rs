@@ -14,6 +14,8 @@
 //! or from flash that fails either never leaves this module. docs/config-store.md describes the
 //! scheme and the power-loss argument.
 
+mod blocking;
+mod position;
 pub mod record;
 pub mod settings;
 pub mod sim_flash;

@@ -22,7 +22,7 @@
 //!
 //! The controller's state comes in three parts: what it derives from its configuration
 //! (`derived.rs`: limit stops in counts, scales, gains, tick counts), the working state of
-//! motion control (profile, speed loop, monitors, detectors), both built with the
+//! motion control (`motion.rs`: profile, speed loop, monitors, detectors), both built with the
 //! configuration, and the live state a new configuration keeps (`supervisor.rs`: encoder,
 //! state machine, fault, buttons, where the lift rests, the latest measurements). A tick's
 //! measurements pass from phase to phase as values ([`Reading`]).
@@ -32,6 +32,7 @@ mod derived;
 pub mod edges;
 mod hold;
 pub mod lube;
+mod motion;
 pub mod park;
 pub mod profile;
 pub mod protect;
@@ -39,21 +40,15 @@ pub mod sense;
 pub mod speed;
 mod supervisor;
 
-use crate::detect::stickslip::{DetectorInputs, Reaction, StickSlipDetector};
 use crate::estimator::{Estimator, Measurements, TickEstimate};
-use crate::units::{
-    qmul, sat32, Amperes, Instant, Metres, NewtonMetres, Radians, RadiansPerSecond, Volts, Q,
-};
+use crate::units::{Amperes, Instant, Metres, NewtonMetres, RadiansPerSecond, Volts, Q};
 use crate::ConfigError;
 use config::ControlConfig;
 use derived::{Derived, ARRIVED_COUNTS};
-use edges::EdgeInterpolator;
-use profile::Profile;
+use motion::Motion;
 pub use protect::FaultKind;
-use protect::{Monitors, Sample};
-use sense::Debouncer;
+use protect::Sample;
 pub use sense::Switches;
-use speed::{SpeedInputs, SpeedLoop};
 use supervisor::Live;
 pub use supervisor::{Command, Event, Fault, Refusal, State};
 
@@ -147,76 +142,6 @@ struct Reading {
     /// The switches, debounced.
     switches: Switches,
     estimate: TickEstimate,
-}
-
-/// The working state of motion control, built with the configuration: a new configuration
-/// (at rest) starts it afresh, but for the parts [`Controller::reconfigure`] names.
-#[derive(Clone, Debug)]
-struct Motion {
-    /// Sub-count position from the encoder's edge times, for the speed filter.
-    edges: EdgeInterpolator,
-    debounce: Debouncer,
-    profile: Profile,
-    speed: SpeedLoop,
-    monitors: Monitors,
-    /// Ticks since the reference arrived (settling) and since the motion started.
-    settle_ticks: u32,
-    motion_ticks: u32,
-    /// Where a ball screw is held at rest (set when the rest begins; see `hold`).
-    hold_target: i32,
-    /// The profile's speed of the last tick in screw rad/s (`reference_speed`), converted
-    /// once when the profile steps: the tick reads it up to four times.
-    last_ref_rad: RadiansPerSecond,
-    /// The profile's position of the last tick, counts.
-    last_ref_counts: i32,
-    /// Measured screw torque, low-passed (1/8 per tick: 20 Hz at 1 kHz), for the twist.
-    torque_lp: NewtonMetres,
-    last_duty: i16,
-    last_bridge: Bridge,
-    /// Stick-slip detector (`crate::detect::stickslip`).
-    stick_slip: StickSlipDetector,
-    /// The identification of the ball screw's friction.
-    #[cfg(feature = "ball-screw")]
-    lube: lube::LubeMonitor,
-    /// A lubrication warning (of `lube`'s latest report) waits for a tick without another event.
-    #[cfg(feature = "ball-screw")]
-    lube_notice: bool,
-    /// The holding brake (`hold.rs`).
-    brake: hold::BrakeState,
-}
-
-impl Motion {
-    /// At rest at `position`.
-    fn new(d: &Derived, position: i32) -> Motion {
-        let cfg = &d.cfg;
-        let tick_us = cfg.estimator.tick_us;
-        Motion {
-            edges: EdgeInterpolator::new(),
-            debounce: Debouncer::new(d.ticks.debounce),
-            profile: Profile::new(position, d.cruise_q32, d.ticks.ramp, cfg.motion.ramp_shape),
-            speed: SpeedLoop::default(),
-            monitors: Monitors::default(),
-            settle_ticks: 0,
-            motion_ticks: 0,
-            hold_target: position,
-            last_ref_rad: RadiansPerSecond::ZERO,
-            last_ref_counts: position,
-            torque_lp: NewtonMetres::ZERO,
-            last_duty: 0,
-            last_bridge: Bridge::Coast,
-            stick_slip: StickSlipDetector::new(&cfg.stick_slip, tick_us),
-            #[cfg(feature = "ball-screw")]
-            lube: lube::LubeMonitor::new(
-                &cfg.lube,
-                &cfg.estimator.motor,
-                cfg.estimator.drive.gear_ratio,
-                tick_us,
-            ),
-            #[cfg(feature = "ball-screw")]
-            lube_notice: false,
-            brake: hold::BrakeState::new(&cfg.brake, tick_us),
-        }
-    }
 }
 
 /// The control core: the configuration and what it derives, the estimator, and the state.
@@ -594,156 +519,6 @@ impl Controller {
     #[inline]
     pub fn finish_tick(&mut self) {
         self.est.prepare();
-    }
-
-    /// Stick-slip detector step on this tick's measured torque (the current answers the bridge
-    /// command of the previous tick, so "driving" is that command) and the reaction.
-    fn detect_stick_slip(&mut self, x: &Reading) {
-        let state = self.live.state;
-        let d = DetectorInputs {
-            driving: self.live.moving() && matches!(self.motion.last_bridge, Bridge::Drive(_)),
-            direction: if state == State::Lowering { -1 } else { 1 },
-            reference: self.reference_speed(),
-            measured_torque: x.estimate.measured_screw_torque,
-        };
-        let out = self.motion.stick_slip.step(&d, self.est.law());
-        if out.onset {
-            self.stick_slip_onset();
-        }
-    }
-
-    /// The reaction to a stick-slip episode's onset, and its event: out of line and cold
-    /// (once per episode).
-    #[cold]
-    #[inline(never)]
-    fn stick_slip_onset(&mut self) {
-        let out = self.motion.stick_slip.output();
-        let (amplitude, episode) = (out.amplitude, out.episodes);
-        let reaction = self.derived.cfg.stick_slip.reaction;
-        if reaction == Reaction::ChangeSpeed {
-            self.motion.profile.set_cruise(self.derived.escape_q32);
-        }
-        if self.live.pending_event.is_none() {
-            self.live.pending_event = Some(Event::StickSlip {
-                amplitude,
-                episode,
-                reaction,
-            });
-        }
-    }
-
-    /// Ball screw: a sample of the friction identification while moving, the pair solve and
-    /// the lubrication warning once at rest (`lube`).
-    #[cfg(feature = "ball-screw")]
-    fn identify_friction(&mut self, x: &Reading) {
-        let cfg = &self.derived.cfg;
-        if self.live.moving() {
-            let e = &x.estimate;
-            let not_thread = e.model_screw_torque.sat_sub(e.thread_torque);
-            let sample = lube::LubeInputs {
-                driving: matches!(self.motion.last_bridge, Bridge::Drive(_)),
-                lifting: self.live.state == State::Lifting,
-                reference: self.reference_speed(),
-                speed: e.screw_speed,
-                thread_torque: e.measured_screw_torque.sat_sub(not_thread),
-                axial_rated: e.axial,
-            };
-            self.motion.lube.sample(&cfg.lube, &sample);
-        } else if self.motion.lube.in_motion() && self.live.state == State::Fault {
-            // A motion a fault ended (an obstruction, a jam…) says nothing about the friction.
-            self.motion.lube.abort_motion();
-        } else if self.motion.lube.in_motion() {
-            let lower = self.derived.lower_counts;
-            let at_lower = self.live.enc.position() <= lower.saturating_add(ARRIVED_COUNTS);
-            let report = self.motion.lube.end_motion(
-                &self.derived.ball_screw,
-                &cfg.lube,
-                cfg.rated_load,
-                at_lower,
-            );
-            if report.is_some_and(|r| r.out_of_band) {
-                self.motion.lube_notice = true;
-            }
-        }
-        if self.motion.lube_notice && self.live.pending_event.is_none() {
-            self.motion.lube_notice = false;
-            self.live.pending_event = self.motion.lube.report().map(Event::Lubrication);
-        }
-    }
-
-    /// Screw speed from the motor's voltage balance, (V_a − R·i)/(k_e·n): independent of the
-    /// encoder, so a dead encoder and a jammed screw can be told apart.
-    fn emf_speed(&self, x: &Reading) -> RadiansPerSecond {
-        let va = Volts::from_raw(sat32(
-            i64::from(x.supply.bits()) * i64::from(self.motion.last_duty) >> 15,
-        ));
-        let ri: Volts = qmul(x.current, self.derived.cfg.estimator.motor.resistance);
-        qmul(va.sat_sub(ri), self.derived.inv_ke_n)
-    }
-
-    /// Profile → speed loop → bridge, and the arrival check.
-    fn drive(&mut self, x: &Reading) -> Bridge {
-        if let Some(releasing) = self.releasing_brake(x) {
-            return releasing;
-        }
-        let r = self.motion.profile.step();
-        let speed_scale = self.derived.speed_scale;
-        self.motion.last_ref_rad =
-            RadiansPerSecond::from_raw(speed_scale.apply32(sat32(r.speed >> 16)));
-        self.motion.last_ref_counts = r.counts();
-        let reference = self.motion.last_ref_rad;
-        let error_counts = r.counts().saturating_sub(self.screw_position());
-        if r.done {
-            self.motion.settle_ticks = self.motion.settle_ticks.saturating_add(1);
-            let rest_speed = self.derived.cfg.estimator.rest_speed;
-            let still = x.estimate.screw_speed.sat_abs() < rest_speed;
-            if (error_counts.abs() <= ARRIVED_COUNTS && still)
-                || self.motion.settle_ticks > self.derived.ticks.settle
-            {
-                self.enter_rest(State::Holding);
-                return self.at_rest_bridge(x);
-            }
-        }
-        Bridge::Drive(self.speed_duty(x, reference, error_counts))
-    }
-
-    /// One step of the speed loop toward `reference` with `error_counts` of position error:
-    /// the duty for moving and, for a ball screw, for holding at rest (`hold.rs`).
-    fn speed_duty(&mut self, x: &Reading, reference: RadiansPerSecond, error_counts: i32) -> i16 {
-        let d = &self.derived;
-        self.motion.speed.step(
-            &d.gains,
-            &SpeedInputs {
-                reference,
-                position_error: Radians::from_raw(d.rad_per_count.apply32(error_counts)),
-                measured: x.estimate.screw_speed,
-                model_motor_torque: x.estimate.model_motor_torque,
-                supply: x.supply,
-                current_headroom: d.current_headroom,
-                current: x.current,
-                current_limit: d.cfg.protection.current_limit,
-                resistance: d.cfg.estimator.motor.resistance,
-            },
-        )
-    }
-
-    /// The bridge at rest: short the motor (dynamic brake) once it turns slowly enough that the
-    /// short-circuit current k_e·ω/R stays within the brake limit; coast above that. Braking
-    /// matters: when a move ends, the wound-up coupling unwinds through the motor, and a coasting
-    /// rotor would overshoot and drag the screw back (host-sim shows 0.7 mm of head height
-    /// lost with dry threads); the brake damps it with a time constant J·R/k² of about 3 ms.
-    fn rest_bridge(&self, x: &Reading) -> Bridge {
-        if x.estimate.screw_speed.sat_abs() <= self.derived.brake_speed {
-            Bridge::Brake
-        } else {
-            Bridge::Coast
-        }
-    }
-
-    /// The profile's speed of the last tick in screw rad/s.
-    #[inline]
-    fn reference_speed(&self) -> RadiansPerSecond {
-        self.motion.last_ref_rad
     }
 }
 

@@ -9,7 +9,7 @@
 //! 1. [`sense`]: encoder counter → position, ADC codes → A and V, switches debounced;
 //! 2. [`crate::estimator`]: pose, speed, the model's torques and the measured torque;
 //! 3. [`protect`]: every monitor; a trip latches a [`Fault`] with a snapshot and coasts the bridge;
-//! 4. [`supervisor`]: buttons and commands → Idle / Lifting / Lowering / Holding / Fault;
+//! 4. the supervisor (`supervisor.rs`): buttons and commands → Idle / Lifting / Lowering / Holding / Fault;
 //! 5. [`profile`]: the ramped reference toward the target (a limit stop or a set height);
 //! 6. [`speed`]: PI speed loop with the model's torque as feed-forward → duty (at rest too for a
 //!    ball screw, which is not self-locking: `hold`).
@@ -25,7 +25,7 @@
 //! motion control (`motion.rs`: profile, speed loop, monitors, detectors), both built with the
 //! configuration, and the live state a new configuration keeps (`supervisor.rs`: encoder,
 //! state machine, fault, buttons, where the lift rests, the latest measurements). A tick's
-//! measurements pass from phase to phase as values ([`Reading`]).
+//! measurements pass from phase to phase as values (`Reading`).
 
 pub mod config;
 mod derived;
@@ -186,7 +186,7 @@ impl Controller {
     /// [`Controller::new`] at `Some(position)`, [`Controller::new_unhomed`] at `None`: one
     /// construction path for a caller that may have either (the firmware's boot).
     pub fn new_at(cfg: &ControlConfig, position: Option<i32>) -> Result<Controller, ConfigError> {
-        // Adjusted inside the `Result` (`?` would move the 2 KiB controller out of it and back
+        // Adjusted inside the `Result` (`?` would move the controller out of it and back
         // into a new one: two more copies and stack slots).
         let mut made = Controller::new(cfg, position.unwrap_or(0));
         if let (Ok(c), None) = (&mut made, position) {
@@ -310,7 +310,7 @@ impl Controller {
             return Err(Refusal::InMotion);
         }
         // The candidate is adjusted inside the `Result` and moved once, into `self`: unwrapping
-        // it first (`?`) copied the 2 KiB controller into a second stack slot, and this runs
+        // it first (`?`) copied the controller into a second stack slot, and this runs
         // in the console task with the controller's lock held (interrupts off).
         let mut made = Controller::new(cfg, self.live.enc.position());
         let Ok(next) = &mut made else {

@@ -158,6 +158,10 @@ fn boot(spawner: Spawner) {
         error!("the stored configuration needs the ball-screw firmware (cargo fw-ball): lift locked, motor braked, record kept");
         controller.report_needs_ball_screw(Instant(Clock::now().as_micros() as u32));
     }
+    if boot.loaded.source.lost_stored(boot.position_record) {
+        error!("stored configuration lost: factory defaults in force, fault latched until `fault clear`");
+        controller.report_factory_defaults(Instant(Clock::now().as_micros() as u32));
+    }
     if watchdog_reset {
         error!("the last reset came from the watchdog: fault latched");
         controller.report_watchdog_reset(Instant(Clock::now().as_micros() as u32));
@@ -222,6 +226,8 @@ struct Boot {
     loaded: Loaded,
     /// The parked position in encoder counts, if one is recorded.
     parked: Option<i32>,
+    /// The store holds an intact position record (`Source::lost_stored`).
+    position_record: bool,
 }
 
 /// Opens the store and reads the configuration and the parked position (in a frame of its
@@ -234,10 +240,12 @@ fn load_store(flash: Peri<'static, FLASH>) -> Boot {
             let loaded = store.load();
             let stamp = geometry_stamp(loaded.config.get());
             let parked = store.load_position(stamp);
+            let position_record = store.has_position_record();
             Boot {
                 store: Some(store),
                 loaded,
                 parked,
+                position_record,
             }
         }
         // Logged below as the configuration's source (`Unreadable`).
@@ -248,6 +256,7 @@ fn load_store(flash: Peri<'static, FLASH>) -> Boot {
                 source: Source::Unreadable(e),
             },
             parked: None,
+            position_record: false,
         },
     };
     let ecc = board::STORE_ECC_ERRORS.load(core::sync::atomic::Ordering::Relaxed);
@@ -459,6 +468,7 @@ fn report_event(e: Event) {
     // Stick-slip with the reactions `warn` and `speed`, and the lubrication warning: warnings.
     let warning = match e {
         Event::StickSlip { reaction, .. } => reaction != Reaction::Log,
+        Event::CruiseLimited { .. } => true,
         #[cfg(feature = "ball-screw")]
         Event::Lubrication(_) => true,
         _ => false,
@@ -523,6 +533,7 @@ fn write_notice(out: &mut dyn core::fmt::Write, e: &Event) -> core::fmt::Result 
         ),
         #[cfg(feature = "ball-screw")]
         Event::Lubrication(r) => liftfw::console::write_lube_warning(out, r.f_last, r.law),
+        Event::CruiseLimited { speed } => liftfw::console::write_cruise_warning(out, speed),
         Event::State { .. } => Ok(()),
     }
 }

@@ -172,11 +172,33 @@ fn clip(out: &mut dyn Write, s: Words<'_>) -> fmt::Result {
         if n == 24 {
             return out.write_str("...");
         }
-        out.write_char(c)?;
+        // A control character is shown, not sent: a terminal would act on ESC, BEL, NUL.
+        match u8::try_from(c) {
+            Ok(b) if b < 0x20 || (0x7F..0xA0).contains(&b) => escape(out, b)?,
+            _ => out.write_char(c)?,
+        }
         n += 1;
         rest = tail;
     }
     Ok(())
+}
+
+/// A byte as `\xNN` (upper-case hex), for control characters in replies.
+pub(crate) fn escape(out: &mut dyn Write, b: u8) -> fmt::Result {
+    const HEX: &[u8; 16] = b"0123456789ABCDEF";
+    out.write_str("\\x")?;
+    out.write_char(char::from(HEX[usize::from(b >> 4)]))?;
+    out.write_char(char::from(HEX[usize::from(b & 15)]))
+}
+
+/// A height for a reply: in mm (the caller writes the unit) if the position is known, else
+/// `unknown` (an unhomed board's height is its homing assumption, not the head's).
+pub(crate) fn height_arg(h: Metres, homed: bool) -> Arg<'static> {
+    if homed {
+        Arg::Mm(h)
+    } else {
+        Arg::Str("unknown")
+    }
 }
 
 /// One value in a reply template ([`fill`]).

@@ -241,6 +241,7 @@ fn status_line_is_readable() {
     let v = StatusView {
         state: "lifting",
         height: mm("212.4"),
+        homed: true,
         screw_speed: RadiansPerSecond::lit("3.004"),
         current: Amperes::lit("12.345"),
         friction_torque: NewtonMetres::lit("0.8512"),
@@ -248,13 +249,21 @@ fn status_line_is_readable() {
         stick_slip_amplitude: NewtonMetres::ZERO,
         stick_slip_episodes: 0,
         fault: None,
+        cruise_limit: None,
         #[cfg(feature = "ball-screw")]
         ball_f: None,
     };
     assert_eq!(
         reply(|s| console::write_status(s, &v)),
         "state=lifting height=212.4mm speed=3.00rad/s current=12.35A T_r=0.851Nm \
-         stick_slip=no ss_amp=0.00Nm ss_episodes=0 fault=none"
+         stick_slip=no ss_amp=0.00Nm ss_episodes=0 fault=none homed=yes"
+    );
+    // Unhomed, the board does not know the height: it says so instead of its assumption.
+    let u = StatusView { homed: false, ..v };
+    assert_eq!(
+        reply(|s| console::write_status(s, &u)),
+        "state=lifting height=unknown speed=3.00rad/s current=12.35A T_r=0.851Nm \
+         stick_slip=no ss_amp=0.00Nm ss_episodes=0 fault=none homed=no"
     );
     let v = StatusView {
         screw_speed: RadiansPerSecond::lit("-2.5"),
@@ -269,7 +278,7 @@ fn status_line_is_readable() {
     let s = reply(|s| console::write_status(s, &v));
     assert!(s.contains("speed=-2.50rad/s"), "{s}");
     assert!(
-        s.ends_with("stick_slip=yes ss_amp=31.26Nm ss_episodes=3 fault=overcurrent"),
+        s.ends_with("stick_slip=yes ss_amp=31.26Nm ss_episodes=3 fault=overcurrent homed=yes"),
         "{s}"
     );
 }

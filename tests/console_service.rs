@@ -77,10 +77,10 @@ impl Bench {
 fn version_names_the_protocol_and_the_schema() {
     let mut b = Bench::new();
     let r = b.reply("version");
-    assert!(r.starts_with("liftfw console v1 firmware="), "{r}");
+    assert!(r.starts_with("liftfw console v2 firmware="), "{r}");
     let schema = format!("schema={:08x}", liftfw::config::record::schema());
     assert!(r.ends_with(&schema), "{r}");
-    assert_eq!(PROTOCOL_VERSION, 1);
+    assert_eq!(PROTOCOL_VERSION, 2);
     assert_eq!(parse(b"VERSION"), Ok(Some(Request::Version)));
     assert!(b.reply("version 2").starts_with("error: unexpected '2'"));
 }
@@ -94,7 +94,7 @@ fn status_reports_the_controller() {
         "{r}"
     );
     assert!(
-        r.ends_with(" stick_slip=no ss_amp=0.00Nm ss_episodes=0 fault=none"),
+        r.ends_with(" stick_slip=no ss_amp=0.00Nm ss_episodes=0 fault=none homed=yes"),
         "{r}"
     );
     let s = b.c.status();
@@ -242,7 +242,7 @@ fn fault_is_shown_kept_by_set_and_cleared() {
         "{r}"
     );
     assert!(r.ends_with("Nm"), "{r}");
-    assert!(b.reply("status").ends_with("fault=over-voltage"));
+    assert!(b.reply("status").ends_with("fault=over-voltage homed=yes"));
     assert_eq!(
         b.reply("up"),
         "error: up refused: a fault is latched (see `fault`, then `fault clear`)"
@@ -408,6 +408,7 @@ fn status_fault_names_are_one_word() {
     let v = liftfw::console::StatusView {
         state: "fault",
         height: Metres::lit("0.2"),
+        homed: true,
         screw_speed: Default::default(),
         current: Default::default(),
         friction_torque: Default::default(),
@@ -415,13 +416,14 @@ fn status_fault_names_are_one_word() {
         stick_slip_amplitude: Default::default(),
         stick_slip_episodes: 0,
         fault: Some(FaultKind::LimitSwitch.name()),
+        cruise_limit: None,
         #[cfg(feature = "ball-screw")]
         ball_f: None,
     };
     let mut s = String::new();
     liftfw::console::write_status(&mut s, &v).unwrap();
     assert!(
-        s.ends_with(" fault=limit-switch-before-soft-limit-missed"),
+        s.ends_with(" fault=limit-switch-before-soft-limit-missed homed=yes"),
         "{s}"
     );
 }

@@ -14,6 +14,8 @@
 //!   module (`super::Estimator` from `estimator/pose.rs`) is the one exception: Rust gives a
 //!   child its parent's private items, and a split module's impl blocks live there.
 
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
 use std::collections::{BTreeMap, BTreeSet};
 use std::fs;
 use std::path::{Path, PathBuf};

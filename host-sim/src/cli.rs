@@ -1,6 +1,6 @@
 //! Command-line value types shared by host-sim's subcommands.
 
-use crate::physics::Lubricant;
+use crate::twin::physics::Lubricant;
 use clap::ValueEnum;
 use serde::Deserialize;
 

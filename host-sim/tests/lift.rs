@@ -18,6 +18,7 @@ fn the_main_job_lifts_to_the_set_height_and_estimates_the_friction_torque() {
             to_mm,
             seed: 3,
             plot: None,
+            faults: Vec::new(),
         })
         .expect("runs without a fault");
         assert!(out.error_mm.abs() <= 0.5, "{lubricant:?}: {out:?}");

@@ -10,7 +10,29 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::io::{self, Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
+
+/// The longest wait for a reply `--timeout` takes, s (an hour: longer is a typo).
+pub const MAX_TIMEOUT_S: f64 = 3600.0;
+
+/// A wait for a reply reads in slices this long, so that Ctrl-C ends it soon.
+const SLICE: Duration = Duration::from_millis(50);
+
+/// Refuse text with a control character (CR, LF, NUL, ESC, tab…) before it reaches the board:
+/// the board ends a line at CR or LF, so `32\rmA` would arrive as the value `32` and a second
+/// line `mA`, and a `get` key could carry a whole second command. `what` names the argument.
+pub fn check_text(what: &str, text: &str) -> Result<(), Error> {
+    match text.chars().find(|c| c.is_control()) {
+        None => Ok(()),
+        Some(c) => Err(Error::Invalid(format!(
+            "liftctl: refused: {what} {:?} contains the control character {:?}; nothing was \
+             sent",
+            text, c
+        ))),
+    }
+}
 
 /// What went wrong talking to the board.
 #[derive(Debug, Clone, PartialEq)]
@@ -48,6 +70,11 @@ pub enum Error {
     Invalid(String),
     /// A local file or argument problem.
     Local(String),
+    /// Ctrl-C while waiting for a reply.
+    Interrupted {
+        /// The line sent.
+        sent: String,
+    },
     /// A change failed part-way (`cause`); `note` says what liftctl did about the ones before.
     Undone {
         /// Why it stopped.
@@ -68,7 +95,8 @@ impl Error {
         }
     }
 
-    /// Exit code: 1 refused (by the board or by liftctl's checks), 2 communication, 3 local.
+    /// Exit code: 1 refused (by the board or by liftctl's checks), 2 no or bad reply (and a
+    /// wait for one interrupted by Ctrl-C), 3 local (files, arguments).
     pub fn exit_code(&self) -> u8 {
         match self {
             Error::Board(_) | Error::Invalid(_) => 1,
@@ -108,6 +136,11 @@ impl fmt::Display for Error {
             ),
             Error::Board(m) | Error::Invalid(m) => f.write_str(m),
             Error::Local(m) => f.write_str(m),
+            Error::Interrupted { sent } => write!(
+                f,
+                "interrupted (Ctrl-C) while waiting for the reply to `{sent}`; the board may \
+                 have executed it"
+            ),
             Error::Undone { cause, note } => write!(f, "{cause}\n{note}"),
         }
     }
@@ -150,6 +183,8 @@ pub struct Board {
     link: Box<dyn Link>,
     buf: Vec<u8>,
     timeout: Duration,
+    /// Set by Ctrl-C: a wait for a reply ends with [`Error::Interrupted`].
+    stop: Option<Arc<AtomicBool>>,
     /// The `version` reply of the handshake.
     pub version: Version,
 }
@@ -161,7 +196,13 @@ pub fn our_schema() -> String {
 
 /// Open `target`: `tcp://host:port` (host-sim serve) or a serial port (`/dev/ttyUSB0`, `COM3`)
 /// at `baud` 8N1, and check the protocol version.
-pub fn open(target: &str, baud: u32, timeout: Duration) -> Result<Board, Error> {
+/// `stop` (Ctrl-C) ends any wait for a reply, the handshake's included.
+pub fn open(
+    target: &str,
+    baud: u32,
+    timeout: Duration,
+    stop: Option<Arc<AtomicBool>>,
+) -> Result<Board, Error> {
     let link: Box<dyn Link> = if let Some(addr) = target.strip_prefix("tcp://") {
         let sa = addr
             .to_socket_addrs()
@@ -179,16 +220,21 @@ pub fn open(target: &str, baud: u32, timeout: Duration) -> Result<Board, Error> 
             .map_err(|e| Error::Connect(format!("{target}: {e}")))?;
         Box::new(p)
     };
-    Board::handshake(link, timeout)
+    Board::handshake(link, timeout, stop)
 }
 
 impl Board {
     /// Over any link: end whatever partial line the board holds, then `version`.
-    pub fn handshake(link: Box<dyn Link>, timeout: Duration) -> Result<Board, Error> {
+    pub fn handshake(
+        link: Box<dyn Link>,
+        timeout: Duration,
+        stop: Option<Arc<AtomicBool>>,
+    ) -> Result<Board, Error> {
         let mut b = Board {
             link,
             buf: Vec::new(),
             timeout,
+            stop,
             version: Version {
                 line: String::new(),
                 firmware: String::new(),
@@ -228,6 +274,17 @@ impl Board {
         }
     }
 
+    /// Ctrl-C sets `stop`: from then on a wait for a reply ends at once with
+    /// [`Error::Interrupted`] (`None`: waits run to their timeout).
+    pub fn set_interrupt(&mut self, stop: Option<Arc<AtomicBool>>) {
+        self.stop = stop;
+    }
+
+    /// The Ctrl-C flag ([`Self::set_interrupt`]).
+    pub fn interrupt(&self) -> Option<Arc<AtomicBool>> {
+        self.stop.clone()
+    }
+
     /// Whether the board's settings list is this liftctl's.
     pub fn check_schema(&self) -> Result<(), Error> {
         if self.version.schema == our_schema() {
@@ -241,6 +298,7 @@ impl Board {
     }
 
     fn send(&mut self, line: &str) -> Result<(), Error> {
+        check_text("the line", line)?;
         self.link
             .write_all(format!("{line}\r\n").as_bytes())
             .and_then(|()| self.link.flush())
@@ -284,6 +342,11 @@ impl Board {
                     got,
                 });
             }
+            if self.stop.as_ref().is_some_and(|s| s.load(Ordering::SeqCst)) {
+                return Err(Error::Interrupted {
+                    sent: sent.to_string(),
+                });
+            }
             let now = Instant::now();
             if now >= deadline {
                 return Err(Error::Timeout {
@@ -292,7 +355,7 @@ impl Board {
                 });
             }
             self.link
-                .set_timeout(deadline - now)
+                .set_timeout((deadline - now).min(SLICE))
                 .map_err(|e| Error::Lost(e.to_string()))?;
             match self.link.read(&mut tmp) {
                 Ok(0) => return Err(Error::Lost("the board closed the connection".into())),
@@ -334,7 +397,7 @@ impl Board {
     /// line is [`Error::Board`] unchanged, anything else [`Error::Garbled`].
     pub fn ask_ok(&mut self, cmd: &str) -> Result<String, Error> {
         let r = self.ask(cmd)?;
-        if r.starts_with("ok:") {
+        if ok_form(cmd, &r) {
             Ok(r)
         } else if r.starts_with("error:") {
             Err(Error::Board(r))
@@ -407,6 +470,43 @@ impl Board {
     }
 }
 
+/// Whether `reply` is the board's `ok:` reply to `cmd` (docs/console.md "Commands"), not
+/// just any line starting `ok:` (`ok: sure` to `up` is garbage, not a lift going up).
+pub fn ok_form(cmd: &str, reply: &str) -> bool {
+    let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+    let height = |s: &str| {
+        s.strip_suffix(" mm").is_some_and(|n| {
+            let n = n.strip_prefix('-').unwrap_or(n);
+            matches!(n.split_once('.'), Some((a, b)) if digits(a) && digits(b))
+        })
+    };
+    // An accepted motion may say its cruise speed was limited: ` (cruise limited to …)`.
+    let motion = |r: &str, head: &str| {
+        r.strip_prefix(head)
+            .is_some_and(|rest| rest.is_empty() || rest.starts_with(" (cruise limited to "))
+    };
+    let word = cmd
+        .split_whitespace()
+        .next()
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    match word.as_str() {
+        "up" => motion(reply, "ok: lifting to limits.upper"),
+        "down" => motion(reply, "ok: lowering to limits.lower"),
+        "stop" => reply == "ok: stop",
+        "goto" => reply.strip_prefix("ok: going to ").is_some_and(|r| {
+            let h = r.split(" (cruise limited to ").next().unwrap_or(r);
+            height(h) && motion(r, h)
+        }),
+        "save" => reply
+            .strip_prefix("ok: saved as configuration #")
+            .is_some_and(digits),
+        "fault" => reply == "ok: fault cleared" || reply == "ok: no fault latched",
+        // `set` checks the rest of its reply itself (`Board::set`).
+        _ => reply.starts_with("ok: ") && reply.len() > 4,
+    }
+}
+
 /// `key=value` words of a line.
 pub fn words(line: &str) -> BTreeMap<String, String> {
     line.split_whitespace()
@@ -420,8 +520,9 @@ pub fn words(line: &str) -> BTreeMap<String, String> {
 pub struct Status {
     /// `idle`, `lifting`, `lowering`, `holding`, `fault`.
     pub state: String,
-    /// Head height, mm.
-    pub height_mm: f64,
+    /// Head height, mm; `None` while the board is unhomed (`height=unknown homed=no`: it
+    /// does not know where the head is).
+    pub height_mm: Option<f64>,
     /// Screw speed, rad/s.
     pub speed: f64,
     /// Motor current, A.
@@ -432,14 +533,31 @@ pub struct Status {
     pub stick_slip: bool,
     /// `none` or the fault's name.
     pub fault: String,
+    /// The board knows the position (`homed=yes`).
+    pub homed: bool,
 }
 
 impl Status {
-    /// Parse `state=… height=…mm speed=…rad/s current=…A T_r=…Nm stick_slip=… fault=…`.
+    /// Parse `state=… height=…mm speed=…rad/s current=…A T_r=…Nm stick_slip=… fault=…
+    /// homed=yes|no` (`height=unknown` with `homed=no`). Every number must be finite.
     pub fn parse(line: &str) -> Option<Status> {
         let kv = words(line);
         let num = |k: &str, unit: &str| -> Option<f64> {
-            kv.get(k)?.strip_suffix(unit)?.parse::<f64>().ok()
+            // Digits, sign and point only: Rust's parser also takes `nan`, `inf`, `1e5`.
+            let v = kv.get(k)?.strip_suffix(unit)?;
+            if v.is_empty()
+                || !v
+                    .bytes()
+                    .all(|b| b.is_ascii_digit() || b == b'.' || b == b'-')
+            {
+                return None;
+            }
+            v.parse::<f64>().ok().filter(|x| x.is_finite())
+        };
+        let homed = match kv.get("homed")?.as_str() {
+            "yes" => true,
+            "no" => false,
+            _ => return None,
         };
         let state = kv.get("state")?.clone();
         let known = ["idle", "lifting", "lowering", "holding", "fault"];
@@ -448,7 +566,11 @@ impl Status {
         }
         Some(Status {
             state,
-            height_mm: num("height", "mm")?,
+            height_mm: match (homed, kv.get("height")?.as_str()) {
+                (false, "unknown") => None,
+                (true, _) => Some(num("height", "mm")?),
+                _ => return None,
+            },
             speed: num("speed", "rad/s")?,
             current: num("current", "A")?,
             friction_torque: num("T_r", "Nm")?,
@@ -458,6 +580,7 @@ impl Status {
                 _ => return None,
             },
             fault: kv.get("fault")?.clone(),
+            homed,
         })
     }
 
@@ -476,26 +599,39 @@ mod tests {
     fn status_parses_and_refuses_garbage() {
         let s = Status::parse(
             "state=lifting height=212.4mm speed=3.00rad/s current=12.35A T_r=0.851Nm \
-             stick_slip=no fault=none",
+             stick_slip=no fault=none homed=yes",
         );
         assert_eq!(
             s,
             Some(Status {
                 state: "lifting".into(),
-                height_mm: 212.4,
+                height_mm: Some(212.4),
                 speed: 3.0,
                 current: 12.35,
                 friction_torque: 0.851,
                 stick_slip: false,
                 fault: "none".into(),
+                homed: true,
             })
         );
+        let unhomed = Status::parse(
+            "state=idle height=unknown speed=0.00rad/s current=0.00A T_r=0.000Nm stick_slip=no \
+             fault=none homed=no",
+        )
+        .unwrap();
+        assert_eq!((unhomed.height_mm, unhomed.homed), (None, false));
         for bad in [
             "",
             "state=lifting height=212.4mm",
-            "state=lifxing height=212.4mm speed=3.00rad/s current=12.35A T_r=0.851Nm stick_slip=no fault=none",
-            "state=lifting height=21#.4mm speed=3.00rad/s current=12.35A T_r=0.851Nm stick_slip=no fault=none",
-            "state=lifting height=212.4 speed=3.00rad/s current=12.35A T_r=0.851Nm stick_slip=no fault=none",
+            "state=lifxing height=212.4mm speed=3.00rad/s current=12.35A T_r=0.851Nm stick_slip=no fault=none homed=yes",
+            "state=lifting height=21#.4mm speed=3.00rad/s current=12.35A T_r=0.851Nm stick_slip=no fault=none homed=yes",
+            "state=lifting height=212.4 speed=3.00rad/s current=12.35A T_r=0.851Nm stick_slip=no fault=none homed=yes",
+            // Numbers Rust's parser takes but the board never writes, and a lost `homed`.
+            "state=idle height=nanmm speed=0.00rad/s current=0.00A T_r=0.000Nm stick_slip=no fault=none homed=yes",
+            "state=idle height=infmm speed=0.00rad/s current=0.00A T_r=0.000Nm stick_slip=no fault=none homed=yes",
+            "state=idle height=1e3mm speed=0.00rad/s current=0.00A T_r=0.000Nm stick_slip=no fault=none homed=yes",
+            "state=idle height=212.4mm speed=0.00rad/s current=0.00A T_r=0.000Nm stick_slip=no fault=none",
+            "state=idle height=unknown speed=0.00rad/s current=0.00A T_r=0.000Nm stick_slip=no fault=none homed=yes",
         ] {
             assert_eq!(Status::parse(bad), None, "{bad}");
         }

@@ -165,9 +165,43 @@ struct WatchArgs {
     quiet: bool,
 }
 
-fn secs(s: f64, what: &str) -> Result<Duration, Error> {
-    Duration::try_from_secs_f64(s)
-        .map_err(|_| Error::Local(format!("{what} must be a positive number of seconds")))
+/// `s` seconds for an option that takes `min`…[`board::MAX_TIMEOUT_S`] (`min` itself
+/// allowed only when it is 0).
+fn secs(s: f64, what: &str, min: f64) -> Result<Duration, Error> {
+    let ok = s.is_finite() && s <= board::MAX_TIMEOUT_S && (s > min || (s == 0.0 && min == 0.0));
+    match Duration::try_from_secs_f64(s) {
+        Ok(d) if ok => Ok(d),
+        _ => Err(Error::Local(format!(
+            "{what} {s}: give seconds {} {min} and at most {}",
+            if min == 0.0 { "from" } else { "above" },
+            board::MAX_TIMEOUT_S
+        ))),
+    }
+}
+
+/// Every argument that may reach the board, refused whole if it has a control character
+/// (before anything is sent: `board::check_text`).
+fn check_args(cmd: &Cmd) -> Result<(), Error> {
+    let mut texts: Vec<(&str, &String)> = Vec::new();
+    match cmd {
+        Cmd::Limits {
+            set: Some(LimitsCmd::Set { upper, lower, .. }),
+        } => {
+            texts.extend(upper.iter().map(|v| ("--upper", v)));
+            texts.extend(lower.iter().map(|v| ("--lower", v)));
+        }
+        Cmd::Config(ConfigCmd::Get { keys } | ConfigCmd::Keys { keys }) => {
+            texts.extend(keys.iter().map(|k| ("key", k)));
+        }
+        Cmd::Config(ConfigCmd::Set { pairs, .. }) => {
+            texts.extend(pairs.iter().map(|p| ("argument", p)));
+        }
+        Cmd::Goto { height } => texts.push(("height", height)),
+        _ => {}
+    }
+    texts
+        .into_iter()
+        .try_for_each(|(what, t)| board::check_text(what, t))
 }
 
 /// `key value` lines of a `key=value` reply.
@@ -230,8 +264,15 @@ fn run(cli: &Cli, stop: &Arc<AtomicBool>) -> Result<(), Error> {
     if let Cmd::Config(ConfigCmd::Keys { keys }) = &cli.command {
         return print_keys(keys);
     }
-    let timeout = secs(cli.timeout, "--timeout")?;
-    let mut b = board::open(&cli.port, cli.baud, timeout)?;
+    check_args(&cli.command)?;
+    let timeout = secs(cli.timeout, "--timeout", 0.0)?;
+    if timeout.is_zero() {
+        return Err(Error::Local(
+            "--timeout 0: give the seconds to wait for each reply (above 0)".into(),
+        ));
+    }
+    // Ctrl-C ends a wait for a reply at once (`watch` ends cleanly with it).
+    let mut b = board::open(&cli.port, cli.baud, timeout, Some(Arc::clone(stop)))?;
     match &cli.command {
         Cmd::Version => {
             println!("{}", b.version.line);
@@ -277,8 +318,16 @@ fn run(cli: &Cli, stop: &Arc<AtomicBool>) -> Result<(), Error> {
                                     "the lift is moving: `here` needs it at rest".into(),
                                 ));
                             }
-                            here = Some(s.height_mm);
-                            s.height_mm
+                            let Some(h) = s.height_mm else {
+                                return Err(Error::Invalid(
+                                    "liftctl: the board does not know the height (not homed): home it \
+                                     on the lower limit switch first (hold DOWN or `liftctl \
+                                     down`)"
+                                        .into(),
+                                ));
+                            };
+                            here = Some(h);
+                            h
                         }
                     };
                     format!("{h:.1}mm")
@@ -338,8 +387,14 @@ fn run(cli: &Cli, stop: &Arc<AtomicBool>) -> Result<(), Error> {
         Cmd::Config(ConfigCmd::Import { file, save }) => {
             let text = std::fs::read_to_string(file)
                 .map_err(|e| Error::Local(format!("{}: {e}", file.display())))?;
-            let changes = settings::import_toml(&text)
-                .map_err(|e| Error::Local(format!("{}: {e}\nnothing was sent", file.display())))?;
+            // A value the firmware refuses is refused (1) as `config set` refuses it; a file
+            // that is no settings file is a local problem (3).
+            let changes = settings::import_toml(&text).map_err(|e| match e {
+                Error::Invalid(m) => {
+                    Error::Invalid(format!("{}: {m}\nnothing was sent", file.display()))
+                }
+                e => Error::Local(format!("{}: {e}\nnothing was sent", file.display())),
+            })?;
             apply(&mut b, &changes, *save)?;
         }
         Cmd::Fault { clear: None } => {
@@ -366,8 +421,8 @@ fn run(cli: &Cli, stop: &Arc<AtomicBool>) -> Result<(), Error> {
         }
         Cmd::Watch(w) => {
             let o = WatchOptions {
-                interval: secs(w.interval, "--interval")?,
-                duration: w.duration.map(|d| secs(d, "--duration")).transpose()?,
+                interval: secs(w.interval, "--interval", 0.0)?,
+                duration: w.duration.map(|d| secs(d, "--duration", 0.0)).transpose()?,
                 until_rest: w.until_rest,
                 print: !w.quiet,
                 csv: w.csv.clone(),
@@ -386,7 +441,19 @@ fn run(cli: &Cli, stop: &Arc<AtomicBool>) -> Result<(), Error> {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    // Argument errors are a local problem (3), as the README says; clap's own code is 2,
+    // which means "no or bad reply" here. `--help` and `--version` succeed.
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                ExitCode::from(3)
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
     let stop = Arc::new(AtomicBool::new(false));
     let s = Arc::clone(&stop);
     let _ = ctrlc::set_handler(move || s.store(true, Ordering::SeqCst));

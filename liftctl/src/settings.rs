@@ -167,7 +167,11 @@ pub fn apply(board: &mut Board, changes: &[Change]) -> Result<Vec<String>, Error
             Err(e) => {
                 // The failed one too: a lost reply may hide a change the board made.
                 done.push(c.id);
+                // Setting back runs to its end even after Ctrl-C (which may be why we stopped).
+                let stop = board.interrupt();
+                board.set_interrupt(None);
                 let undo = undo(board, &mirror, &done);
+                board.set_interrupt(stop);
                 return Err(Error::Undone {
                     cause: Box::new(e),
                     note: match undo {
@@ -232,7 +236,10 @@ pub fn import_toml(text: &str) -> Result<Vec<Change>, Error> {
     let table: toml::Table = text
         .parse()
         .map_err(|e| Error::Local(format!("not a TOML settings file: {e}")))?;
-    let mut changes = Vec::new();
+    let mut changes: Vec<Change> = Vec::new();
+    // `friction.law` loads a preset of the friction.* values: applied first, and only when the
+    // file does not give those values itself (which of the two would win is not obvious).
+    let mut presets: Vec<Change> = Vec::new();
     for (group, v) in &table {
         let toml::Value::Table(t) = v else {
             return Err(Error::Local(format!(
@@ -241,14 +248,12 @@ pub fn import_toml(text: &str) -> Result<Vec<Change>, Error> {
         };
         for (k, v) in t {
             let key = format!("{group}.{k}");
+            crate::board::check_text("key", &key)?;
             let Some(id) = settings::find(&key) else {
                 return Err(Error::Invalid(format!(
                     "error: unknown key '{key}'; `liftctl config get` lists them"
                 )));
             };
-            if !id.setting().stored() {
-                continue;
-            }
             let value = match v {
                 toml::Value::String(s) => s.clone(),
                 toml::Value::Integer(i) => i.to_string(),
@@ -259,10 +264,40 @@ pub fn import_toml(text: &str) -> Result<Vec<Change>, Error> {
                     )))
                 }
             };
+            crate::board::check_text(&key, &value)?;
+            // Keys are case-insensitive (`[LIMITS]` is `[limits]`) and TOML's are not: a key
+            // given twice, whatever its case, is refused rather than applied twice.
+            if changes.iter().chain(&presets).any(|c| c.id == id) {
+                return Err(Error::Local(format!(
+                    "{key} is given twice (keys are case-insensitive: [{group}] and another \
+                     table of that name differing only in case); keep one"
+                )));
+            }
+            if !id.setting().stored() {
+                // A derived key (`friction.law`): its preset, checked by `plan` like any value.
+                presets.push(parse_change(&key, &value)?);
+                continue;
+            }
             changes.push(parse_change(&key, &value)?);
         }
     }
-    Ok(changes)
+    for p in &presets {
+        let (group, _) = p.id.key().split_once('.').unwrap_or(("", ""));
+        if let Some(c) = changes
+            .iter()
+            .find(|c| c.id.key().split_once('.').is_some_and(|(g, _)| g == group))
+        {
+            return Err(Error::Local(format!(
+                "{} and {} in one file: the preset would replace the values given; keep one \
+                 (an export gives the values and leaves {} as a comment)",
+                p.id.key(),
+                c.id.key(),
+                p.id.key()
+            )));
+        }
+    }
+    presets.extend(changes);
+    Ok(presets)
 }
 
 #[cfg(test)]
@@ -300,7 +335,8 @@ mod tests {
         .unwrap();
         let keys: Vec<&str> = p.iter().map(|c| c.id.key()).collect();
         assert_eq!(keys, ["limits.upper", "limits.lower"]);
-        // The issue's example is outside this mechanism: refused with the firmware's words.
+        // Stops past both ends of the mechanism (133.5..416.4 mm): refused with the firmware's
+        // words.
         let e = plan(
             &run,
             &[ch("limits.upper", "450mm"), ch("limits.lower", "120mm")],

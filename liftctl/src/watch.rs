@@ -2,7 +2,6 @@
 
 use crate::board::{Board, Error, Status};
 use plotters::prelude::*;
-use plotters::style::FontStyle;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -28,7 +27,8 @@ pub fn csv_row(s: &Sample) -> String {
         "{:.3},{},{},{},{},{},{},{}",
         s.t,
         st.state,
-        st.height_mm,
+        // Empty while the board is unhomed (it does not know the height).
+        st.height_mm.map(|h| h.to_string()).unwrap_or_default(),
         st.speed,
         st.current,
         st.friction_torque,
@@ -93,6 +93,8 @@ pub fn watch(board: &mut Board, o: &WatchOptions, stop: &AtomicBool) -> Result<V
                     break;
                 }
             }
+            // Ctrl-C during a poll: the watch ends as between polls.
+            Err(Error::Interrupted { .. }) => break,
             Err(e @ (Error::Timeout { .. } | Error::Garbled { .. })) => {
                 misses += 1;
                 eprintln!("liftctl watch: {e}; sample skipped");
@@ -122,10 +124,13 @@ pub fn watch(board: &mut Board, o: &WatchOptions, stop: &AtomicBool) -> Result<V
 pub fn line(s: &Sample) -> String {
     let st = &s.status;
     format!(
-        "{:8.2} s  {:<8}  {:7.1} mm  {:6.2} rad/s  {:6.2} A  T_r {:6.3} Nm  stick-slip {:<3}  fault {}",
+        "{:8.2} s  {:<8}  {:>10}  {:6.2} rad/s  {:6.2} A  T_r {:6.3} Nm  stick-slip {:<3}  fault {}",
         s.t,
         st.state,
-        st.height_mm,
+        match st.height_mm {
+            Some(h) => format!("{h:7.1} mm"),
+            None => "unhomed".to_string(),
+        },
         st.speed,
         st.current,
         st.friction_torque,
@@ -134,40 +139,12 @@ pub fn line(s: &Sample) -> String {
     )
 }
 
-const FONT: &str = "sans-serif";
+const FONT: &str = liftfw_plotfont::FAMILY;
 
-/// Where fonts usually are (as host-sim's plots): Debian/Ubuntu, Fedora, Arch, macOS, Windows.
-const FONT_PATHS: [&str; 6] = [
-    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/dejavu-sans-fonts/DejaVuSans.ttf",
-    "/usr/share/fonts/TTF/DejaVuSans.ttf",
-    "/usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf",
-    "/Library/Fonts/Arial Unicode.ttf",
-    "C:\\Windows\\Fonts\\arial.ttf",
-];
-
-/// Register a TrueType font for the plot's labels: `$LIFTCTL_FONT`, else a usual system one.
+/// Register a TrueType font for the plot's labels: `$LIFTCTL_FONT`, else a system sans-serif
+/// face.
 pub fn init_font() -> Result<PathBuf, String> {
-    static FOUND: std::sync::OnceLock<Result<PathBuf, String>> = std::sync::OnceLock::new();
-    FOUND
-        .get_or_init(|| {
-            let env = std::env::var_os("LIFTCTL_FONT").map(PathBuf::from);
-            for path in env.into_iter().chain(FONT_PATHS.iter().map(PathBuf::from)) {
-                if let Ok(bytes) = std::fs::read(&path) {
-                    let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-                    if plotters::style::register_font(FONT, FontStyle::Normal, bytes).is_ok() {
-                        return Ok(path);
-                    }
-                }
-            }
-            Err(
-                "no TrueType font for the plot's labels: install one (Debian: \
-                 fonts-dejavu-core, which scripts/deps installs) or set \
-                 LIFTCTL_FONT=/path/to/font.ttf"
-                    .to_string(),
-            )
-        })
-        .clone()
+    liftfw_plotfont::register("LIFTCTL_FONT")
 }
 
 fn bounds(v: impl Iterator<Item = f64>) -> (f64, f64) {
@@ -191,13 +168,19 @@ pub fn plot(path: &Path, samples: &[Sample]) -> Result<(), Box<dyn std::error::E
     let t_end = samples.last().map_or(1.0, |s| s.t).max(1e-3);
     type Get = fn(&Status) -> f64;
     let series: [(&str, Get, RGBColor); 4] = [
-        ("height, mm", |s| s.height_mm, BLUE),
+        // Unhomed samples have no height: NaN, left out of the bounds and the line.
+        ("height, mm", |s| s.height_mm.unwrap_or(f64::NAN), BLUE),
         ("screw speed, rad/s", |s| s.speed, GREEN),
         ("motor current, A", |s| s.current, RED),
         ("friction torque T_r, N·m", |s| s.friction_torque, MAGENTA),
     ];
     for (area, (label, get, color)) in panels.iter().zip(series) {
-        let (lo, hi) = bounds(samples.iter().map(|s| get(&s.status)));
+        let (lo, hi) = bounds(
+            samples
+                .iter()
+                .map(|s| get(&s.status))
+                .filter(|v| v.is_finite()),
+        );
         let mut chart = ChartBuilder::on(area)
             .margin(8)
             .x_label_area_size(30)
@@ -211,7 +194,10 @@ pub fn plot(path: &Path, samples: &[Sample]) -> Result<(), Box<dyn std::error::E
             .axis_desc_style((FONT, 14))
             .draw()?;
         chart.draw_series(LineSeries::new(
-            samples.iter().map(|s| (s.t, get(&s.status))),
+            samples
+                .iter()
+                .map(|s| (s.t, get(&s.status)))
+                .filter(|(_, v)| v.is_finite()),
             color.stroke_width(2),
         ))?;
     }

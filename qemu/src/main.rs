@@ -1,9 +1,9 @@
 //! The liftfw core on an emulated Cortex-M4 (QEMU `mps2-an386`), run by `scripts/qemu-test`.
 //!
-//! 1. **Bit-exact twin** (issue 8 item 2): replays the golden vectors the host generated
+//! 1. **Bit-exact twin**: replays the golden vectors the host generated
 //!    (`golden-gen`, embedded at build time) through the same evaluator and compares every output
 //!    byte. Any mismatch fails the run (exit status 1).
-//! 2. **Instruction counts** (issue 8 item 3, issue 3 item 8): the estimator step, fixed point
+//! 2. **Instruction counts**: the estimator step, fixed point
 //!    against the f32 (micromath, hardware FPU) and f64 (libm, soft-float) references, plus the
 //!    kernels it is made of. Method (docs/qemu.md): QEMU runs with `-icount shift=10`, so virtual
 //!    time advances exactly 1024 ns per instruction; SysTick counts the 25 MHz CPU clock (40 ns),
@@ -455,7 +455,7 @@ fn count_instructions() {
         s.report();
     }
 
-    // The stick-slip detector step (issue 7) on a stick-slip sawtooth of the measured torque:
+    // The stick-slip detector step on a stick-slip sawtooth of the measured torque:
     // 25 → 75 N·m over 50 ticks, then a 3-tick fall, at a steady 3 rad/s reference (the
     // branch test of μ(θ̇) runs once, 50 ms into the steady motion, and is in the max).
     let mut det = liftfw::detect::stickslip::StickSlipDetector::new(
@@ -659,7 +659,7 @@ fn count_crossing_ticks(overhead: u32) -> u32 {
         .fold(ramp.max().max(cruise.max()).max(braking.max()), u32::max)
 }
 
-/// The control side (issue 8 item 3): ramp/planner step, the full control tick, console parsing.
+/// The control side: ramp/planner step, the full control tick, console parsing.
 fn count_control(overhead: u32) {
     // Ramp planner alone: 60-tick ramp to 1.375 counts/tick (3 rad/s), far target.
     for (shape, name) in [
@@ -782,7 +782,7 @@ const PAINT: usize = 16 * 1024;
 /// The paint: a word no code writes by chance.
 const PATTERN: u32 = 0xC5AC_CE55;
 
-/// Stack used by `f` (issue 8 item 4): the stack below this frame is painted with [`PATTERN`],
+/// Stack used by `f`: the stack below this frame is painted with [`PATTERN`],
 /// `f` runs (through a function pointer, so it cannot be inlined into this frame), and the
 /// lowest word that no longer holds the pattern is the high-water mark. Measures the paths the
 /// call took, not every path; interrupts are off (none is enabled in this program).

@@ -162,6 +162,23 @@ impl Source {
         !matches!(self, Source::Stored { .. })
     }
 
+    /// A configuration had been stored but cannot be used (corrupt, another version, refused,
+    /// unreadable): the factory defaults run in its place, and the firmware latches
+    /// [`crate::control::FaultKind::FactoryDefaults`] until `fault clear` acknowledges it. Not
+    /// for an erased store (a new board runs its factory settings knowingly) nor for
+    /// [`Source::NeedsBallScrew`] (its own lock-out). `position_record`: the store holds an
+    /// intact position record ([`ConfigStore::has_position_record`]); then "no intact
+    /// configuration record" is a board that moved but was never saved, not a loss (a
+    /// configuration item damaged in both copies while a position record survived looks the
+    /// same: docs/console.md "Factory defaults after a lost configuration").
+    pub fn lost_stored(&self, position_record: bool) -> bool {
+        match self {
+            Source::Stored { .. } | Source::Missing | Source::NeedsBallScrew(_) => false,
+            Source::Corrupt(Corruption::NoIntactRecord) => !position_record,
+            _ => true,
+        }
+    }
+
     /// The stored configuration needs the ball-screw firmware: lock the lift out.
     pub fn needs_ball_screw(&self) -> bool {
         matches!(self, Source::NeedsBallScrew(_))
@@ -187,6 +204,8 @@ impl Source {
     /// machinery ([`crate::text`]).
     pub fn write_to(&self, out: &mut dyn core::fmt::Write) -> core::fmt::Result {
         const DEFAULTS: &str = "factory defaults in use (limits at the factory stops)";
+        // A lost configuration latches a fault (`lost_stored`).
+        const LOST: &str = "; motion refused until `fault clear` (set the stops first)";
         // "<head> (<cause>): factory defaults …" for the fallbacks with a cause.
         const CORRUPT: &str = "stored configuration is corrupt (";
         let (head, cause) = match self {
@@ -236,7 +255,13 @@ impl Source {
             Cause::Text(t) => out.write_str(t)?,
         }
         out.write_str("): ")?;
-        out.write_str(DEFAULTS)
+        out.write_str(DEFAULTS)?;
+        // No intact record may be a board never saved (`lost_stored`): its fault, when
+        // latched, says the rest.
+        if matches!(self, Source::Corrupt(Corruption::NoIntactRecord)) {
+            return Ok(());
+        }
+        out.write_str(LOST)
     }
 }
 
@@ -451,6 +476,11 @@ where
         }
     }
 
+    /// Whether either copy holds an intact position record (of any geometry).
+    pub fn has_position_record(&mut self) -> bool {
+        (0..2).any(|copy| matches!(self.fetch(copy, POSITION_KEY), Ok(Some(_))))
+    }
+
     /// Append `value` under `key` to `copy` (one routine for both records).
     fn put(&mut self, copy: usize, key: u8, value: &dyn Value<'_>) -> Result<(), StoreError> {
         let mut m = map(&mut self.flash, &self.copies[copy])?;
@@ -594,6 +624,7 @@ mod tests {
     #[test]
     fn source_messages_are_those_of_the_write_forms() {
         const DEFAULTS: &str = "factory defaults in use (limits at the factory stops)";
+        const LOST: &str = "; motion refused until `fault clear` (set the stops first)";
         let decode = DecodeError::Version { found: 7 };
         let config = ConfigError::OutOfRange {
             field: "limits.upper",
@@ -632,17 +663,19 @@ mod tests {
             ),
             (
                 Source::Corrupt(Corruption::Structure),
-                format!("stored configuration is corrupt (store structure damaged): {DEFAULTS}"),
+                format!(
+                    "stored configuration is corrupt (store structure damaged): {DEFAULTS}{LOST}"
+                ),
             ),
             (
                 Source::Corrupt(Corruption::Record(DecodeError::BadCrc)),
-                format!("stored configuration is corrupt (record fails its CRC): {DEFAULTS}"),
+                format!("stored configuration is corrupt (record fails its CRC): {DEFAULTS}{LOST}"),
             ),
             (
                 Source::Incompatible(decode),
                 format!(
                     "stored configuration not used, version mismatch (record is format version \
-                     7, this firmware reads version {}): {DEFAULTS}",
+                     7, this firmware reads version {}): {DEFAULTS}{LOST}",
                     record::VERSION
                 ),
             ),
@@ -650,14 +683,14 @@ mod tests {
                 Source::Rejected(config),
                 format!(
                     "stored configuration refused (limits.upper out of range (allowed the \
-                     mechanism's height range (see `limits`))): {DEFAULTS}"
+                     mechanism's height range (see `limits`))): {DEFAULTS}{LOST}"
                 ),
             ),
             (
                 Source::Unreadable(store),
                 format!(
                     "configuration store unreadable (flash driver error (out of bounds)): \
-                     {DEFAULTS}"
+                     {DEFAULTS}{LOST}"
                 ),
             ),
         ];

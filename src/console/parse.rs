@@ -56,6 +56,9 @@ pub enum HelpTopic {
 pub enum ParseError<'a> {
     /// Not valid UTF-8.
     NotText,
+    /// A control byte other than tab (NUL, ESC, BEL, CR or LF inside the line…): the whole
+    /// line is refused, so nothing a terminal or a script slipped in runs half a command.
+    Control(u8),
     /// Longer than [`MAX_LINE`].
     TooLong,
     /// The first word is no command.
@@ -126,6 +129,12 @@ pub fn parse(line: &[u8]) -> Result<Option<Request>, ParseError<'_>> {
     // is valid UTF-8 too.
     if !text::is_utf8(line) {
         return Err(ParseError::NotText);
+    }
+    if let Some(&b) = line
+        .iter()
+        .find(|&&b| (b < 0x20 && b != b'\t') || b == 0x7F)
+    {
+        return Err(ParseError::Control(b));
     }
     let line = line.trim_ascii();
     if line.is_empty() || line.first() == Some(&b'#') {

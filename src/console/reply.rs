@@ -4,7 +4,7 @@
 use super::{value, HelpTopic, ParseError, MAX_LINE};
 use crate::config::settings::{self, Kind, SettingId};
 use crate::config::ValidatedConfig;
-use crate::text::{fill, Arg};
+use crate::text::{escape, fill, height_arg, Arg};
 use crate::units::{Amperes, Angle, Metres, NewtonMetres, RadiansPerSecond, Ratio};
 use crate::ConfigError;
 use core::fmt::{self, Write};
@@ -70,6 +70,11 @@ pub fn write_parse_error(out: &mut dyn Write, e: &ParseError<'_>) -> fmt::Result
     out.write_str("error: ")?;
     let (template, args): (&str, &[Arg<'_>]) = match e {
         ParseError::NotText => ("line is not text (UTF-8); type `help`", &[]),
+        ParseError::Control(b) => {
+            out.write_str("control character ")?;
+            escape(out, *b)?;
+            return out.write_str(" in the line, ignored; type `help`");
+        }
         ParseError::TooLong => (
             "line longer than \x01 characters, ignored; type `help`",
             &[Arg::Uint(MAX_LINE as u32)],
@@ -275,6 +280,8 @@ pub struct StatusView {
     pub state: &'static str,
     /// Head height.
     pub height: Metres,
+    /// The position is known; unhomed, `height` shows as `unknown` and `homed=no`.
+    pub homed: bool,
     /// Screw speed θ̇ (+ lifting).
     pub screw_speed: RadiansPerSecond,
     /// Motor current.
@@ -289,6 +296,9 @@ pub struct StatusView {
     pub stick_slip_episodes: u32,
     /// The active fault's name, if any.
     pub fault: Option<&'static str>,
+    /// The motion's cruise speed when the motor cannot reach `motion.cruise_speed`
+    /// (` cruise_limit=4.41rad/s` at the end of the line).
+    pub cruise_limit: Option<RadiansPerSecond>,
     /// Ball screw: identified friction coefficient and the law's f(τ), once identified.
     #[cfg(feature = "ball-screw")]
     pub ball_f: Option<(Ratio, Ratio)>,
@@ -299,11 +309,12 @@ pub struct StatusView {
 pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
     fill(
         out,
-        "state=\x01 height=\x01mm speed=\x01rad/s current=\x01A T_r=\x01Nm stick_slip=\x01 \
-         ss_amp=\x01Nm ss_episodes=\x01 fault=\x01",
+        "state=\x01 height=\x01\x01 speed=\x01rad/s current=\x01A T_r=\x01Nm stick_slip=\x01 \
+         ss_amp=\x01Nm ss_episodes=\x01 fault=\x01 homed=\x01",
         &[
             Arg::Str(s.state),
-            Arg::Mm(s.height),
+            height_arg(s.height, s.homed),
+            Arg::Str(if s.homed { "mm" } else { "" }),
             Arg::Fixed(s.screw_speed.to_bits(), 16, 2),
             Arg::Fixed(s.current.to_bits(), 16, 2),
             Arg::Fixed(s.friction_torque.to_bits(), 16, 3),
@@ -311,8 +322,16 @@ pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
             Arg::Fixed(s.stick_slip_amplitude.to_bits(), 16, 2),
             Arg::Uint(s.stick_slip_episodes),
             Arg::Word(s.fault.unwrap_or("none")),
+            Arg::Str(if s.homed { "yes" } else { "no" }),
         ],
     )?;
+    if let Some(w) = s.cruise_limit {
+        fill(
+            out,
+            " cruise_limit=\x01rad/s",
+            &[Arg::Fixed(w.to_bits(), 16, 2)],
+        )?;
+    }
     #[cfg(not(feature = "ball-screw"))]
     return Ok(());
     #[cfg(feature = "ball-screw")]
@@ -341,6 +360,17 @@ pub fn write_lube_warning(out: &mut dyn Write, f: Ratio, law: Ratio) -> fmt::Res
             Arg::Str(if f > law { " above" } else { " below" }),
             Arg::Fixed(law.to_bits(), 28, 5),
         ],
+    )
+}
+
+/// The console warning of a motion whose cruise the motor cannot reach
+/// ([`crate::control::Event::CruiseLimited`]), one line.
+pub fn write_cruise_warning(out: &mut dyn Write, speed: RadiansPerSecond) -> fmt::Result {
+    fill(
+        out,
+        "warning: cruise limited to \x01 rad/s: the motor's speed at this load and supply \
+         (motion.cruise_speed is more)",
+        &[Arg::Fixed(speed.to_bits(), 16, 2)],
     )
 }
 
@@ -425,17 +455,25 @@ mod tests {
                 None => String::new(),
             };
             format!(
-                "state={} height={}mm speed={}rad/s current={}A T_r={}Nm stick_slip={} \
-                 ss_amp={}Nm ss_episodes={} fault={}{ball}",
+                "state={} height={} speed={}rad/s current={}A T_r={}Nm stick_slip={} \
+                 ss_amp={}Nm ss_episodes={} fault={} homed={}{}{ball}",
                 s.state,
-                mm(s.height),
+                if s.homed {
+                    mm(s.height) + "mm"
+                } else {
+                    "unknown".into()
+                },
                 fixed(s.screw_speed.to_bits(), 16, 2),
                 fixed(s.current.to_bits(), 16, 2),
                 fixed(s.friction_torque.to_bits(), 16, 3),
                 if s.stick_slip { "yes" } else { "no" },
                 fixed(s.stick_slip_amplitude.to_bits(), 16, 2),
                 s.stick_slip_episodes,
-                word(s.fault.unwrap_or("none"))
+                word(s.fault.unwrap_or("none")),
+                if s.homed { "yes" } else { "no" },
+                s.cruise_limit
+                    .map(|w| format!(" cruise_limit={}rad/s", fixed(w.to_bits(), 16, 2)))
+                    .unwrap_or_default()
             )
         }
 
@@ -445,13 +483,17 @@ mod tests {
                 (i32::from(f.duty) * 1000 + if f.duty < 0 { -16384 } else { 16384 }) / 32768;
             let p = permille.unsigned_abs();
             format!(
-                "fault={} t={}.{:03}s state={} height={}mm speed={}rad/s current={}A supply={}V \
+                "fault={} t={}.{:03}s state={} height={} speed={}rad/s current={}A supply={}V \
                  duty={}{}.{}% torque={}Nm model_torque={}Nm",
                 word(f.kind.name()),
                 ms / 1000,
                 ms % 1000,
                 f.state.name(),
-                mm(f.height),
+                if f.homed {
+                    mm(f.height) + "mm"
+                } else {
+                    "unknown".into()
+                },
                 fixed(f.screw_speed.to_bits(), 16, 2),
                 fixed(f.current.to_bits(), 16, 2),
                 fixed(f.supply.to_bits(), 16, 2),
@@ -557,6 +599,7 @@ mod tests {
             let s = StatusView {
                 state: ["idle", "lifting", "fault"][i % 3],
                 height: Metres::from_bits(b(0)),
+                homed: i % 5 != 3,
                 screw_speed: RadiansPerSecond::from_bits(b(7)),
                 current: Amperes::from_bits(b(13)),
                 friction_torque: NewtonMetres::from_bits(b(21)),
@@ -564,6 +607,7 @@ mod tests {
                 stick_slip_amplitude: NewtonMetres::from_bits(b(29)),
                 stick_slip_episodes: b(37) as u32,
                 fault: [None, Some("encoder lost"), Some("over-current")][i % 3],
+                cruise_limit: (i % 4 == 2).then(|| RadiansPerSecond::from_bits(b(45))),
                 #[cfg(feature = "ball-screw")]
                 ball_f: (i % 4 == 1).then(|| (Ratio::from_bits(b(47)), Ratio::from_bits(b(53)))),
             };
@@ -576,6 +620,7 @@ mod tests {
                 state: [State::Lifting, State::Lowering, State::Idle][i % 3],
                 position: b(5),
                 height: Metres::from_bits(b(11)),
+                homed: i % 7 != 2,
                 screw_speed: RadiansPerSecond::from_bits(b(17)),
                 current: Amperes::from_bits(b(19)),
                 supply: Volts::from_bits(b(23)),

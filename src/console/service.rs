@@ -26,13 +26,13 @@ use crate::config::store::StoreError;
 use crate::config::{record, settings, ValidatedConfig};
 use crate::control::config::ControlConfig;
 use crate::control::{Command, Controller, Fault, Refusal, Status};
-use crate::text::{self, fill, Arg};
+use crate::text::{self, fill, height_arg, Arg};
 use crate::units::Metres;
 use core::fmt::{self, Write};
 
 /// The console protocol version `version` reports. Bump it when a reply a host tool parses
 /// changes its form (not for new commands or keys).
-pub const PROTOCOL_VERSION: u32 = 1;
+pub const PROTOCOL_VERSION: u32 = 2;
 
 /// The start of the `version` reply; the version number follows it directly.
 pub const VERSION_PREFIX: &str = "liftfw console v";
@@ -108,6 +108,7 @@ pub fn status_view(s: &Status) -> StatusView {
     StatusView {
         state: s.state.name(),
         height: s.height,
+        homed: s.homed,
         screw_speed: s.screw_speed,
         current: s.current,
         friction_torque: s.friction_torque,
@@ -115,6 +116,7 @@ pub fn status_view(s: &Status) -> StatusView {
         stick_slip_amplitude: s.stick_slip_amplitude,
         stick_slip_episodes: s.stick_slip_episodes,
         fault: s.fault.map(|f| f.name()),
+        cruise_limit: s.cruise_limit,
         #[cfg(feature = "ball-screw")]
         ball_f: s.lube.map(|r| (r.f, r.law)),
     }
@@ -240,7 +242,7 @@ fn motion<L: Lift + ?Sized>(out: &mut dyn Write, lift: &mut L, cmd: Command) -> 
     }
 }
 
-/// The reply to `version`: `liftfw console v1 firmware=0.1.0 schema=1a2b3c4d` (the schema is
+/// The reply to `version`: `liftfw console v2 firmware=0.1.0 schema=1a2b3c4d` (the schema is
 /// the flash record's fingerprint of the settings list, [`record::schema`]).
 pub fn write_version(out: &mut dyn Write) -> fmt::Result {
     out.write_str(VERSION_HEAD)?;
@@ -251,7 +253,7 @@ pub fn write_version(out: &mut dyn Write) -> fmt::Result {
 /// and the firmware's version (a test checks it against the two constants).
 const VERSION_HEAD: &str = concat!(
     "liftfw console v",
-    "1",
+    "2",
     " firmware=",
     env!("CARGO_PKG_VERSION"),
     " schema="
@@ -269,13 +271,14 @@ pub fn write_fault(out: &mut dyn Write, fault: Option<&Fault>) -> fmt::Result {
     // The fault's name may contain spaces; `-` keeps the line `key=value`.
     fill(
         out,
-        "fault=\x01 t=\x01s state=\x01 height=\x01mm speed=\x01rad/s current=\x01A supply=\x01V \
+        "fault=\x01 t=\x01s state=\x01 height=\x01\x01 speed=\x01rad/s current=\x01A supply=\x01V \
          duty=\x01% torque=\x01Nm model_torque=\x01Nm",
         &[
             Arg::Word(f.kind.name()),
             Arg::Deci(ms, 3),
             Arg::Str(f.state.name()),
-            Arg::Mm(f.height),
+            height_arg(f.height, f.homed),
+            Arg::Str(if f.homed { "mm" } else { "" }),
             Arg::Fixed(f.screw_speed.to_bits(), 16, 2),
             Arg::Fixed(f.current.to_bits(), 16, 2),
             Arg::Fixed(f.supply.to_bits(), 16, 2),

@@ -86,6 +86,8 @@ pub(super) struct Derived {
     /// configured one and `stickslip.escape_speed`.
     pub(super) cruise_q32: i64,
     pub(super) escape_q32: i64,
+    /// How far the reference may lead the screw before the planner waits for it, counts.
+    pub(super) lag_counts: i32,
     /// The ball screw (`cfg.ball_screw`, compiled).
     #[cfg(feature = "ball-screw")]
     pub(super) ball_screw: BallScrew,
@@ -170,6 +172,10 @@ impl Derived {
             ),
             cruise_q32: per_tick_q32(cfg.motion.cruise_speed),
             escape_q32: per_tick_q32(cfg.stick_slip.escape_speed),
+            // The planner waits while the screw lags its reference by more than 0.25 rad of
+            // the screw (≈ 0.08 mm of nut on the S12x2; at least the arrival window), see
+            // `drive`.
+            lag_counts: sat32(counts_per_rad_q16 >> 18).max(ARRIVED_COUNTS),
             #[cfg(feature = "ball-screw")]
             ball_screw,
         })

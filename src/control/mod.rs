@@ -127,6 +127,9 @@ pub struct Status {
     pub position: i32,
     /// The position is known (false: homing on the lower limit switch is required).
     pub homed: bool,
+    /// The motion under way (or the last one) runs slower than `motion.cruise_speed`: the
+    /// screw speed the motor reached at the present load and supply (`limit_cruise`).
+    pub cruise_limit: Option<RadiansPerSecond>,
     /// Ball screw: the friction coefficient identified from the current and the law's, once a
     /// lift/lowering pair has been solved (`lube`).
     #[cfg(feature = "ball-screw")]
@@ -282,6 +285,7 @@ impl Controller {
             fault: self.live.fault.map(|f| f.kind),
             position: self.live.enc.position(),
             homed: self.live.homed,
+            cruise_limit: self.motion.cruise_limit,
             #[cfg(feature = "ball-screw")]
             lube: if self.holds_actively() {
                 self.motion.lube.report()
@@ -449,6 +453,7 @@ impl Controller {
             overload_armed: moving
                 && matches!(self.motion.last_bridge, Bridge::Drive(_))
                 && self.motion.motion_ticks > holdoff,
+            lagging: moving && self.motion.lagging,
         };
         if self.live.state != State::Fault {
             if let Some(kind) = self.motion.monitors.check(&self.derived.limits, &sample) {

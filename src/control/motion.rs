@@ -41,6 +41,13 @@ pub(super) struct Motion {
     pub(super) last_bridge: Bridge,
     /// Stick-slip detector (`crate::detect::stickslip`).
     pub(super) stick_slip: StickSlipDetector,
+    /// The cruise speed of the motion under way when the motor cannot reach the configured one
+    /// (`limit_cruise`).
+    pub(super) cruise_limit: Option<RadiansPerSecond>,
+    /// The motion's [`Event::CruiseLimited`] was reported.
+    pub(super) cruise_reported: bool,
+    /// The last driving tick found the screw lagging (the planner waited): a stall sign.
+    pub(super) lagging: bool,
     /// The identification of the ball screw's friction.
     #[cfg(feature = "ball-screw")]
     pub(super) lube: lube::LubeMonitor,
@@ -71,6 +78,9 @@ impl Motion {
             last_duty: 0,
             last_bridge: Bridge::Coast,
             stick_slip: StickSlipDetector::new(&cfg.stick_slip, tick_us),
+            cruise_limit: None,
+            cruise_reported: false,
+            lagging: false,
             #[cfg(feature = "ball-screw")]
             lube: lube::LubeMonitor::new(
                 &cfg.lube,
@@ -176,14 +186,41 @@ impl Controller {
         if let Some(releasing) = self.releasing_brake(x) {
             return releasing;
         }
-        let r = self.motion.profile.step();
-        let speed_scale = self.derived.speed_scale;
-        self.motion.last_ref_rad =
-            RadiansPerSecond::from_raw(speed_scale.apply32(sat32(r.speed >> 16)));
-        self.motion.last_ref_counts = r.counts();
+        // The planner waits while the screw lags its reference by more than `lag_counts` (a
+        // heavier load or a lower supply than `reachable_cruise` assumed): the reference never
+        // runs ahead to the target and "arrives" with the head short of it, and lowering, its
+        // ramp-down never leaves a lagging lift looking like a runaway.
+        let dir = if self.live.state == State::Lowering {
+            -1
+        } else {
+            1
+        };
+        let behind = self
+            .motion
+            .last_ref_counts
+            .saturating_sub(self.screw_position())
+            .saturating_mul(dir);
+        let mut done = false;
+        // The planner holds a stuck screw's lag near `lag_counts`: past half of it, the drive
+        // is pushing (the stall monitor's sign, steady while the planner steps and waits).
+        let lag_counts = self.derived.lag_counts;
+        self.motion.lagging = behind > lag_counts >> 1;
+        if behind <= lag_counts {
+            let r = self.motion.profile.step();
+            let speed_scale = self.derived.speed_scale;
+            self.motion.last_ref_rad =
+                RadiansPerSecond::from_raw(speed_scale.apply32(sat32(r.speed >> 16)));
+            self.motion.last_ref_counts = r.counts();
+            done = r.done;
+        } else {
+            self.limit_cruise(x);
+        }
         let reference = self.motion.last_ref_rad;
-        let error_counts = r.counts().saturating_sub(self.screw_position());
-        if r.done {
+        let error_counts = self
+            .motion
+            .last_ref_counts
+            .saturating_sub(self.screw_position());
+        if done {
             self.motion.settle_ticks = self.motion.settle_ticks.saturating_add(1);
             let rest_speed = self.derived.cfg.estimator.rest_speed;
             let still = x.estimate.screw_speed.sat_abs() < rest_speed;
@@ -195,6 +232,50 @@ impl Controller {
             }
         }
         Bridge::Drive(self.speed_duty(x, reference, error_counts))
+    }
+
+    /// The lift lags its reference by more than `lag_counts`: the motor cannot reach the
+    /// profile's cruise at this load and supply (or a heavier car than the rated one). The
+    /// reference waits this tick (the caller skips the planner), and the cruise steps toward
+    /// the screw's measured speed + 1/16: down by at most 1/16 a lagging tick (a stick-slip
+    /// stick, where the screw stands for a few ticks, barely lowers it), up to it at once (so
+    /// the reference keeps leading a little and the limit finds what the motor reaches), never
+    /// above `motion.cruise_speed`. The first limit of a motion is reported
+    /// ([`Event::CruiseLimited`]). A profile faster than the lift ran
+    /// ahead of it: the reference reached the target and the settling time ran out with the
+    /// head short of it, and lowering, the reference's ramp-down made the lagging lift look
+    /// like a runaway. Out of line: only on lagging ticks, which skip the planner's step.
+    #[cold]
+    #[inline(never)]
+    fn limit_cruise(&mut self, x: &Reading) {
+        let cruise = self.derived.cfg.motion.cruise_speed;
+        let prev = self.motion.cruise_limit.unwrap_or(cruise);
+        let step = prev.sat_sub(RadiansPerSecond::from_raw(prev.bits() >> 4));
+        // Only while the reference cruises (not in its ramps: accelerating from rest the
+        // screw lags and is slow for a moment whatever the motor can do).
+        if self.motion.last_ref_rad.sat_abs() < step {
+            return;
+        }
+        let w = x.estimate.screw_speed.sat_abs();
+        let seen = w.sat_add(RadiansPerSecond::from_raw(w.bits() >> 4));
+        let w = seen
+            .max(step)
+            .min(cruise)
+            .max(const { RadiansPerSecond::lit("0.2") });
+        if w == prev || w >= cruise {
+            return;
+        }
+        // Reported once it has settled on what the screw does.
+        if !self.motion.cruise_reported && seen >= step && self.live.pending_event.is_none() {
+            self.motion.cruise_reported = true;
+            self.live.pending_event = Some(Event::CruiseLimited { speed: w });
+        }
+        self.motion.cruise_limit = Some(w);
+        self.motion.profile.set_cruise(crate::math::mul_div_u64(
+            self.derived.cruise_q32.unsigned_abs(),
+            w.bits().unsigned_abs().into(),
+            cruise.bits().unsigned_abs().max(1).into(),
+        ) as i64);
     }
 
     /// One step of the speed loop toward `reference` with `error_counts` of position error:

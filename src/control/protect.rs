@@ -5,7 +5,7 @@
 //! | fault | trips when | reaction time |
 //! |---|---|---|
 //! | over-current | one current sample above the limit | the same tick |
-//! | stall | duty ≥ stall duty or current ≥ 90 % of the limit, no encoder count, and the motor's voltage balance says the shaft is still, for `stall_ms` | `stall_ms` |
+//! | stall | duty ≥ stall duty, current ≥ 90 % of the limit or the screw lagging its reference (the planner waiting), no encoder progress in the direction of travel, and the motor's voltage balance says the shaft is still, for `stall_ms` | `stall_ms` |
 //! | encoder lost | no encoder count while the voltage balance says the shaft turns, for `stall_ms` | `stall_ms` |
 //! | encoder implausible | a jump faster than the motor can turn | the same tick |
 //! | under-voltage | supply below the run threshold while moving, for `supply_ms` | `supply_ms` |
@@ -42,6 +42,10 @@ pub enum FaultKind {
     SwitchesImplausible,
     /// The watchdog reset the controller (reported at the next boot).
     WatchdogReset,
+    /// A configuration had been stored but could not be used (corrupt, another version,
+    /// refused, unreadable): the lift runs the factory defaults, whose stops are not the
+    /// user's. Reported at boot; `fault clear` acknowledges it.
+    FactoryDefaults,
     /// The stored configuration is a ball screw's (`drive.screw = ball` or the `ball` law) and
     /// this image is built without the `ball-screw` feature: the lift stays braked and the
     /// record untouched until the ball-screw firmware is flashed (`fault clear` refuses).
@@ -63,6 +67,7 @@ impl FaultKind {
             FaultKind::LimitSwitch => "limit switch before soft limit missed",
             FaultKind::SwitchesImplausible => "both limit switches closed",
             FaultKind::WatchdogReset => "watchdog reset",
+            FaultKind::FactoryDefaults => "factory defaults in force",
             FaultKind::NeedsBallScrew => "stored configuration needs the ball-screw firmware",
         }
     }
@@ -171,6 +176,10 @@ pub struct Sample {
     pub model_torque: NewtonMetres,
     /// Whether the overload check applies this tick (driving, past the start-up transient).
     pub overload_armed: bool,
+    /// The screw lags its reference so far that the planner waits for it: the drive is
+    /// pushing whatever its duty and current (at standstill the current limit can hold both
+    /// just under the stall thresholds).
+    pub lagging: bool,
 }
 
 /// Counters of the time-filtered monitors.
@@ -232,8 +241,12 @@ impl Monitors {
         // Pushing: high duty (Roboteq's rule), or sitting at the current limit (at standstill
         // the limit caps the duty at R·I/V, far below any useful duty threshold).
         let pushing = s.duty.unsigned_abs() >= l.stall_duty.unsigned_abs()
-            || s.current.sat_abs() >= l.stall_current;
-        if count(&mut self.still, no_count && pushing && !turning) >= l.stall_ticks {
+            || s.current.sat_abs() >= l.stall_current
+            || s.lagging;
+        // No progress in the direction of travel: still, or pushed back (a jammed screw under a
+        // load beyond the motor creeps back a count now and then).
+        let no_progress = s.moving && (s.delta == 0 || (s.delta > 0) == s.lowering);
+        if count(&mut self.still, no_progress && pushing && !turning) >= l.stall_ticks {
             return Some(FaultKind::Stall);
         }
         // The margin is a fraction of the model torque's size: lowering an overhauling load the

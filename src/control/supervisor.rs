@@ -65,7 +65,8 @@ pub enum Refusal {
     Faulted,
     /// The supply is below the start threshold.
     SupplyLow,
-    /// Already at (or past) that limit stop, or its limit switch is closed.
+    /// Already at or beyond that limit stop (a direction command never moves the other way),
+    /// or its limit switch is closed.
     AtLimit,
     /// The target lies outside the limit stops.
     OutsideLimits,
@@ -90,7 +91,9 @@ impl Refusal {
         match self {
             Refusal::Faulted => "refused: a fault is latched (see `fault`, then `fault clear`)",
             Refusal::SupplyLow => "refused: supply below the start threshold",
-            Refusal::AtLimit => "refused: already at that limit",
+            Refusal::AtLimit => {
+                "refused: already at or beyond that limit; `goto` a height between the stops"
+            }
             Refusal::OutsideLimits => "refused: target outside the limit stops",
             Refusal::Moving => "refused: moving the other way, stop first",
             Refusal::NoFault => "no fault latched",
@@ -129,6 +132,8 @@ pub struct Fault {
     pub position: i32,
     /// Head height (model).
     pub height: Metres,
+    /// The position was known (false: `height` is the homing assumption, not the head's).
+    pub homed: bool,
     /// Measured screw speed.
     pub screw_speed: RadiansPerSecond,
     /// Motor current.
@@ -162,6 +167,12 @@ pub enum Event {
     Homed {
         /// The encoder position the switch height maps to, counts.
         position: i32,
+    },
+    /// The motor cannot reach `motion.cruise_speed` at this load and supply: the motion runs
+    /// at this screw speed (it may rise a little as the limit settles).
+    CruiseLimited {
+        /// The cruise speed the motion runs at.
+        speed: RadiansPerSecond,
     },
     /// A stick-slip episode started (`crate::detect::stickslip`).
     StickSlip {
@@ -237,6 +248,15 @@ impl Controller {
         self.latch(now, FaultKind::WatchdogReset);
     }
 
+    /// Report that the stored configuration could not be used and the factory defaults run
+    /// instead ([`crate::config::store::Source::lost_stored`]): latches
+    /// [`FaultKind::FactoryDefaults`], so that no motion starts on stops the user did not set
+    /// until `fault clear` acknowledges it (docs/console.md "Factory defaults after a lost
+    /// configuration").
+    pub fn report_factory_defaults(&mut self, now: Instant) {
+        self.latch(now, FaultKind::FactoryDefaults);
+    }
+
     /// Report that the stored configuration needs the ball-screw firmware (an image without the
     /// `ball-screw` feature booted on a ball-screw record, [`crate::config::store::Source::NeedsBallScrew`]):
     /// latches [`FaultKind::NeedsBallScrew`], which no command clears. The fault state brakes
@@ -285,11 +305,22 @@ impl Controller {
                 let span = lower.saturating_sub(switch);
                 self.start(self.live.enc.position().saturating_add(span), true)
             }
-            Command::Up | Command::GoTo(_) if !self.live.homed => Err(Refusal::NotHomed),
+            Command::Up | Command::GoTo(_) if !self.live.homed && self.live.fault.is_none() => {
+                Err(Refusal::NotHomed)
+            }
             // Homing: aim one full stroke below the stop; the lower switch ends the run.
             Command::Down if !self.live.homed => {
                 let stroke = upper.saturating_sub(switch);
                 self.start(self.live.enc.position().saturating_sub(stroke), false)
+            }
+            // A direction command moves only in its direction: with the head above a lowered
+            // upper stop `up` would lower to it (and `down` lift to a raised lower stop).
+            // (A latched fault is the first reason, `start`'s.)
+            Command::Up if self.live.fault.is_none() && upper <= self.screw_position() => {
+                Err(Refusal::AtLimit)
+            }
+            Command::Down if self.live.fault.is_none() && lower >= self.screw_position() => {
+                Err(Refusal::AtLimit)
             }
             Command::Up => self.start(upper, false),
             Command::Down => self.start(lower, false),
@@ -336,7 +367,10 @@ impl Controller {
         }
         if !moving {
             self.motion.profile.reset(here);
+            self.motion.last_ref_counts = here;
             self.motion.profile.set_cruise(self.derived.cruise_q32);
+            self.motion.cruise_limit = None;
+            self.motion.cruise_reported = false;
             if !self.keeps_integrator(None) {
                 self.motion.speed.reset();
             }
@@ -390,6 +424,7 @@ impl Controller {
             state: live.state,
             position: live.enc.position(),
             height: e.height,
+            homed: live.homed,
             screw_speed: e.screw_speed,
             current: live.latest.current,
             supply: live.latest.supply,

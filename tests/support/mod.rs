@@ -52,6 +52,8 @@ pub struct Scenario {
     pub motor_friction_factor: f64,
     /// A spring-applied holding brake in the plant, driven by the core's brake output.
     pub brake: Option<host_sim::plant::BrakeParams>,
+    /// Faults injected by the simulation (`host_sim::inject`): sensors, supply, jam, overload.
+    pub faults: host_sim::inject::Plan,
 }
 
 impl Scenario {
@@ -73,6 +75,7 @@ impl Scenario {
             ball_friction_factor: 1.0,
             motor_friction_factor: 1.0,
             brake: None,
+            faults: host_sim::inject::Plan::default(),
         }
     }
 
@@ -187,6 +190,7 @@ pub fn run(s: &Scenario, mut hook: Hook) -> Run {
     cfg.drive.motor_coulomb *= s.motor_friction_factor;
     cfg.drive.motor_viscous *= s.motor_friction_factor;
     cfg.brake = s.brake;
+    cfg.faults = s.faults;
     if s.ball_screw {
         let mut bs = host_sim::physics::ballscrew::BallScrewFriction::seed_001_4008();
         bs.law.base *= s.ball_friction_factor;

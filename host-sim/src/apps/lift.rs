@@ -4,11 +4,13 @@
 //! core believes (height, speed, estimated thread friction torque T_r) with the plant's
 //! truth, then the halt error and a plot of both.
 
-use crate::physics::{Geometry, Lubricant};
-use crate::sim::{Driver, Sim, SimConfig};
-use crate::studies::paper::plots;
+use crate::plotting;
+use crate::twin::inject::{Injection, Plan};
+use crate::twin::physics::{Geometry, Lubricant};
+use crate::twin::sim::{Driver, Sim, SimConfig};
+use liftfw::console::service::write_fault;
 use liftfw::control::config::ControlConfig;
-use liftfw::control::{Command, Controller, Event, State};
+use liftfw::control::{Command, Controller, Event, Refusal, State};
 use liftfw::model::friction::FrictionLaw;
 use liftfw::units::{Instant, Metres};
 use plotters::prelude::*;
@@ -30,6 +32,8 @@ pub struct LiftArgs {
     pub seed: u64,
     /// Where to write the PNG (`None`: no plot).
     pub plot: Option<PathBuf>,
+    /// Faults to inject ([`crate::twin::inject`]).
+    pub faults: Vec<Injection>,
 }
 
 /// One control tick as the core saw it, with the plant's truth at the same instant.
@@ -83,7 +87,7 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
         Ok(s.asin().to_degrees())
     };
     let start_deg = to_angle(a.from_mm)?;
-    to_angle(a.to_mm)?;
+    let to_deg = to_angle(a.to_mm)?;
     let mut control = ControlConfig::DEFAULT;
     control.estimator.law = core_law(a.lubricant);
     let probe = Controller::new(&control, 0).map_err(|e| e.to_string())?;
@@ -101,17 +105,23 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
     cfg.duration = 1e9;
     cfg.record_rate = 0.0;
     cfg.seed = a.seed;
+    cfg.faults = Plan::new(&a.faults)?;
+    let cap = time_cap(start_deg, to_deg, control.motion.cruise_speed.to_f64());
 
     // The core, shared with the sim's driver closure.
-    let shared = Arc::new(Mutex::new((controller, None::<Event>, false)));
+    let shared = Arc::new(Mutex::new((
+        controller,
+        None::<Event>,
+        false,
+        None::<Result<(), Refusal>>,
+    )));
     let inner = Arc::clone(&shared);
     let driver = Driver::Custom(Box::new(move |t: f64, inputs| {
         let mut g = lock(&inner);
-        let (c, last_event, sent) = &mut *g;
+        let (c, last_event, sent, answer) = &mut *g;
         if !*sent && t >= 0.05 {
             *sent = true;
-            // Refused only for a target outside the stops: the loop then just holds.
-            let _ = c.command(Command::GoTo(target));
+            *answer = Some(c.command(Command::GoTo(target)));
         }
         let out = c.step(Instant((t * 1e6).round() as u64 as u32), inputs);
         if out.event.is_some() {
@@ -138,11 +148,25 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
     let mut rested_at: Option<f64> = None;
     let wall = std::time::Instant::now();
     let mut t = 0.0;
-    while t < 120.0 {
+    let mut ended = End::Cap;
+    while t < cap {
         t = sim.step_n(per_tick);
         let r = sim.record(t);
-        let g = lock(&shared);
-        let (c, _, sent) = &*g;
+        let mut g = lock(&shared);
+        if sim.take_watchdog_reset() {
+            // An injected hang outlasted the IWDG: the board boots again, fault latched.
+            let (c, ..) = &mut *g;
+            let pos = c.position_counts();
+            if let Ok(mut n) = Controller::new(c.config(), pos) {
+                n.report_watchdog_reset(Instant((t * 1e6).round() as u64 as u32));
+                *c = n;
+            }
+        }
+        let (c, _, sent, answer) = &*g;
+        if let Some(Err(why)) = answer {
+            ended = End::Refused(*why);
+            break;
+        }
         let st = c.status();
         let s = Sample {
             t,
@@ -174,17 +198,57 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
             );
         }
         if let Some(f) = c.fault() {
-            return Err(format!("fault: {} at {:.3} s", f.kind.name(), t));
+            let mut snapshot = String::new();
+            let _ = write_fault(&mut snapshot, Some(f));
+            ended = End::Fault(snapshot);
+            break;
         }
         if *sent && !moving && t > 0.06 {
             let at = *rested_at.get_or_insert(t);
             // Let the coupling unwind and the brake settle before reading the final height.
             if t > at + 0.5 {
+                ended = End::Arrived;
                 break;
             }
         }
     }
     let last = samples.last().copied().unwrap_or_default();
+    let state = lock(&shared).0.state();
+    let why = match ended {
+        End::Arrived => None,
+        End::Refused(r) => Some(format!(
+            "goto {:.1} mm refused: {} (nothing moved; the stops are limits.lower and \
+             limits.upper, 145–410 mm by default)",
+            a.to_mm,
+            r.message()
+        )),
+        End::Fault(snapshot) => Some(format!(
+            "stopped by a fault at {:.3} s, head at {:.3} mm (core {:.3} mm), {:.3} mm from the \
+             target; the board's snapshot: {snapshot}",
+            last.t,
+            last.true_height,
+            last.core_height,
+            last.true_height - a.to_mm
+        )),
+        End::Cap => Some(format!(
+            "cut off at {:.0} s (twice the stroke's time at cruise, plus 20 s) while {}: head at \
+             {:.3} mm, {:.3} mm from the target",
+            cap,
+            state.name(),
+            last.true_height,
+            last.true_height - a.to_mm
+        )),
+    };
+    if let Some(why) = why {
+        println!("\n{why}");
+        if let Some(path) = &a.plot {
+            match plot(path, a, &samples) {
+                Ok(()) => println!("plot: {}", path.display()),
+                Err(e) => println!("plot skipped: {e}"),
+            }
+        }
+        return Err(why);
+    }
     let err = last.true_height - a.to_mm;
     let up = a.to_mm > a.from_mm;
     let extreme =
@@ -239,8 +303,40 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
     })
 }
 
+/// How long `host-sim lift` lets a move from `from_deg` to `to_deg` run at a screw cruise of
+/// `cruise` rad/s: 20 s plus twice the time at cruise (the head moves at the nut's speed
+/// ω·lead/2π times cot α, slowest high up; a full stroke at 3 rad/s takes minutes, far beyond
+/// the fixed 120 s cap this replaced).
+pub fn time_cap(from_deg: f64, to_deg: f64, cruise: f64) -> f64 {
+    let g = Geometry::paper();
+    let nut_speed = cruise.max(1e-3) * 2e-3 / std::f64::consts::TAU;
+    let (lo, hi) = (from_deg.min(to_deg), from_deg.max(to_deg));
+    let steps = 400;
+    let stroke_s: f64 = (0..steps)
+        .map(|i| {
+            let a0 = (lo + (hi - lo) * f64::from(i) / f64::from(steps)).to_radians();
+            let a1 = (lo + (hi - lo) * f64::from(i + 1) / f64::from(steps)).to_radians();
+            let dh = g.length * (a1.sin() - a0.sin());
+            dh / (nut_speed / (0.5 * (a0 + a1)).tan())
+        })
+        .sum();
+    20.0 + 2.0 * stroke_s
+}
+
+/// How a run ended.
+enum End {
+    /// At rest after the move.
+    Arrived,
+    /// The goto was refused.
+    Refused(Refusal),
+    /// A protection tripped (the `fault` line).
+    Fault(String),
+    /// Still going at the time cap.
+    Cap,
+}
+
 fn plot(path: &Path, a: &LiftArgs, s: &[Sample]) -> Result<(), String> {
-    plots::init_font()?;
+    plotting::init_font()?;
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     }
@@ -249,7 +345,7 @@ fn plot(path: &Path, a: &LiftArgs, s: &[Sample]) -> Result<(), String> {
         root.fill(&WHITE)?;
         let (top, bottom) = root.split_vertically(380);
         let t_end = s.last().map_or(1.0, |x| x.t);
-        let (h_lo, h_hi) = plots::range(s.iter().flat_map(|x| [x.true_height, x.core_height]));
+        let (h_lo, h_hi) = plotting::range(s.iter().flat_map(|x| [x.true_height, x.core_height]));
         let mut c = ChartBuilder::on(&top)
             .caption(
                 format!(
@@ -258,7 +354,7 @@ fn plot(path: &Path, a: &LiftArgs, s: &[Sample]) -> Result<(), String> {
                     a.load_kg,
                     a.to_mm
                 ),
-                (plots::FONT, 18),
+                (plotting::FONT, 18),
             )
             .margin(10)
             .x_label_area_size(30)
@@ -267,7 +363,7 @@ fn plot(path: &Path, a: &LiftArgs, s: &[Sample]) -> Result<(), String> {
         c.configure_mesh()
             .x_desc("t, s")
             .y_desc("height, mm")
-            .label_style((plots::FONT, 13))
+            .label_style((plotting::FONT, 13))
             .draw()?;
         c.draw_series(LineSeries::new(
             s.iter().map(|x| (x.t, x.true_height)),
@@ -288,15 +384,15 @@ fn plot(path: &Path, a: &LiftArgs, s: &[Sample]) -> Result<(), String> {
         c.configure_series_labels()
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
-            .label_font((plots::FONT, 13))
+            .label_font((plotting::FONT, 13))
             .position(SeriesLabelPosition::LowerRight)
             .draw()?;
 
-        let (t_lo, t_hi) = plots::range(s.iter().flat_map(|x| [x.true_tr, x.core_tr]));
+        let (t_lo, t_hi) = plotting::range(s.iter().flat_map(|x| [x.true_tr, x.core_tr]));
         let mut c = ChartBuilder::on(&bottom)
             .caption(
                 "thread friction torque T_r: plant vs the core's real-time estimate",
-                (plots::FONT, 18),
+                (plotting::FONT, 18),
             )
             .margin(10)
             .x_label_area_size(30)
@@ -305,7 +401,7 @@ fn plot(path: &Path, a: &LiftArgs, s: &[Sample]) -> Result<(), String> {
         c.configure_mesh()
             .x_desc("t, s")
             .y_desc("T_r, N·m")
-            .label_style((plots::FONT, 13))
+            .label_style((plotting::FONT, 13))
             .draw()?;
         c.draw_series(LineSeries::new(s.iter().map(|x| (x.t, x.true_tr)), &BLUE))?
             .label("plant T_r")
@@ -316,7 +412,7 @@ fn plot(path: &Path, a: &LiftArgs, s: &[Sample]) -> Result<(), String> {
         c.configure_series_labels()
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
-            .label_font((plots::FONT, 13))
+            .label_font((plotting::FONT, 13))
             .position(SeriesLabelPosition::UpperRight)
             .draw()?;
         root.present()?;

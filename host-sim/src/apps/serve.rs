@@ -12,16 +12,19 @@
 //! screw is self-locking) and the encoder position, and boots a new controller from what the
 //! store loads, as the firmware does.
 
-use crate::physics::Lubricant;
-use crate::sim::{Driver, Sim, SimConfig};
+use crate::twin::inject::{Injection, Plan};
+use crate::twin::physics::Lubricant;
+use crate::twin::sim::{Driver, Sim, SimConfig};
 use clap::Args;
 use liftfw::config::sim_flash::{SimFlash, ERASE_SIZE};
-use liftfw::config::store::{ConfigStore, Loaded};
+use liftfw::config::store::{geometry_stamp, ConfigStore, Loaded, Parked};
 use liftfw::config::ValidatedConfig;
 use liftfw::console::service::{self, Action};
 use liftfw::console::{Feed, LineBuffer};
-use liftfw::control::Controller;
+use liftfw::control::park::ParkLog;
+use liftfw::control::{Bridge, Controller};
 use liftfw::units::{Instant, Metres};
+use std::collections::HashMap;
 use std::io::{self, Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
@@ -71,6 +74,19 @@ pub struct ServeArgs {
     /// `liftctl -p /dev/pts/N`, `screen /dev/pts/N`. Its path is printed at the start.
     #[arg(long)]
     pub pty: bool,
+    /// Inject a fault: KIND@TIME[:SIZE][+DURATION], simulated seconds from the start (see
+    /// `host-sim lift --help`); repeat the flag for more.
+    #[arg(long, value_name = "FAULT", value_parser = parse_fault)]
+    pub fault: Vec<Injection>,
+    /// Also listen here for faults at run time, one `KIND@DELAY[:SIZE][+DURATION]` per line
+    /// (DELAY from the moment it arrives): a side channel for the test bench, not the
+    /// product's console (which has no such command).
+    #[arg(long, value_name = "ADDR")]
+    pub fault_listen: Option<SocketAddr>,
+}
+
+fn parse_fault(s: &str) -> Result<Injection, String> {
+    s.parse()
 }
 
 impl Default for ServeArgs {
@@ -85,6 +101,8 @@ impl Default for ServeArgs {
             dt: 4e-6,
             seed: 1,
             pty: false,
+            fault: Vec::new(),
+            fault_listen: None,
         }
     }
 }
@@ -110,14 +128,18 @@ enum Msg {
     Feed(Option<Vec<u8>>, Sender<String>),
     /// Power off and on; the reply is the boot message.
     PowerCycle(Sender<String>),
+    /// A fault from the side channel, `at` counted from now; the reply says when it acts.
+    Inject(Injection, Sender<String>),
 }
 
-/// The simulated board: controller, running configuration, store.
+/// The simulated board: controller, running configuration, store, and the parked-position
+/// log the firmware's control task runs (`liftfw::control::park`).
 struct Board {
     controller: Controller,
     running: ValidatedConfig,
     store: ConfigStore<Flash>,
     flash_file: Option<PathBuf>,
+    park: ParkLog,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -158,24 +180,86 @@ fn write_flash(path: &Path, bytes: &[u8]) -> io::Result<()> {
 }
 
 impl Board {
-    /// Boot: load the configuration (factory defaults if none) and start the controller at
-    /// `position` counts. Returns the board and the boot message.
+    /// Boot as the firmware does: load the configuration (factory defaults if none) and the
+    /// parked position, and start the controller there, or unhomed when the flash holds no
+    /// trusted position (a power cut during a motion, another geometry, a ball screw). A
+    /// blank flash is a lift just installed: it boots at `installed` counts (the installer
+    /// homed it), and records that once it is still. Returns the board, the boot message and
+    /// the parked position it booted at, if it came from the flash.
     fn boot(
         flash: Flash,
-        position: i32,
+        installed: i32,
         flash_file: Option<PathBuf>,
-    ) -> io::Result<(Board, String)> {
+    ) -> io::Result<(Board, String, Option<i32>)> {
+        let blank = flash.bytes().iter().all(|&b| b == 0xFF);
         let mut store = new_store(flash)?;
         let Loaded { config, source } = store.load();
-        let controller = Controller::new(config.get(), position)
+        let stamp = geometry_stamp(config.get());
+        let parked = store
+            .load_position(stamp)
+            .filter(|_| config.get().screw.holds_without_power());
+        let position = if blank { Some(installed) } else { parked };
+        // Installed and homed: the installer's first parked record, written at once (the file
+        // is written only with `--flash` and at the first save or record after the boot).
+        if blank {
+            store
+                .save_position(Parked::At(installed), stamp)
+                .map_err(|e| io::Error::other(format!("position record: {e}")))?;
+        }
+        let made = Controller::new_at(config.get(), position);
+        let mut controller = made
             .map_err(|e| io::Error::other(format!("controller refused the configuration: {e}")))?;
+        // As the firmware's boot: a lost configuration blocks motion until acknowledged.
+        let position_record = store.has_position_record();
+        if source.lost_stored(position_record) {
+            controller.report_factory_defaults(Instant(0));
+        }
         let board = Board {
             controller,
             running: config,
             store,
             flash_file,
+            park: ParkLog::new(position.map(Parked::At)),
         };
-        Ok((board, format!("boot: {source}")))
+        let mut msg = format!("boot: {source}");
+        match (parked, blank) {
+            (Some(p), _) => msg.push_str(&format!("; parked at {p} counts")),
+            (None, true) => {}
+            (None, false) => msg.push_str(
+                "; position unknown: hold DOWN (or `down`) to home on the lower limit switch",
+            ),
+        }
+        Ok((board, msg, parked))
+    }
+
+    /// One control tick, and the parked-position record it asks for (written at once, and to
+    /// the flash file: a restart is a power cycle).
+    fn tick(&mut self, now: Instant, inputs: &liftfw::control::Inputs) -> Bridge {
+        let out = self.controller.step(now, inputs);
+        self.controller.finish_tick();
+        if let Some(p) = self.park.step(&self.controller.status()) {
+            let stamp = geometry_stamp(self.controller.config());
+            match self.store.save_position(p, stamp) {
+                Ok(()) => {
+                    self.write_file();
+                }
+                Err(e) => eprintln!("host-sim serve: position record failed: {e}"),
+            }
+        }
+        out.bridge
+    }
+
+    fn write_file(&mut self) -> bool {
+        match &self.flash_file {
+            Some(path) => match write_flash(path, self.store.flash().bytes()) {
+                Ok(()) => true,
+                Err(e) => {
+                    eprintln!("host-sim serve: cannot write {}: {e}", path.display());
+                    false
+                }
+            },
+            None => true,
+        }
     }
 
     fn line(&mut self, line: Option<&[u8]>) -> String {
@@ -201,13 +285,10 @@ impl Board {
             );
         } else if o.action == Action::Save {
             let mut r = self.store.save(&self.running);
-            if let (Ok(_), Some(path)) = (r, &self.flash_file) {
-                if let Err(e) = write_flash(path, self.store.flash().bytes()) {
-                    eprintln!("host-sim serve: cannot write {}: {e}", path.display());
-                    r = Err(liftfw::config::store::StoreError::Flash(
-                        liftfw::config::store::FlashErrorKind::Other,
-                    ));
-                }
+            if r.is_ok() && !self.write_file() {
+                r = Err(liftfw::config::store::StoreError::Flash(
+                    liftfw::config::store::FlashErrorKind::Other,
+                ));
             }
             // A String sink never refuses text.
             let _ = service::write_saved(&mut out, r);
@@ -215,12 +296,15 @@ impl Board {
         out
     }
 
+    /// Power off and on: the plant stays where it is (a lead screw is self-locking), the
+    /// controller boots from what the flash holds, the parked position included: after a
+    /// power cut during a motion it boots unhomed, as the board does.
     fn power_cycle(&mut self) -> io::Result<String> {
-        let position = self.controller.position_counts();
         let old = std::mem::replace(&mut self.store, new_store(Flash::new())?);
         let mut flash = old.into_flash();
         flash.reboot();
-        let (board, msg) = Board::boot(flash, position, self.flash_file.take())?;
+        let here = self.controller.position_counts();
+        let (board, msg, _) = Board::boot(flash, here, self.flash_file.take())?;
         *self = board;
         Ok(msg)
     }
@@ -232,10 +316,13 @@ pub struct Server {
     tx: Sender<Msg>,
     stop: Arc<AtomicBool>,
     truth: Arc<Mutex<Truth>>,
-    streams: Arc<Mutex<Vec<TcpStream>>>,
+    /// A clone of each open client's stream (to shut them at the end), by connection number;
+    /// its thread removes it when the client goes, so a closed connection keeps no descriptor.
+    streams: Arc<Mutex<HashMap<u64, TcpStream>>>,
     sim: Option<JoinHandle<()>>,
     accept: Option<JoinHandle<()>>,
     boot: String,
+    fault_addr: Option<SocketAddr>,
     #[cfg(unix)]
     pty: Option<pty::Pty>,
 }
@@ -244,27 +331,38 @@ impl Server {
     /// Boot the board and start serving; returns once the port listens.
     pub fn start(args: &ServeArgs) -> io::Result<Server> {
         let flash = read_flash(args.flash.as_deref())?;
-        let mut sc = SimConfig::paper(Lubricant::from(args.lubricant).law(), 0.3, args.start_deg);
-        sc.plant.load = args.load_kg;
-        sc.dt = args.dt;
-        sc.duration = 1e9;
-        sc.record_rate = 0.0;
-        sc.seed = args.seed;
         let probe = Controller::new(ValidatedConfig::factory().get(), 0)
             .map_err(|e| io::Error::other(format!("{e}")))?;
-        let h = crate::physics::Geometry::paper().height(args.start_deg.to_radians());
+        let h = crate::twin::physics::Geometry::paper().height(args.start_deg.to_radians());
         let position = probe
             .estimator()
             .geometry()
             .counts_for_height(Metres::from_f64(h))
             .ok_or_else(|| io::Error::other("start angle outside the mechanism"))?;
-        let (board, boot) = Board::boot(flash, position, args.flash.clone())?;
+        let (board, boot, parked) = Board::boot(flash, position, args.flash.clone())?;
+        // A lift parked in a previous run stands where it parked (the flash says where).
+        let start_deg = match parked {
+            Some(p) => {
+                let h = board.controller.estimator().geometry().pose(p).height;
+                crate::twin::physics::Geometry::paper()
+                    .alpha_of_height(h.to_f64())
+                    .to_degrees()
+            }
+            None => args.start_deg,
+        };
+        let mut sc = SimConfig::paper(Lubricant::from(args.lubricant).law(), 0.3, start_deg);
+        sc.plant.load = args.load_kg;
+        sc.dt = args.dt;
+        sc.duration = 1e9;
+        sc.record_rate = 0.0;
+        sc.seed = args.seed;
         let board = Arc::new(Mutex::new(board));
         let in_loop = Arc::clone(&board);
         let driver = Driver::Custom(Box::new(move |t: f64, inputs| {
             let now = Instant((t * 1e6).round() as u64 as u32);
-            lock(&in_loop).controller.step(now, inputs).bridge
+            lock(&in_loop).tick(now, inputs)
         }));
+        sc.faults = Plan::new(&args.fault).map_err(io::Error::other)?;
         let mut sim = Sim::new(sc, driver).map_err(|e| io::Error::other(e.to_string()))?;
 
         let listener = TcpListener::bind(args.listen)?;
@@ -279,7 +377,7 @@ impl Server {
             current: r.current,
             friction_torque: r.friction_torque,
         }));
-        let streams = Arc::new(Mutex::new(Vec::<TcpStream>::new()));
+        let streams = Arc::new(Mutex::new(HashMap::<u64, TcpStream>::new()));
 
         let speed = args.speed;
         let steps_per_ms = (1e-3 / args.dt).round().max(1.0) as u64;
@@ -305,21 +403,53 @@ impl Server {
         let accept = thread::Builder::new()
             .name("host-sim console".into())
             .spawn(move || {
-                for conn in listener.incoming() {
+                for (id, conn) in (0u64..).zip(listener.incoming()) {
                     if acc_stop.load(Ordering::SeqCst) {
                         break;
                     }
                     let Ok(stream) = conn else { continue };
                     if let Ok(clone) = stream.try_clone() {
-                        lock(&acc_streams).push(clone);
+                        lock(&acc_streams).insert(id, clone);
                     }
                     let tx = acc_tx.clone();
                     let _ = stream.set_nodelay(true);
-                    let _ = thread::Builder::new()
+                    let mine = Arc::clone(&acc_streams);
+                    let spawned = thread::Builder::new()
                         .name("host-sim connection".into())
-                        .spawn(move || connection(stream, &tx));
+                        .spawn(move || {
+                            connection(stream, &tx);
+                            // The client left: drop the clone (its descriptor) too.
+                            lock(&mine).remove(&id);
+                        });
+                    if spawned.is_err() {
+                        lock(&acc_streams).remove(&id);
+                    }
                 }
             })?;
+        let fault_addr = match args.fault_listen {
+            Some(a) => {
+                let l = TcpListener::bind(a)?;
+                let addr = l.local_addr()?;
+                let tx = tx.clone();
+                let stop = Arc::clone(&stop);
+                thread::Builder::new()
+                    .name("host-sim faults".into())
+                    .spawn(move || {
+                        for conn in l.incoming() {
+                            if stop.load(Ordering::SeqCst) {
+                                break;
+                            }
+                            let Ok(s) = conn else { continue };
+                            let tx = tx.clone();
+                            let _ = thread::Builder::new()
+                                .name("host-sim fault client".into())
+                                .spawn(move || fault_client(s, &tx));
+                        }
+                    })?;
+                Some(addr)
+            }
+            None => None,
+        };
         #[cfg(unix)]
         let pty = if args.pty {
             let (p, master) = pty::Pty::open()?;
@@ -344,9 +474,25 @@ impl Server {
             sim: Some(sim),
             accept: Some(accept),
             boot,
+            fault_addr,
             #[cfg(unix)]
             pty,
         })
+    }
+
+    /// Where the fault side channel listens (`--fault-listen`).
+    pub fn fault_addr(&self) -> Option<SocketAddr> {
+        self.fault_addr
+    }
+
+    /// Inject a fault `f.at` simulated seconds from now (what the side channel does).
+    pub fn inject(&self, f: Injection) -> io::Result<String> {
+        let (tx, rx) = mpsc::channel();
+        self.tx
+            .send(Msg::Inject(f, tx))
+            .map_err(|_| io::Error::other("the simulation has stopped"))?;
+        rx.recv()
+            .map_err(|_| io::Error::other("the simulation has stopped"))
     }
 
     /// The pseudo-terminal's path (`--pty`), e.g. `/dev/pts/3`.
@@ -397,9 +543,12 @@ impl Server {
 
     fn stop_all(&mut self) {
         self.stop.store(true, Ordering::SeqCst);
-        // Wake the accept loop.
+        // Wake the accept loops.
         let _ = TcpStream::connect(self.addr);
-        for s in lock(&self.streams).drain(..) {
+        if let Some(a) = self.fault_addr {
+            let _ = TcpStream::connect(a);
+        }
+        for (_, s) in lock(&self.streams).drain() {
             let _ = s.shutdown(Shutdown::Both);
         }
         for h in [self.sim.take(), self.accept.take()].into_iter().flatten() {
@@ -436,6 +585,16 @@ fn run_board(
     let wall = WallClock::now();
     while !stop.load(Ordering::SeqCst) {
         let t = sim.step_n(steps_per_ms);
+        if sim.take_watchdog_reset() {
+            // An injected hang outlasted the IWDG: the board reboots, fault latched.
+            let mut b = lock(board);
+            match b.power_cycle() {
+                Ok(msg) => eprintln!("host-sim serve: watchdog reset at {t:.3} s; {msg}"),
+                Err(e) => eprintln!("host-sim serve: watchdog reset failed: {e}"),
+            }
+            b.controller
+                .report_watchdog_reset(Instant((t * 1e6).round() as u64 as u32));
+        }
         let r = sim.record(t);
         *lock(truth) = Truth {
             t,
@@ -448,6 +607,14 @@ fn run_board(
             match msg {
                 Msg::Feed(line, reply) => {
                     let out = lock(board).line(line.as_deref());
+                    let _ = reply.send(out);
+                }
+                Msg::Inject(mut f, reply) => {
+                    f.at += t;
+                    let out = match sim.inject(f) {
+                        Ok(()) => format!("ok: {f} (simulated time now {t:.3} s)"),
+                        Err(e) => format!("error: {e}"),
+                    };
                     let _ = reply.send(out);
                 }
                 Msg::PowerCycle(reply) => {
@@ -498,6 +665,40 @@ fn connection(mut stream: impl Read + Write, tx: &Sender<Msg>) {
     }
 }
 
+/// One client of the fault side channel: a fault per line, `ok: …` or `error: …` back.
+fn fault_client(stream: TcpStream, tx: &Sender<Msg>) {
+    let Ok(mut w) = stream.try_clone() else {
+        return;
+    };
+    let mut r = io::BufReader::new(stream);
+    let mut line = String::new();
+    loop {
+        line.clear();
+        match io::BufRead::read_line(&mut r, &mut line) {
+            Ok(0) | Err(_) => return,
+            Ok(_) => {}
+        }
+        let text = line.trim();
+        if text.is_empty() {
+            continue;
+        }
+        let reply = match text.parse::<Injection>() {
+            Ok(f) => {
+                let (rtx, rrx) = mpsc::channel();
+                if tx.send(Msg::Inject(f, rtx)).is_err() {
+                    return;
+                }
+                rrx.recv()
+                    .unwrap_or_else(|_| "error: the simulation has stopped".into())
+            }
+            Err(e) => format!("error: {e}"),
+        };
+        if w.write_all(format!("{reply}\r\n").as_bytes()).is_err() {
+            return;
+        }
+    }
+}
+
 /// `host-sim serve`: boot, print where the console listens, serve until killed.
 pub fn main(args: &ServeArgs) -> Result<(), Box<dyn std::error::Error>> {
     let server = Server::start(args)?;
@@ -515,6 +716,14 @@ pub fn main(args: &ServeArgs) -> Result<(), Box<dyn std::error::Error>> {
             None => "flash kept in memory only".to_string(),
         }
     );
+    if let Some(a) = server.fault_addr() {
+        println!(
+            "host-sim serve: fault side channel on tcp://{a} (one KIND@DELAY[:SIZE][+DURATION] per \
+             line, e.g. `echo encoder-loss@0.5 | nc {} {}`)",
+            a.ip(),
+            a.port()
+        );
+    }
     if let Some(p) = server.pty_path() {
         println!(
             "host-sim serve: console also on the pseudo-terminal {} (liftctl -p {})",

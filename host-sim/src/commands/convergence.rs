@@ -2,9 +2,9 @@
 
 use super::{CaseArgs, Direction};
 use crate::cli::Lube;
-use crate::physics::Lubricant;
 use crate::studies::convergence::{convergence, tolerance_convergence};
 use crate::studies::paper;
+use crate::twin::physics::Lubricant;
 use rayon::prelude::*;
 
 #[derive(clap::Args, Debug)]

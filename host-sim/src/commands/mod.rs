@@ -1,7 +1,7 @@
 //! The `host-sim` command line: one file per subcommand, each with its arguments and its `run`.
 
 use crate::cli::Lube;
-use crate::sim::Stepping;
+use crate::twin::sim::Stepping;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -9,6 +9,7 @@ use std::process::ExitCode;
 
 mod ballscrew;
 mod convergence;
+mod firmware;
 mod lift;
 mod paper;
 mod run;
@@ -125,7 +126,7 @@ impl SimArgs {
         match tol {
             Some(tol) => Stepping::Adaptive {
                 tol,
-                h_max: h_max.unwrap_or(crate::sim::ADAPTIVE_H_MAX),
+                h_max: h_max.unwrap_or(crate::twin::sim::ADAPTIVE_H_MAX),
             },
             None => Stepping::Fixed,
         }

@@ -2,9 +2,9 @@
 //! reproduction report.
 
 use super::{repo_doc, SimArgs};
-use crate::physics::Lubricant;
-use crate::plant::StructureDamping;
 use crate::studies::paper::{self, plots, CaseResult, MatrixConfig, Steady};
+use crate::twin::physics::Lubricant;
+use crate::twin::plant::StructureDamping;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use std::error::Error;
@@ -71,7 +71,7 @@ pub fn run(a: &Args) -> Result<(), Box<dyn Error>> {
     std::fs::create_dir_all(&a.out)?;
     let plots = !a.no_plots;
     if plots {
-        match plots::init_font() {
+        match crate::plotting::init_font() {
             Ok(p) => println!("font        {}", p.display()),
             Err(e) => return Err(e.into()),
         }

@@ -3,9 +3,9 @@
 
 use super::{CaseArgs, Direction, SimArgs};
 use crate::cli::Lube;
-use crate::physics::Lubricant;
-use crate::plant::{SpeedProfile, StructureDamping};
-use crate::sim::{Driver, OpenLoopDuty, Sim, SimConfig, Stepping};
+use crate::twin::physics::Lubricant;
+use crate::twin::plant::{SpeedProfile, StructureDamping};
+use crate::twin::sim::{Driver, OpenLoopDuty, Sim, SimConfig, Stepping};
 use clap::ValueEnum;
 use serde::Deserialize;
 use std::error::Error;
@@ -46,6 +46,8 @@ struct Scenario {
     control_hz: f64,
     record_hz: f64,
     csv: Option<PathBuf>,
+    /// Faults to inject in closed mode ([`crate::twin::inject`]), e.g. ["jam@2:800"].
+    faults: Vec<String>,
 }
 
 impl Default for Scenario {
@@ -59,16 +61,17 @@ impl Default for Scenario {
             duration: 5.0,
             cx: None,
             mode: Mode::Paper,
-            cruise: crate::plant::profile::PAPER_CRUISE,
+            cruise: crate::twin::plant::profile::PAPER_CRUISE,
             duty: 1.0,
             seed: 0,
             noise: 1.0,
-            dt: crate::sim::DEFAULT_DT,
+            dt: crate::twin::sim::DEFAULT_DT,
             tol: None,
             h_max: None,
             control_hz: 1000.0,
             record_hz: 10_000.0,
             csv: None,
+            faults: Vec::new(),
         }
     }
 }
@@ -79,7 +82,8 @@ impl Default for Scenario {
 lubricant = \"ptfe\"      # dry | ptfe | lithium\n  start_deg = 45.0\n  direction = \"down\"      # up | down\n  \
 pin_friction = 0.3\n  load_kg = 800.0\n  duration = 2.0\n  cx = 1e6                # constant structure damping, kg/s\n  \
 mode = \"paper\"          # paper | duty | closed\n  cruise = 15.0\n  duty = 0.8\n  seed = 7\n  noise = 1.0\n  \
-dt = 2e-6\n  tol = 3e-4              # adaptive steps (paper mode)\n  h_max = 1e-3\n  control_hz = 1000.0\n  record_hz = 10000.0\n  csv = \"trace.csv\""
+dt = 2e-6\n  tol = 3e-4              # adaptive steps (paper mode)\n  h_max = 1e-3\n  control_hz = 1000.0\n  record_hz = 10000.0\n  csv = \"trace.csv\"\n  \
+faults = [\"supply-sag@1:9.5+0.5\", \"jam@2\"]   # closed mode: KIND@TIME[:SIZE][+DURATION]"
 )]
 pub struct Args {
     /// Read the scenario from a TOML file first (see below); flags given as well win.
@@ -113,6 +117,10 @@ pub struct Args {
     /// Write the ground-truth trace as CSV.
     #[arg(long, value_name = "PATH")]
     csv: Option<PathBuf>,
+    /// Closed mode: inject a fault, KIND@TIME[:SIZE][+DURATION] (see `host-sim lift --help`);
+    /// repeat for more; added to the file's `faults`.
+    #[arg(long, value_name = "FAULT")]
+    fault: Vec<String>,
 }
 
 impl Args {
@@ -157,6 +165,7 @@ impl Args {
         if self.csv.is_some() {
             s.csv.clone_from(&self.csv);
         }
+        s.faults.extend(self.fault.iter().cloned());
         Ok(s)
     }
 }
@@ -181,6 +190,15 @@ pub fn run(a: &Args) -> Result<(), Box<dyn Error>> {
     cfg.sensors.supply_noise *= sc.noise;
     cfg.control_rate = sc.control_hz;
     cfg.record_rate = if sc.csv.is_some() { sc.record_hz } else { 0.0 };
+    let faults = sc
+        .faults
+        .iter()
+        .map(|f| f.parse::<crate::twin::inject::Injection>())
+        .collect::<Result<Vec<_>, _>>()?;
+    if !faults.is_empty() && sc.mode != Mode::Closed {
+        return Err("faults are injected into closed-loop runs: add --mode closed".into());
+    }
+    cfg.faults = crate::twin::inject::Plan::new(&faults)?;
     let sign = sc.direction.sign();
     let driver = match sc.mode {
         Mode::Paper => Driver::Paper(SpeedProfile::paper(sign * sc.cruise.abs())),

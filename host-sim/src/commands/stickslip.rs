@@ -14,6 +14,19 @@ pub struct Args {
     /// Seed of the scenario generator.
     #[arg(long, default_value_t = 7)]
     seed: u64,
+    /// Score several generator seeds pooled, e.g. `1-20` (instead of `--seed`): one line per
+    /// seed, the tuning and held-out pools and every scored error.
+    #[arg(long)]
+    seeds: Option<String>,
+    /// The tuning seeds among `--seeds` (reported apart from the held-out pool), e.g. `1-5`.
+    #[arg(long, default_value = "")]
+    tune: String,
+    /// Run only these scenarios of the set, `seed#id` (e.g. `4#29,5#42`): to look at a few.
+    #[arg(long)]
+    only: Option<String>,
+    /// Also run every scenario at this step and compare the truth's labels (step independence).
+    #[arg(long)]
+    compare_dt: Option<f64>,
     /// Run the regression test's small set instead.
     #[arg(long)]
     quick: bool,
@@ -24,7 +37,7 @@ pub struct Args {
     #[arg(long)]
     mitigation: bool,
     /// Integration step, s.
-    #[arg(long, default_value_t = 4e-6)]
+    #[arg(long, default_value_t = score::SCORE_DT)]
     dt: f64,
     /// Override the detector's slip threshold `stickslip.drop`, N·m (for tuning).
     #[arg(long)]
@@ -42,10 +55,24 @@ pub fn run(a: &Args) -> Result<(), Box<dyn Error>> {
         drop_threshold: a.drop,
         ..ScoreConfig::default()
     };
-    let set = if a.quick {
+    let seeds = match &a.seeds {
+        Some(s) => score::parse_seeds(s)?,
+        None => vec![a.seed],
+    };
+    let tune = score::parse_seeds(&a.tune)?;
+    let set: Vec<score::Scenario> = if a.quick {
         score::quick_set()
     } else {
-        score::scenario_set(a.scenarios, a.seed)
+        seeds
+            .iter()
+            .flat_map(|&sd| score::scenario_set(a.scenarios, sd))
+            .filter(|s| {
+                a.only.as_ref().is_none_or(|o| {
+                    o.split(',')
+                        .any(|x| x.trim() == format!("{}#{}", s.set, s.id))
+                })
+            })
+            .collect()
     };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.jobs.unwrap_or(0))
@@ -54,7 +81,7 @@ pub fn run(a: &Args) -> Result<(), Box<dyn Error>> {
     println!(
         "host-sim stickslip: {} scenarios (seed {}), dt = {:.0e} s; episode = ≥ {} cycles of drop ≥ {} N·m and period ≥ {} ms, breakaways ≤ {} s apart, ≥ {} ms long",
         set.len(),
-        a.seed,
+        a.seeds.clone().unwrap_or_else(|| a.seed.to_string()),
         sc.dt,
         t.min_cycles,
         t.min_drop,
@@ -68,6 +95,17 @@ pub fn run(a: &Args) -> Result<(), Box<dyn Error>> {
         for r in &results {
             println!("{}", score::run_line(r));
         }
+    }
+    if let Some(dt2) = a.compare_dt {
+        let sc2 = ScoreConfig { dt: dt2, ..sc };
+        let other: Vec<score::RunResult> =
+            pool.install(|| set.par_iter().map(|s| score::run(s, &sc2)).collect());
+        println!("{}", score::step_report(&results, &other, (sc.dt, dt2)));
+    }
+    if a.seeds.is_some() {
+        print!("{}", score::pooled_report(&results, &tune));
+        println!("wall time   {:.1} s", wall.elapsed().as_secs_f64());
+        return Ok(());
     }
     let s = score::score(&results);
     println!("{s}");

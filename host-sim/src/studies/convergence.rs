@@ -2,8 +2,8 @@
 //! halving steps, must change by less than 1 % from one step to the next. The same study over
 //! the tolerance of the adaptive option ([`tolerance_convergence`]).
 
-use crate::physics::FrictionLaw;
-use crate::sim::{paper_run_with, Stepping, Summary, ADAPTIVE_H_MAX, DEFAULT_DT};
+use crate::twin::physics::FrictionLaw;
+use crate::twin::sim::{paper_run_with, Stepping, Summary, ADAPTIVE_H_MAX, DEFAULT_DT};
 use std::fmt;
 
 /// One level of the study.

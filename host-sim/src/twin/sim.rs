@@ -14,17 +14,17 @@
 //! positive while stuck) the event time is bracketed by regula falsi on the step length, the
 //! step is cut there, the phase switched and the rest of the step taken in the new phase.
 
-use crate::physics::FrictionLaw;
-use crate::plant::kernel::Kernel;
-use crate::plant::screw_nut::Loads;
-use crate::plant::{
+use crate::twin::physics::FrictionLaw;
+use crate::twin::plant::kernel::Kernel;
+use crate::twin::plant::screw_nut::Loads;
+use crate::twin::plant::{
     drive::coast_clamp, BridgeState, DriveParams, Phase, ScrewNut, SensorParams, Sensors,
     SpeedProfile,
 };
-use crate::solver::{
+use crate::twin::solver::{
     bracket_root, rk23_embedded, rk23_step, rk23_step_from, OdeState, StepControl,
 };
-use crate::trace::{Energy, PhaseChange, Record, Trace};
+use crate::twin::trace::{Energy, PhaseChange, Record, Trace};
 use liftfw::control::{Bridge, Controller, Inputs};
 use liftfw::units::Instant;
 use std::cell::Cell;
@@ -203,7 +203,9 @@ pub struct SimConfig {
     pub window: (f64, f64),
     /// A spring-applied holding brake on the screw, driven by the board's brake output
     /// ([`Driver::Core`], [`Driver::Board`]); none by default.
-    pub brake: Option<crate::plant::BrakeParams>,
+    pub brake: Option<crate::twin::plant::BrakeParams>,
+    /// Faults injected into a closed-loop run ([`crate::twin::inject`]); none by default.
+    pub faults: crate::twin::inject::Plan,
 }
 
 /// Default base step, s (docs/plant.md, convergence study).
@@ -233,6 +235,7 @@ impl SimConfig {
             seed: 0,
             window: (0.999, 1.0),
             brake: None,
+            faults: crate::twin::inject::Plan::default(),
         }
     }
 }
@@ -393,15 +396,23 @@ pub struct Sim {
     late: (f64, f64),
     /// The holding brake's engagement, 0 (released) … 1 (engaged; it starts unpowered).
     brake_level: f64,
+    /// Injected faults' state: the count a lost encoder froze at, the start of a control
+    /// task's hang, the watchdog resets not yet taken by the caller, the overload applied.
+    frozen_encoder: Option<u16>,
+    stall_since: Option<f64>,
+    watchdog_resets: u32,
+    extra_load: f64,
+    /// The configured battery voltage (a sag or surge replaces it while it lasts).
+    battery: f64,
 }
 
 struct Eval {
     deriv: State,
     theta_i: f64,
     t_c: f64,
-    mech: crate::plant::screw_nut::Mechanics,
-    loads: crate::plant::screw_nut::Loads,
-    drive: crate::plant::drive::DriveRates,
+    mech: crate::twin::plant::screw_nut::Mechanics,
+    loads: crate::twin::plant::screw_nut::Loads,
+    drive: crate::twin::plant::drive::DriveRates,
 }
 
 impl Sim {
@@ -455,6 +466,11 @@ impl Sim {
             evaluations: Cell::new(0),
             late: (0.0, 0.0),
             brake_level: 1.0,
+            frozen_encoder: None,
+            stall_since: None,
+            watchdog_resets: 0,
+            extra_load: 0.0,
+            battery: cfg.drive.battery_voltage,
             cfg,
             driver,
         })
@@ -890,9 +906,19 @@ impl Sim {
             .bus_voltage;
         let sensing = matches!(self.bridge, BridgeState::Drive(d) if d != 0.0);
         let h = self.cfg.plant.loads(y.theta).height;
-        let inputs = self
+        let mut inputs = self
             .sensors
             .sample(t, y.motor_angle, y.current, bus, sensing, h);
+        let mut jam = 0.0;
+        if !self.cfg.faults.is_empty() {
+            jam = self.plant_faults(t);
+            self.cfg
+                .faults
+                .inputs(t, &mut inputs, &mut self.frozen_encoder);
+            if self.control_hangs(t) {
+                return;
+            }
+        }
         let (cmd, release) = match &mut self.driver {
             Driver::Paper(_) => return,
             Driver::Core(c) => {
@@ -909,10 +935,16 @@ impl Sim {
             }
         };
         self.bridge = BridgeState::from_command(cmd);
-        if let Some(b) = self.cfg.brake {
-            self.brake_level = b.step(self.brake_level, release, 1.0 / self.cfg.control_rate);
+        if jam > 0.0 || self.cfg.brake.is_some() || !self.cfg.faults.is_empty() {
+            if let Some(b) = self.cfg.brake {
+                self.brake_level = b.step(self.brake_level, release, 1.0 / self.cfg.control_rate);
+            }
+            let brake = self
+                .cfg
+                .brake
+                .map_or(0.0, |b| self.brake_level * b.holding_torque);
             self.kernel.plant.screw.support_torque =
-                self.cfg.plant.screw.support_torque + self.brake_level * b.holding_torque;
+                self.cfg.plant.screw.support_torque + brake + jam;
             // A stuck screw the brake no longer holds breaks away now.
             if self.phase == Phase::Stick {
                 let next = self.next_phase(t, &self.state);
@@ -928,6 +960,65 @@ impl Sim {
                 }
             }
         }
+    }
+
+    /// The plant under the injected faults at `t` (battery, load); returns a jam's torque.
+    fn plant_faults(&mut self, t: f64) -> f64 {
+        let p = self.cfg.faults.plant(t, self.battery);
+        self.cfg.drive.battery_voltage = p.battery;
+        if p.extra_load != self.extra_load {
+            self.extra_load = p.extra_load;
+            let mut plant = self.kernel.plant;
+            plant.load = self.cfg.plant.load + p.extra_load;
+            self.kernel = Kernel::new(plant);
+            let th = self.stuck_loads.0;
+            self.stuck_loads = (th, self.kernel.loads(th));
+        }
+        p.jam_torque
+    }
+
+    /// A hung control task (`watchdog-stall`): the outputs stay as they are; past the board's
+    /// IWDG period the board resets (the bridge floats: coast) and reboots with the
+    /// `watchdog reset` fault latched ([`Driver::Core`]; other drivers take the reset with
+    /// [`Sim::take_watchdog_reset`]). True while the tick is withheld.
+    fn control_hangs(&mut self, t: f64) -> bool {
+        if !self.cfg.faults.stalled(t) {
+            self.stall_since = None;
+            return false;
+        }
+        let since = *self.stall_since.get_or_insert(t);
+        if t - since < crate::twin::inject::WATCHDOG_S {
+            return true;
+        }
+        // Reset: the pins float, the firmware boots again, the hang is over.
+        self.bridge = BridgeState::Coast;
+        self.stall_since = None;
+        if let Driver::Core(c) = &mut self.driver {
+            let pos = c.position_counts();
+            if let Ok(mut n) = liftfw::control::Controller::new(c.config(), pos) {
+                n.report_watchdog_reset(Instant((t * 1e6).round() as u64 as u32));
+                **c = n;
+            }
+        } else {
+            self.watchdog_resets += 1;
+        }
+        // The rest of this stall is the reboot: the next ticks run the new controller.
+        self.cfg.faults.end_stall(t);
+        false
+    }
+
+    /// Watchdog resets an injected stall caused since the last call, for a driver that owns its
+    /// controller ([`Driver::Custom`], [`Driver::Board`]): reboot it and call
+    /// `report_watchdog_reset`.
+    pub fn take_watchdog_reset(&mut self) -> bool {
+        let r = self.watchdog_resets > 0;
+        self.watchdog_resets = 0;
+        r
+    }
+
+    /// Add a fault to a run under way (`host-sim serve`'s side channel).
+    pub fn inject(&mut self, f: crate::twin::inject::Injection) -> Result<(), String> {
+        self.cfg.faults.push(f)
     }
 
     /// Live stepping (`host-sim serve`): advances `n` base steps from where the previous call

@@ -1,6 +1,6 @@
 //! Ground truth recorded for every run, and its CSV export.
 
-use crate::plant::{Flank, Phase};
+use crate::twin::plant::{Flank, Phase};
 use std::io::{self, Write};
 
 /// One sample of the plant's true state (SI units; angles in rad, α in degrees for reading).
@@ -107,7 +107,7 @@ impl Energy {
 }
 
 /// A change of the contact's stick/slip phase, located by the solver's event search (to
-/// 10⁻⁶ of a step): the ground truth the stick-slip labels are built from (`crate::truth`).
+/// 10⁻⁶ of a step): the ground truth the stick-slip labels are built from (`crate::twin::truth`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PhaseChange {
     /// Time of the event, s.

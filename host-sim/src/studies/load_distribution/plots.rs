@@ -2,7 +2,7 @@
 //! (plotters bitmap backend, the same font lookup).
 
 use super::study::{Study, BALL33};
-use crate::studies::paper::plots::{init_font, range, FONT};
+use crate::plotting::{init_font, range, FONT};
 use plotters::prelude::*;
 use std::error::Error;
 use std::path::Path;

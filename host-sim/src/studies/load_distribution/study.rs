@@ -3,7 +3,7 @@
 
 use super::newton::{LoadCase, SolveError, Solver};
 use super::{random_errors, AngleModel, BallScrew};
-use crate::physics::FrictionLaw;
+use crate::twin::physics::FrictionLaw;
 use std::fmt::Write as _;
 
 /// What the study runs.

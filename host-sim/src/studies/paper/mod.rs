@@ -6,11 +6,11 @@
 //! write the tables and the claim-by-claim comparison. The CLI (`host-sim paper`) runs the cases
 //! in parallel, writes the CSVs and draws the plots ([`plots`]).
 
-use crate::physics::geometry::DAMPING_TABLE;
-use crate::physics::Lubricant;
-use crate::plant::{SpeedProfile, StructureDamping};
-use crate::sim::{Driver, Sim, SimConfig, Stepping, Summary, DEFAULT_DT};
-use crate::trace::{Record, Trace};
+use crate::twin::physics::geometry::DAMPING_TABLE;
+use crate::twin::physics::Lubricant;
+use crate::twin::plant::{SpeedProfile, StructureDamping};
+use crate::twin::sim::{Driver, Sim, SimConfig, Stepping, Summary, DEFAULT_DT};
+use crate::twin::trace::{Record, Trace};
 use std::fmt::Write as _;
 
 pub mod plots;
@@ -127,7 +127,7 @@ impl Default for MatrixConfig {
     /// The paper's setting with our choices where it is silent (docs/plant.md).
     fn default() -> Self {
         Self {
-            cruise: crate::plant::profile::PAPER_CRUISE,
+            cruise: crate::twin::plant::profile::PAPER_CRUISE,
             load: 1000.0,
             duration: 5.0,
             dt: DEFAULT_DT,

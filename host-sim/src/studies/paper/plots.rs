@@ -1,72 +1,16 @@
 //! PNG plots of the paper matrix in the layout of seed 000's Figs 13–15: per case, the friction
 //! torque over the whole run, its 0.999–1 s zoom, and θ − θ_i over the zoom window.
 //!
-//! Drawn with plotters' bitmap backend and its pure-Rust `ab_glyph` text renderer, so nothing
-//! needs fontconfig or freetype; the one thing it needs is a TrueType font file, found at run
-//! time ([`init_font`]: `$HOST_SIM_FONT`, else DejaVu Sans where Debian's `fonts-dejavu-core`
-//! puts it, which `scripts/deps` installs).
+//! Drawn with plotters' bitmap backend and its pure-Rust `ab_glyph` text renderer; the font is
+//! [`crate::plotting::init_font`]'s.
 
 use super::{CaseResult, Envelope};
+use crate::plotting::{range, FONT};
 use plotters::prelude::*;
-use plotters::style::FontStyle;
 use std::error::Error;
-use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
-
-pub(crate) const FONT: &str = "sans-serif";
-
-/// Where fonts usually are: Debian/Ubuntu, Fedora, Arch, macOS, Windows.
-const FONT_PATHS: [&str; 6] = [
-    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/dejavu-sans-fonts/DejaVuSans.ttf",
-    "/usr/share/fonts/TTF/DejaVuSans.ttf",
-    "/usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf",
-    "/Library/Fonts/Arial Unicode.ttf",
-    "C:\\Windows\\Fonts\\arial.ttf",
-];
-
-/// Finds and registers the plots' font once. Errors say how to get one.
-pub fn init_font() -> Result<PathBuf, String> {
-    static FOUND: OnceLock<Result<PathBuf, String>> = OnceLock::new();
-    FOUND
-        .get_or_init(|| {
-            let candidates: Vec<PathBuf> = std::env::var_os("HOST_SIM_FONT")
-                .map(PathBuf::from)
-                .into_iter()
-                .chain(FONT_PATHS.iter().map(PathBuf::from))
-                .collect();
-            for path in candidates {
-                if let Ok(bytes) = std::fs::read(&path) {
-                    // plotters keeps fonts for the life of the program.
-                    let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-                    if plotters::style::register_font(FONT, FontStyle::Normal, bytes).is_ok() {
-                        return Ok(path);
-                    }
-                }
-            }
-            Err(
-                "no TrueType font found for the plots: run scripts/deps (installs Debian's \
-                 fonts-dejavu-core) or set HOST_SIM_FONT=/path/to/font.ttf"
-                    .to_string(),
-            )
-        })
-        .clone()
-}
+use std::path::Path;
 
 type Res = Result<(), Box<dyn Error>>;
-
-pub(crate) fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-        (lo.min(v), hi.max(v))
-    });
-    if !(lo.is_finite() && hi.is_finite()) {
-        return (-1.0, 1.0);
-    }
-    let pad = ((hi - lo) * 0.06)
-        .max(1e-6 * hi.abs().max(lo.abs()))
-        .max(1e-9);
-    (lo - pad, hi + pad)
-}
 
 fn envelope_panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, plotters::coord::Shift>,

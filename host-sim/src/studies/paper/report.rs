@@ -3,9 +3,9 @@
 //! configuration, and filled into the template's `{{name}}` markers.
 
 use super::{find, matrix_table, parameters, CaseResult, MatrixConfig, Steady, AMPLITUDE_BLOCK};
-use crate::physics::{FrictionLaw, Geometry, Lubricant, Screw};
-use crate::plant::SpeedProfile;
-use crate::sim::Stepping;
+use crate::twin::physics::{FrictionLaw, Geometry, Lubricant, Screw};
+use crate::twin::plant::SpeedProfile;
+use crate::twin::sim::Stepping;
 use std::fmt::Write as _;
 
 /// The report's text, with `{{name}}` markers for the computed values.

@@ -1,8 +1,9 @@
-//! A spring-applied holding brake on the screw (issue 9): engaged when its coil is off. Its
-//! holding torque acts on the screw like the support friction T₀ (a Coulomb torque, so the
-//! stuck phase holds it exactly, without creep): the run loop adds `level · holding_torque`
-//! to the support torque, where the level moves linearly from 0 (released) to 1 (engaged) in
-//! `engage_s` once the coil is off and back in `release_s` once it is powered.
+//! A spring-applied holding brake on the screw (`drive.brake = spring`, for a ball screw that
+//! is not self-locking): engaged when its coil is off. Its holding torque acts on the screw
+//! like the support friction T₀ (a Coulomb torque, so the stuck phase holds it exactly,
+//! without creep): the run loop adds `level · holding_torque` to the support torque, where the
+//! level moves linearly from 0 (released) to 1 (engaged) in `engage_s` once the coil is off
+//! and back in `release_s` once it is powered.
 
 /// The brake's parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]

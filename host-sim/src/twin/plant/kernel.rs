@@ -13,9 +13,9 @@
 //! Built once per run from the configuration; it does not see later edits of the `ScrewNut`.
 
 use super::screw_nut::{Dir, Flank, Loads, Mechanics, Powers, ScrewNut, StructureDamping};
-use crate::physics::friction::Variable;
-use crate::physics::geometry::DAMPING_TABLE;
-use crate::physics::{Contact, G};
+use crate::twin::physics::friction::Variable;
+use crate::twin::physics::geometry::DAMPING_TABLE;
+use crate::twin::physics::{Contact, G};
 
 /// [`ScrewNut`] with its constant factors precomputed.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -106,7 +106,7 @@ impl Kernel {
         }
     }
 
-    /// Table 1's c_x(α) (as [`crate::physics::geometry::structure_damping`]: linear between
+    /// Table 1's c_x(α) (as [`crate::twin::physics::geometry::structure_damping`]: linear between
     /// the rows, flat outside), interpolated in radians.
     #[inline]
     fn table1(&self, alpha: f64) -> f64 {
@@ -129,7 +129,7 @@ impl Kernel {
     }
 
     /// The contact for coefficient `mu`, direction `d` (±1) and axial demand `w`
-    /// (as [`crate::physics::Screw::contact`]).
+    /// (as [`crate::twin::physics::Screw::contact`]).
     #[inline]
     fn contact(&self, mu: f64, d: f64, w: f64) -> Contact {
         let (s, c, t) = (self.sin_l, self.cos_l, self.tan_l);
@@ -294,7 +294,7 @@ impl Kernel {
             Some(r) => r,
             // Not reached for physical parameters; the reference's bracketing as a safety net.
             None => {
-                let (x, y) = crate::solver::bracket_root(
+                let (x, y) = crate::twin::solver::bracket_root(
                     &mut |r| self.static_residual(l, t_c, r),
                     -1.0,
                     1.0,
@@ -335,7 +335,7 @@ impl Kernel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physics::Lubricant;
+    use crate::twin::physics::Lubricant;
 
     fn close(a: f64, b: f64, what: &str) {
         let tol = 1e-10 * a.abs().max(b.abs()).max(1.0);

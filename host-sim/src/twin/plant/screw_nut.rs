@@ -20,7 +20,7 @@
 //! that all three are mobilised to the same fraction ρ ∈ [−1, 1] of their breakaway capacity
 //! (ρ > 0: they resist lifting), which is continuous with both breakaway points.
 
-use crate::physics::{
+use crate::twin::physics::{
     friction::FrictionLaw, geometry::structure_damping, Contact, Geometry, Screw, G,
 };
 
@@ -290,7 +290,7 @@ impl ScrewNut {
         } else if hi <= 0.0 {
             1.0
         } else {
-            let (a, b) = crate::solver::bracket_root(
+            let (a, b) = crate::twin::solver::bracket_root(
                 &mut |r| self.static_residual(l, t_c, mu0, tan_l, r),
                 -1.0,
                 1.0,

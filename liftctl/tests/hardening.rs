@@ -1,0 +1,241 @@
+//! liftctl against what a hostile user tried: control characters in arguments and files,
+//! exit codes, import oddities and replies that only look right. The simulated board (`host-sim
+//! serve`, in process) and fake boards on loopback TCP.
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
+
+use host_sim::apps::serve::{ServeArgs, Server};
+use liftfw::console::{Feed, LineBuffer};
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpListener};
+use std::process::{Command, Output};
+use std::sync::{Arc, Mutex};
+
+fn board() -> Server {
+    Server::start(&ServeArgs {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        speed: 0.0,
+        ..ServeArgs::default()
+    })
+    .unwrap()
+}
+
+struct Run {
+    code: i32,
+    out: String,
+    err: String,
+}
+
+fn liftctl(addr: SocketAddr, args: &[&str]) -> Run {
+    let Output {
+        status,
+        stdout,
+        stderr,
+    } = Command::new(env!("CARGO_BIN_EXE_liftctl"))
+        .arg("--port")
+        .arg(format!("tcp://{addr}"))
+        .args(args)
+        .env_remove("LIFTCTL_PORT")
+        .output()
+        .unwrap();
+    Run {
+        code: status.code().unwrap_or(-1),
+        out: String::from_utf8(stdout).unwrap(),
+        err: String::from_utf8(stderr).unwrap(),
+    }
+}
+
+fn temp(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("liftctl-harden-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+/// The lines a fake board received.
+type Seen = Arc<Mutex<Vec<String>>>;
+
+/// A fake board: `answer` replies to each line (its `version` first).
+fn fake(mut answer: impl FnMut(&str) -> String + Send + 'static) -> (SocketAddr, Seen) {
+    let l = TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = l.local_addr().unwrap();
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let log = Arc::clone(&seen);
+    let version = format!(
+        "liftfw console v{} firmware=0.1.0 schema={:08x}",
+        liftfw::console::service::PROTOCOL_VERSION,
+        liftfw::config::record::schema()
+    );
+    std::thread::spawn(move || {
+        for s in l.incoming() {
+            let Ok(mut s) = s else { return };
+            let mut lb = LineBuffer::new();
+            let mut buf = [0u8; 256];
+            while let Ok(n) = s.read(&mut buf) {
+                if n == 0 {
+                    break;
+                }
+                for &b in &buf[..n] {
+                    if let Feed::Line(line) = lb.feed(b) {
+                        let line = String::from_utf8_lossy(line).to_string();
+                        log.lock().unwrap().push(line.clone());
+                        let r = if line == "version" {
+                            version.clone()
+                        } else if line.is_empty() {
+                            continue;
+                        } else {
+                            answer(&line)
+                        };
+                        let _ = s.write_all(format!("{r}\r\n").as_bytes());
+                    }
+                }
+            }
+        }
+    });
+    (addr, seen)
+}
+
+#[test]
+fn control_characters_are_refused_in_every_argument_and_file_value() {
+    let server = board();
+    let a = server.addr();
+    let before = liftctl(a, &["config", "get", "sense.current_ua_per_code"]).out;
+    for args in [
+        &["config", "set", "sense.current_ua_per_code", "32\rmA"][..],
+        &["config", "get", "limits.upper\rgoto 200mm"],
+        &["config", "set", "limits.upper", "300mm\nsave"],
+        // (A NUL cannot be an argument at all: the OS refuses it.)
+        &["goto", "300mm\u{7}"],
+        &["limits", "set", "--upper", "300\u{1b}mm"],
+    ] {
+        let r = liftctl(a, args);
+        assert_eq!(r.code, 1, "{args:?}: {}{}", r.out, r.err);
+        assert!(
+            r.err.contains("control character") && r.err.contains("nothing was sent"),
+            "{args:?}: {}",
+            r.err
+        );
+    }
+    let f = temp("cr.toml");
+    std::fs::write(&f, "[sense]\ncurrent_ua_per_code = \"32\\rmA\"\n").unwrap();
+    let r = liftctl(a, &["config", "import", f.to_str().unwrap()]);
+    assert_eq!(r.code, 1, "{}", r.err);
+    assert!(r.err.contains("control character"), "{}", r.err);
+    // Nothing changed, and the lift did not move.
+    assert_eq!(
+        liftctl(a, &["config", "get", "sense.current_ua_per_code"]).out,
+        before
+    );
+    let s = liftctl(a, &["status", "--raw"]).out;
+    assert!(s.starts_with("state=idle "), "{s}");
+    server.shutdown();
+}
+
+#[test]
+fn exit_codes_are_the_readmes() {
+    let server = board();
+    let a = server.addr();
+    // Argument errors: 3 (clap's own code, 2, means "no or bad reply" here).
+    for args in [
+        &["frobnicate"][..],
+        &["goto"],
+        &["--timeout", "abc", "status"],
+    ] {
+        let r = liftctl(a, args);
+        assert_eq!(r.code, 3, "{args:?}: {}", r.err);
+    }
+    assert_eq!(liftctl(a, &["--help"]).code, 0);
+    // Timeouts that are no timeout: a local problem, said plainly.
+    for t in ["0", "1e30", "-1", "NaN", "inf"] {
+        let r = liftctl(a, &[&format!("--timeout={t}"), "status"]);
+        assert_eq!(r.code, 3, "--timeout {t}: {}", r.err);
+        assert!(r.err.contains("--timeout"), "{}", r.err);
+    }
+    // A value `config set` refuses (1) is refused alike by `config import`.
+    let r = liftctl(a, &["config", "set", "protect.overcurrent", "80A"]);
+    assert_eq!(r.code, 1, "{}", r.err);
+    let f = temp("over.toml");
+    std::fs::write(&f, "[protect]\novercurrent = \"80 A\"\n").unwrap();
+    let r = liftctl(a, &["config", "import", f.to_str().unwrap()]);
+    assert_eq!(r.code, 1, "{}", r.err);
+    // A file that is no settings file: local (3).
+    std::fs::write(&f, "not toml [").unwrap();
+    assert_eq!(
+        liftctl(a, &["config", "import", f.to_str().unwrap()]).code,
+        3
+    );
+    server.shutdown();
+}
+
+#[test]
+fn import_refuses_duplicate_tables_and_applies_a_friction_preset() {
+    let server = board();
+    let a = server.addr();
+    let f = temp("dup.toml");
+    std::fs::write(
+        &f,
+        "[LIMITS]\nupper = \"400 mm\"\n[limits]\nupper = \"380 mm\"\n",
+    )
+    .unwrap();
+    let r = liftctl(a, &["config", "import", f.to_str().unwrap()]);
+    assert_eq!(r.code, 3, "{}", r.err);
+    assert!(r.err.contains("given twice"), "{}", r.err);
+    assert!(liftctl(a, &["config", "get", "limits.upper"])
+        .out
+        .contains("410 mm"));
+    // The factory law is dry; a file naming the ptfe preset applies it.
+    std::fs::write(&f, "[friction]\nlaw = \"ptfe\"\n").unwrap();
+    let r = liftctl(a, &["config", "import", f.to_str().unwrap()]);
+    assert_eq!(r.code, 0, "{}{}", r.out, r.err);
+    assert!(!r.out.contains("already runs"), "{}", r.out);
+    assert!(liftctl(a, &["config", "get", "friction.law"])
+        .out
+        .contains("ptfe"));
+    // The preset beside explicit values of its table: which would win is unclear, refused.
+    std::fs::write(&f, "[friction]\nlaw = \"dry\"\nbase = \"0.2\"\n").unwrap();
+    assert_eq!(
+        liftctl(a, &["config", "import", f.to_str().unwrap()]).code,
+        3
+    );
+    server.shutdown();
+}
+
+#[test]
+fn replies_that_only_look_right_are_garbled() {
+    let (a, _) = fake(|line| match line {
+        "status" => "state=idle height=nanmm speed=0.00rad/s current=0.00A T_r=0.000Nm \
+                     stick_slip=no ss_amp=0.00Nm ss_episodes=0 fault=none homed=yes"
+            .into(),
+        _ => "ok: sure".into(),
+    });
+    for args in [&["status"][..], &["up"], &["stop"], &["config", "save"]] {
+        let r = liftctl(a, args);
+        assert_eq!(r.code, 2, "{args:?}: {}{}", r.out, r.err);
+        assert!(r.err.contains("garbled reply"), "{args:?}: {}", r.err);
+    }
+}
+
+#[test]
+fn ctrl_c_ends_a_wait_for_a_reply_at_once() {
+    // A board that never answers `up`; liftctl waits up to 30 s, Ctrl-C (SIGINT) after 0.3 s.
+    let (a, _) = fake(|_| String::new());
+    let (a2, _) = (a, ());
+    let child = Command::new(env!("CARGO_BIN_EXE_liftctl"))
+        .args(["--port", &format!("tcp://{a2}"), "--timeout", "30", "up"])
+        .env_remove("LIFTCTL_PORT")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    let t0 = std::time::Instant::now();
+    let pid = child.id().to_string();
+    let kill = Command::new("kill").args(["-INT", &pid]).status().unwrap();
+    assert!(kill.success());
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        t0.elapsed() < std::time::Duration::from_secs(3),
+        "took {:?}",
+        t0.elapsed()
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("interrupted (Ctrl-C)"));
+}

@@ -1,5 +1,5 @@
 //! The configuration's keys and the ranges they accept: one table, read by every validator
-//! ([`check_range`], [`Bound`]), by the settings registry (`config::settings`) and by the
+//! (`check_range`, `Bound`), by the settings registry (`config::settings`) and by the
 //! messages, so that a key or a range is written once. Also the error that names them.
 //!
 //! A range here is the text a person reads (`help <key>`, a refusal); the check that enforces
@@ -153,7 +153,7 @@ pub enum ConfigError {
 }
 
 impl ConfigError {
-    /// The message (its `Display`), written without `core::fmt`'s machinery ([`fill`]).
+    /// The message (its `Display`), written without `core::fmt`'s machinery (`text::fill`).
     pub fn write_to(&self, out: &mut dyn core::fmt::Write) -> core::fmt::Result {
         match self {
             ConfigError::OutOfRange { field, range } => fill(

@@ -7,14 +7,14 @@
 /// `n / d` for `u128` (`d = 0` gives 0), for the configuration-time arithmetic in 128 bits.
 ///
 /// One out-of-line copy on purpose: a 32-bit Arm core has no 128-bit divide and no runtime
-/// routine for it, so the compiler expands every `/` on `i128`/`u128` inline (≈ 0.3–0.5 KiB
-/// of flash each); configuration code (`Estimator::new`, `Controller::new`,
+/// routine for it, so the compiler expands every `/` on `i128`/`u128` inline (a long loop
+/// each); configuration code (`Estimator::new`, `Controller::new`,
 /// `Scale::from_ratio`, `Angle::cos_sin`) divides through this and [`div128`] instead. Never
 /// on the tick path (a call and the generic loop).
 ///
-/// Written out rather than `n / d`, whose generic expansion is 0.8 KiB: shift-and-subtract,
+/// Written out rather than `n / d`, whose generic expansion is longer: shift-and-subtract,
 /// with `d` aligned under `n` one bit at a time (a leading-zeros count and one variable 128-bit
-/// shift cost more flash than the loop), then one quotient bit per step: at most 127 + 128
+/// shift are more code than the loop), then one quotient bit per step: at most 127 + 128
 /// steps of a compare, a subtract and one-bit shifts (a few thousand instructions at worst, at
 /// configuration time), calling nothing, so it adds only its own frame to the stack of the
 /// configuration path.

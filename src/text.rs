@@ -4,8 +4,8 @@
 //! Every reply and message of the core is written with `write_str` and these few functions
 //! into a [`core::fmt::Write`] sink, never with `write!`: `write!` builds `fmt::Arguments` at
 //! each call site and links `core::fmt::write`, `Formatter::pad_integral`, the `Display` impls
-//! of the integer types and their padding code, several KiB of flash on the board for
-//! what is only integers in decimal and one hex word. The output is the same as `write!`'s
+//! of the integer types and their padding code, much code on the board for what is
+//! only integers in decimal and one hex word. The output is the same as `write!`'s
 //! (`{}`, `{:0w$}`, `{:08x}`); the tests below compare them.
 
 use crate::units::Metres;
@@ -82,7 +82,7 @@ pub fn hex8(out: &mut dyn Write, v: u32) -> fmt::Result {
 
 /// ASCII text (digits, at most 20) as it is, in one `write_str` (a sink that is full takes
 /// none of it). Copied char by char into a string rather than checked by `core::str::from_utf8`:
-/// the firmware links no `from_utf8` (≈ 0.6 KiB with its table; see [`is_utf8`]).
+/// the firmware links no `from_utf8` (and its table; see [`is_utf8`]).
 pub(crate) fn ascii(out: &mut dyn Write, digits: &[u8]) -> fmt::Result {
     let mut s = heapless::String::<20>::new();
     for &d in digits {
@@ -135,7 +135,7 @@ pub fn is_utf8(mut b: &[u8]) -> bool {
 
 /// Words of a line as the user typed them, for messages: UTF-8 kept as bytes. The console's parser checks
 /// a line with [`is_utf8`] and then works on its bytes, so the firmware links no
-/// `core::str::from_utf8` (≈ 0.6 KiB of flash with its table). Made only from a checked line or
+/// `core::str::from_utf8` (and its table). Made only from a checked line or
 /// a `&str` (`From`), so it is always valid UTF-8; `Debug` shows it as the `&str` it is.
 #[derive(Clone, Copy, PartialEq, Eq)]
 pub struct Words<'a>(pub(crate) &'a [u8]);
@@ -226,7 +226,7 @@ pub(crate) const SLOT: u8 = 0x01;
 
 /// `template` with each [`SLOT`] byte replaced by the next of `args` (a slot without an
 /// argument writes nothing). One call with one string per reply instead of a `write_str` per
-/// piece: on the board each piece cost ≈ 16 B of code, an argument ≈ half that.
+/// piece: a reply is data (its template and arguments), not a sequence of calls.
 pub(crate) fn fill(out: &mut dyn Write, template: &str, args: &[Arg<'_>]) -> fmt::Result {
     let mut args = args.iter();
     let mut rest = template;
@@ -302,7 +302,7 @@ fn write_decimal(out: &mut dyn Write, q: i64, dec: u32) -> fmt::Result {
 }
 
 /// `10^k`, `None` above `u64::MAX` (one small loop in place of `u64::pow` and
-/// `u64::checked_pow`: ≈ 0.2 KiB less on the board; at most 20 rounds).
+/// `u64::checked_pow`, for both uses; at most 20 rounds).
 pub(crate) fn ten_to(k: u32) -> Option<u64> {
     let mut p = 1u64;
     for _ in 0..k {

@@ -51,7 +51,7 @@ pub fn ms_to_ticks(ms: u32, tick_us: u32) -> u32 {
 
 /// A quantity on the defmt log: its raw bits, Q format and unit (the host tool shows
 /// `bits/2^frac unit`). One out-of-line copy for every quantity type: each type's own
-/// `defmt::write!` was ≈ 60 B of flash (the same log line either way).
+/// `defmt::write!` would repeat the same code (the same log line either way).
 #[cfg(feature = "defmt")]
 #[inline(never)]
 fn format_q(f: defmt::Formatter, bits: i32, frac: u32, unit: &'static str) {

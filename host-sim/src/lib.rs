@@ -5,13 +5,13 @@
 //!   [`plant`] (screw-nut dynamics with stick/slip, the Fig. 2 drive profile, the
 //!   motor/bridge/battery and the board's sensors), a run ([`sim`]: plant + driver — paper
 //!   profile, the liftfw core, or open-loop duty) with its ground-truth [`trace`], and the
-//!   stick-slip episodes labelled from the plant's phase log ([`truth`]).
+//!   stick-slip episodes labelled from the plant's phase log ([`truth`]); the faults a user
+//!   injects into a closed-loop run ([`inject`]: sensors, supply, jam, overload, a hung control
+//!   task).
 //! - [`apps`]: the twin in use — `host-sim lift` ([`apps::lift`]) and the simulated board with
 //!   the core's console on loopback TCP ([`apps::serve`]).
 //! - [`commands`]: the `host-sim` command line, one module per subcommand; [`plotting`]: what
 //!   the apps' and the studies' plots share (the font).
-//! - [`inject`]: faults a user injects into a closed-loop run (sensors, supply, jam, overload,
-//!   a hung control task).
 //! - [`studies`]: the twin measured — seed 000's matrix and its reproduction report
 //!   ([`studies::paper`]), the step-size convergence study ([`studies::convergence`]), the core's
 //!   stick-slip detector scored against the truth ([`studies::stickslip`]) and the ball-screw
@@ -24,9 +24,8 @@
 pub mod apps;
 pub mod cli;
 pub mod commands;
-pub mod inject;
 pub mod plotting;
 pub mod studies;
 pub mod twin;
 
-pub use twin::{physics, plant, sim, solver, trace, truth};
+pub use twin::{inject, physics, plant, sim, solver, trace, truth};

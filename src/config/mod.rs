@@ -14,6 +14,8 @@
 //! or from flash that fails either never leaves this module. docs/config-store.md describes the
 //! scheme and the power-loss argument.
 
+mod blocking;
+mod position;
 pub mod record;
 pub mod settings;
 pub mod sim_flash;
@@ -36,7 +38,7 @@ pub struct ValidatedConfig(ControlConfig);
 /// Equal when every stored setting of the registry holds the same raw bits: the same as
 /// `ControlConfig`'s field-by-field `==` (the stored settings cover every field, a
 /// compile-time test in [`settings`] guards that, and raw bits identify a field's value), as
-/// one loop over the table instead of 0.6 KiB of field compares in the firmware (the store's
+/// one loop over the table instead of a compare per field in the firmware (the store's
 /// read-back check and the console's "nothing changes" test use it).
 impl PartialEq for ValidatedConfig {
     fn eq(&self, other: &Self) -> bool {

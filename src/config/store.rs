@@ -13,19 +13,15 @@
 //! second CRC (see [`crate::config::record`]), and loading re-validates through
 //! [`ValidatedConfig::new`]. docs/config-store.md gives the whole argument.
 
+use crate::config::blocking::{read, run, Blocking};
+use crate::config::position::PositionRecord;
+pub use crate::config::position::{geometry_stamp, Parked};
 use crate::config::record::{self, DecodeError, MAX_RECORD_LEN};
-use crate::config::settings::SETTINGS;
 use crate::config::ValidatedConfig;
 use crate::control::config::ControlConfig;
-pub use crate::control::park::Parked;
 use crate::ConfigError;
-use core::future::Future;
 use core::ops::Range;
-use core::task::{Context, Poll, Waker};
-use embedded_storage::nor_flash::{
-    ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
-};
-use embedded_storage_async::nor_flash as asynch;
+use embedded_storage::nor_flash::{NorFlash, NorFlashError, NorFlashErrorKind};
 use sequential_storage::cache::{Cache, Uncached};
 use sequential_storage::map::{MapConfig, MapStorage, SerializationError, Value};
 
@@ -35,96 +31,6 @@ pub const CONFIG_KEY: u8 = 1;
 /// The map key of the position record (where the lift was parked, or that it was moving).
 pub const POSITION_KEY: u8 = 2;
 
-/// Position record: magic, sequence, kind, counts, geometry stamp, CRC-32.
-const POSITION_LEN: usize = 4 + 4 + 1 + 4 + 4 + 4;
-const POSITION_MAGIC: [u8; 4] = *b"LFPS";
-
-/// A position record as stored: the parked state, its sequence number, and the stamp of the
-/// geometry it was counted in.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct PositionRecord {
-    parked: Parked,
-    seq: u32,
-    stamp: u32,
-}
-
-impl PositionRecord {
-    fn encode(&self) -> [u8; POSITION_LEN] {
-        let mut b = [0u8; POSITION_LEN];
-        b[..4].copy_from_slice(&POSITION_MAGIC);
-        b[4..8].copy_from_slice(&self.seq.to_le_bytes());
-        let (kind, counts) = match self.parked {
-            Parked::At(c) => (0u8, c),
-            Parked::Moving => (1u8, 0),
-        };
-        b[8] = kind;
-        b[9..13].copy_from_slice(&counts.to_le_bytes());
-        b[13..17].copy_from_slice(&self.stamp.to_le_bytes());
-        let crc = record::crc32(&b[..17]);
-        b[17..21].copy_from_slice(&crc.to_le_bytes());
-        b
-    }
-
-    fn decode(b: &[u8]) -> Option<PositionRecord> {
-        let word = |i: usize| -> Option<[u8; 4]> { b.get(i..i + 4)?.try_into().ok() };
-        if b.len() != POSITION_LEN || word(0)? != POSITION_MAGIC {
-            return None;
-        }
-        if u32::from_le_bytes(word(17)?) != record::crc32(b.get(..17)?) {
-            return None;
-        }
-        let parked = match b.get(8)? {
-            0 => Parked::At(i32::from_le_bytes(word(9)?)),
-            1 => Parked::Moving,
-            _ => return None,
-        };
-        Some(PositionRecord {
-            parked,
-            seq: u32::from_le_bytes(word(4)?),
-            stamp: u32::from_le_bytes(word(13)?),
-        })
-    }
-}
-
-/// The stamp of everything that gives encoder counts their meaning (geometry and drive
-/// settings): a stored position counted under another stamp is not used.
-/// (CRC-32 of those settings' raw bits, each as 8 little-endian bytes, in registry order.)
-pub fn geometry_stamp(cfg: &ControlConfig) -> u32 {
-    let mut crc = 0xFFFF_FFFF;
-    for s in &SETTINGS[STAMPED.start..STAMPED.end] {
-        crc = record::crc32_update(crc, &s.get(cfg).to_le_bytes());
-    }
-    crc ^ 0xFFFF_FFFF
-}
-
-/// Whether [`geometry_stamp`] covers a setting: its key starts with `geometry.` or `drive.`.
-const fn stamped(key: &str) -> bool {
-    record::starts_with(key, "geometry.") || record::starts_with(key, "drive.")
-}
-
-/// The settings [`geometry_stamp`] covers, as indices into [`SETTINGS`]: they are neighbours
-/// in the registry (checked here at compile time), so the firmware compares no key strings.
-const STAMPED: Range<usize> = {
-    let mut first = 0;
-    while first < SETTINGS.len() && !stamped(SETTINGS[first].key) {
-        first += 1;
-    }
-    let mut end = first;
-    while end < SETTINGS.len() && stamped(SETTINGS[end].key) {
-        end += 1;
-    }
-    let mut i = end;
-    while i < SETTINGS.len() {
-        assert!(
-            !stamped(SETTINGS[i].key),
-            "the stamped settings must be neighbours"
-        );
-        i += 1;
-    }
-    assert!(end > first);
-    first..end
-};
-
 /// Work buffer: key + record, rounded up to the 8-byte program unit of the G4.
 const BUF_LEN: usize = (1 + MAX_RECORD_LEN).div_ceil(8) * 8;
 
@@ -132,84 +38,6 @@ const BUF_LEN: usize = (1 + MAX_RECORD_LEN).div_ceil(8) * 8;
 struct Buf([u8; BUF_LEN]);
 
 type Map<'f, F> = MapStorage<u8, Blocking<'f, F>, Cache<Uncached, Uncached, Uncached, u8>>;
-
-/// The store's blocking flash as the async `NorFlash` that `sequential-storage` works over:
-/// each operation runs when `sequential-storage` asks for it, and its future ([`Done`]) is
-/// complete from the start, so a whole map operation finishes in its first poll ([`run`]).
-/// (The board's flash is blocking anyway: programming stalls the CPU.)
-struct Blocking<'f, F>(&'f mut F);
-
-/// A flash operation that has already run, as a future: ready with its result at every poll
-/// (no state, no "polled after completion" path).
-struct Done<E>(Result<(), E>);
-
-impl<E: Copy> Future for Done<E> {
-    type Output = Result<(), E>;
-
-    fn poll(self: core::pin::Pin<&mut Self>, _: &mut Context<'_>) -> Poll<Self::Output> {
-        Poll::Ready(self.0)
-    }
-}
-
-impl<F: ErrorType> ErrorType for Blocking<'_, F> {
-    type Error = F::Error;
-}
-
-impl<F: ReadNorFlash> asynch::ReadNorFlash for Blocking<'_, F>
-where
-    F::Error: Copy,
-{
-    const READ_SIZE: usize = F::READ_SIZE;
-
-    fn read(
-        &mut self,
-        offset: u32,
-        bytes: &mut [u8],
-    ) -> impl Future<Output = Result<(), F::Error>> {
-        Done(read(self.0, offset, bytes))
-    }
-
-    fn capacity(&self) -> usize {
-        self.0.capacity()
-    }
-}
-
-/// One out-of-line read for every read `sequential-storage` makes (inlined, each call site
-/// carried the driver's bounds check and copy).
-#[inline(never)]
-fn read<F: ReadNorFlash>(flash: &mut F, offset: u32, bytes: &mut [u8]) -> Result<(), F::Error> {
-    flash.read(offset, bytes)
-}
-
-impl<F: NorFlash> asynch::NorFlash for Blocking<'_, F>
-where
-    F::Error: Copy,
-{
-    const WRITE_SIZE: usize = F::WRITE_SIZE;
-    const ERASE_SIZE: usize = F::ERASE_SIZE;
-
-    fn erase(&mut self, from: u32, to: u32) -> impl Future<Output = Result<(), F::Error>> {
-        Done(self.0.erase(from, to))
-    }
-
-    fn write(&mut self, offset: u32, bytes: &[u8]) -> impl Future<Output = Result<(), F::Error>> {
-        Done(self.0.write(offset, bytes))
-    }
-}
-
-/// Runs a `sequential-storage` operation over [`Blocking`] to its end. Its flash futures are
-/// complete when created and `sequential-storage` (8.0) awaits nothing but the flash, so the
-/// first poll returns `Ready`. Were a later version to await something else, the loop would
-/// poll again (a busy wait, as `block_on` does) rather than fail an `unwrap`.
-fn run<T>(op: impl Future<Output = T>) -> T {
-    let mut op = core::pin::pin!(op);
-    let mut cx = Context::from_waker(Waker::noop());
-    loop {
-        if let Poll::Ready(v) = op.as_mut().poll(&mut cx) {
-            return v;
-        }
-    }
-}
 
 /// Why the store could not be used.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -791,24 +619,6 @@ mod tests {
     extern crate std;
     use std::format;
     use std::string::ToString;
-
-    /// The stamp is the CRC-32 of the geometry and drive settings' bits laid end to end, as
-    /// it was computed (through a buffer) when the parked positions in the field were stored.
-    #[test]
-    fn geometry_stamp_is_the_crc_of_the_concatenated_settings() {
-        let mut cfg = ControlConfig::DEFAULT;
-        cfg.estimator.drive.counts_per_rev += 4;
-        for cfg in [ControlConfig::DEFAULT, cfg] {
-            let mut bytes = std::vec::Vec::new();
-            for s in crate::config::settings::SETTINGS.iter() {
-                if s.key.starts_with("geometry.") || s.key.starts_with("drive.") {
-                    bytes.extend_from_slice(&s.get(&cfg).to_le_bytes());
-                }
-            }
-            assert!(bytes.len() >= 8 * 8, "{} bytes", bytes.len());
-            assert_eq!(geometry_stamp(&cfg), record::crc32(&bytes));
-        }
-    }
 
     /// Every message as the `write!` form before `write_to` spelled it.
     #[test]

@@ -15,7 +15,7 @@ pub enum Request {
     Get(SettingId),
     /// `set <key> <value>`: the value already converted to the field's raw bits; apply it with
     /// [`crate::config::settings::apply`] (range and geometry checks) and reply with
-    /// [`write_set`].
+    /// [`super::write_set`].
     Set(SettingId, i64),
     /// `save`: store the running configuration in flash.
     Save,
@@ -35,7 +35,7 @@ pub enum Request {
     FaultClear,
     /// `help`, `help keys`, `help <key>`.
     Help(HelpTopic),
-    /// `version`: the protocol version, for host tools ([`service::write_version`]).
+    /// `version`: the protocol version, for host tools ([`super::service::write_version`]).
     Version,
 }
 
@@ -86,7 +86,7 @@ pub(super) const HEIGHT: Kind = Kind::Number {
 };
 
 /// Split off the first word (ASCII whitespace separated; all trimming here is ASCII: a
-/// person's terminal sends no other whitespace, and Unicode's would link its 0.5 KiB table).
+/// person's terminal sends no other whitespace, and Unicode's would link its table).
 /// An ASCII byte never splits a UTF-8 sequence: both parts stay valid UTF-8.
 fn word(s: &[u8]) -> (&[u8], &[u8]) {
     let s = s.trim_ascii_start();
@@ -141,7 +141,7 @@ pub fn parse(line: &[u8]) -> Result<Option<Request>, ParseError<'_>> {
         return Ok(None);
     }
     let (cmd, rest) = word(line);
-    // One search of a table instead of a compare per command (≈ 0.1 KiB less flash).
+    // One search of a table instead of a compare per command.
     let Some(i) = COMMAND_WORDS
         .iter()
         .position(|name| cmd.eq_ignore_ascii_case(name.as_bytes()))

@@ -43,7 +43,7 @@ fn write_unit(out: &mut dyn Write, kind: &Kind) -> fmt::Result {
                     .position(|b| b == b'=')
                     .and_then(|i| a.get(..i))
                     .unwrap_or(a);
-                // (One byte test for both: `is_ascii`'s word-wise loop is ≈ 60 B of its own.)
+                // (One byte test for both, instead of `is_ascii`'s word-wise loop as well.)
                 if s.bytes().any(|b| !b.is_ascii() || b == b'*') {
                     continue;
                 }
@@ -197,7 +197,7 @@ pub fn write_limits(out: &mut dyn Write, cfg: &ValidatedConfig) -> fmt::Result {
 }
 
 /// The reply to `help <key>`: the key, its help line (builds with the `help-text` feature:
-/// liftctl, host-sim) and what it takes. The firmware has no help lines (flash) and points to
+/// liftctl, host-sim) and what it takes. The firmware has no help lines and points to
 /// the host tool that has them instead.
 pub fn write_key_help(out: &mut dyn Write, id: SettingId) -> fmt::Result {
     key_help(out, id, id.setting().about())
@@ -220,8 +220,8 @@ fn key_help(out: &mut dyn Write, id: SettingId, about: Option<&str>) -> fmt::Res
 }
 
 /// The reply to `help`: each command with a line of description (builds with the `help-text`
-/// feature: liftctl, host-sim); the firmware lists the commands' forms only ([`COMMANDS_BRIEF`],
-/// ≈ 0.5 KiB less flash) and points to docs/console.md.
+/// feature: liftctl, host-sim); the firmware lists the commands' forms only ([`COMMANDS_BRIEF`])
+/// and points to docs/console.md.
 #[cfg(feature = "help-text")]
 const COMMANDS: &str = "commands (case-insensitive):\r\n\
              \x20 status              state, height, speed, current, T_r, stick-slip (flag, last drop, episodes), fault, ball screw: f, f_law\r\n\

@@ -305,7 +305,7 @@ pub fn format(out: &mut dyn Write, kind: &Kind, raw: i64) -> fmt::Result {
 /// rounding returns `|raw|` exactly when `−½ ≤ e < ½`.
 fn write_shortest(out: &mut dyn Write, raw: i64, frac: u32, pow10: i32) -> fmt::Result {
     // |raw|·10^pow10 by checked steps of ×10 (a 64-bit multiply by a variable with its
-    // overflow check is ≈ 60 B more on the board); `ten_to`'s limit, 10^19, kept.
+    // overflow check is more code on the board); `ten_to`'s limit, 10^19, kept.
     let Some(s) = u32::try_from(pow10)
         .ok()
         .filter(|&k| k < 20)

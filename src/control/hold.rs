@@ -30,7 +30,7 @@
 //!   only to be engaged again).
 
 use super::config::{BrakeConfig, ScrewKind};
-use super::{Bridge, Controller, FaultKind, State, ARRIVED_COUNTS};
+use super::{Bridge, Controller, FaultKind, Reading, State, ARRIVED_COUNTS};
 use crate::units::{RadiansPerSecond, Q};
 
 /// The holding brake's output and its timing.
@@ -87,23 +87,23 @@ impl BrakeState {
 impl Controller {
     /// Whether this lift must be held at rest (ball screw).
     pub(super) fn holds_actively(&self) -> bool {
-        cfg!(feature = "ball-screw") && self.cfg.screw == ScrewKind::Ball
+        cfg!(feature = "ball-screw") && self.derived.cfg.screw == ScrewKind::Ball
     }
 
     /// The bridge at rest for either screw kind: the lead screw's [`Controller::rest_bridge`],
     /// or the ball screw's active hold / fault reaction.
-    pub(super) fn at_rest_bridge(&mut self) -> Bridge {
-        let b = &self.brake;
-        if b.present && self.state != State::Fault && b.ticks >= b.delay {
-            return self.braked_rest();
+    pub(super) fn at_rest_bridge(&mut self, x: &Reading) -> Bridge {
+        let b = &self.motion.brake;
+        if b.present && self.live.state != State::Fault && b.ticks >= b.delay {
+            return self.braked_rest(x);
         }
         if !self.holds_actively() {
-            return self.rest_bridge();
+            return self.rest_bridge(x);
         }
-        match (self.state, self.fault.map(|f| f.kind)) {
-            (State::Fault, Some(FaultKind::Runaway)) => self.hold_bridge(),
+        match (self.live.state, self.live.fault.map(|f| f.kind)) {
+            (State::Fault, Some(FaultKind::Runaway)) => self.hold_bridge(x),
             (State::Fault, _) => Bridge::Brake,
-            _ => self.hold_bridge(),
+            _ => self.hold_bridge(x),
         }
     }
 
@@ -111,22 +111,23 @@ impl Controller {
     /// at rest or without a brake).
     #[inline]
     pub(super) fn brake_step(&mut self) {
-        if !self.brake.present {
+        let moving = self.live.moving();
+        let brake = &mut self.motion.brake;
+        if !brake.present {
             // `release` stays false.
             return;
         }
-        let moving = matches!(self.state, State::Lifting | State::Lowering);
         if !moving {
-            self.brake.taken = false;
-            self.brake.take_ticks = 0;
+            brake.taken = false;
+            brake.take_ticks = 0;
         }
-        let want = moving && self.brake.taken;
-        if want != self.brake.release {
-            self.brake.release = want;
-            self.brake.ticks = 0;
-            self.brake.let_go = false;
+        let want = moving && brake.taken;
+        if want != brake.release {
+            brake.release = want;
+            brake.ticks = 0;
+            brake.let_go = false;
         } else {
-            self.brake.ticks = self.brake.ticks.saturating_add(1);
+            brake.ticks = brake.ticks.saturating_add(1);
         }
     }
 
@@ -136,12 +137,12 @@ impl Controller {
     /// holds through `drive.brake_ms`. Meanwhile the profile waits, and so does the overload
     /// check's hold-off. `None` once the brake is released (or without one).
     #[inline]
-    pub(super) fn releasing_brake(&mut self) -> Option<Bridge> {
+    pub(super) fn releasing_brake(&mut self, x: &Reading) -> Option<Bridge> {
         if self.awaiting_brake() {
-            return Some(self.take_up());
+            return Some(self.take_up(x));
         }
-        if self.brake.present {
-            self.brake.wound = true;
+        if self.motion.brake.present {
+            self.motion.brake.wound = true;
         }
         None
     }
@@ -150,39 +151,42 @@ impl Controller {
     /// the profile has not started, so a STOP ends the motion at once instead of letting the
     /// brake release first.
     pub(super) fn awaiting_brake(&self) -> bool {
-        let b = &self.brake;
+        let b = &self.motion.brake;
         b.present && !(b.release && b.ticks >= b.delay)
     }
 
     /// The bridge while the brake is still engaged or releasing at the start of a motion.
     #[inline(never)]
-    fn take_up(&mut self) -> Bridge {
-        let b = self.brake;
-        self.motion_ticks = 0;
+    fn take_up(&mut self, x: &Reading) -> Bridge {
+        let b = self.motion.brake;
+        self.motion.motion_ticks = 0;
         if !self.holds_actively() {
-            self.brake.taken = true;
-            return self.rest_bridge();
+            self.motion.brake.taken = true;
+            return self.rest_bridge(x);
         }
         if !b.taken {
+            let here = self.live.enc.position();
             if b.take_ticks == 0 && !b.wound {
                 // Nothing has held the load since the boot or a fault: wind the coupling up to
                 // the model's at-rest torque (the rated load's) before the brake lets go.
                 let twist = self
+                    .derived
                     .twist_scale
-                    .apply32(self.estimate.model_screw_torque.bits());
-                self.hold_target = self.enc.position().saturating_add(twist);
+                    .apply32(x.estimate.model_screw_torque.bits());
+                self.motion.hold_target = here.saturating_add(twist);
             }
-            self.brake.take_ticks = b.take_ticks.saturating_add(1);
-            let there = self.hold_target.saturating_sub(self.enc.position()).abs()
-                <= ARRIVED_COUNTS
-                && self.estimate.screw_speed.sat_abs() < self.cfg.estimator.rest_speed;
-            self.brake.taken = there || b.take_ticks >= b.delay.saturating_mul(4);
+            self.motion.brake.take_ticks = b.take_ticks.saturating_add(1);
+            let target = self.motion.hold_target;
+            let there = target.saturating_sub(here).abs() <= ARRIVED_COUNTS
+                && x.estimate.screw_speed.sat_abs() < self.derived.cfg.estimator.rest_speed;
+            self.motion.brake.taken = there || b.take_ticks >= b.delay.saturating_mul(4);
             // The brake holds the screw: only the coupling winds up, so the position gain may
             // be 4× the hold's (16 /s).
-            let error = self.hold_target.saturating_sub(self.enc.position());
-            return Bridge::Drive(self.speed_duty(RadiansPerSecond::ZERO, error.saturating_mul(4)));
+            let error = target.saturating_sub(here);
+            let duty = self.speed_duty(x, RadiansPerSecond::ZERO, error.saturating_mul(4));
+            return Bridge::Drive(duty);
         }
-        self.hold_bridge()
+        self.hold_bridge(x)
     }
 
     /// At rest with the brake engaged: the motor lets go (the rest bridge: shorted once slow)
@@ -190,24 +194,29 @@ impl Controller {
     /// relaxed. That travel is expected: the runaway reference follows the encoder within it,
     /// so only travel beyond it (a slipping brake) counts.
     #[inline(never)]
-    fn braked_rest(&mut self) -> Bridge {
-        let enc = self.enc.position();
-        if !self.brake.let_go {
+    fn braked_rest(&mut self, x: &Reading) -> Bridge {
+        let enc = self.live.enc.position();
+        let brake = &mut self.motion.brake;
+        if !brake.let_go {
             let twist = self
+                .derived
                 .twist_scale
-                .apply32(self.estimate.measured_screw_torque.bits());
-            self.brake.let_go = true;
-            self.brake.unwind = (enc, enc.saturating_sub(twist));
+                .apply32(x.estimate.measured_screw_torque.bits());
+            brake.let_go = true;
+            brake.unwind = (enc, enc.saturating_sub(twist));
         }
-        let (from, to) = self.brake.unwind;
-        self.hold_position = enc.clamp(from.min(to), from.max(to));
-        self.rest_bridge()
+        let (from, to) = brake.unwind;
+        self.live.hold_position = enc.clamp(from.min(to), from.max(to));
+        self.rest_bridge(x)
     }
 
     /// Speed loop at zero speed with the position error to `hold_target`.
-    fn hold_bridge(&mut self) -> Bridge {
-        let error_counts = self.hold_target.saturating_sub(self.enc.position());
-        Bridge::Drive(self.speed_duty(RadiansPerSecond::ZERO, error_counts))
+    fn hold_bridge(&mut self, x: &Reading) -> Bridge {
+        let error_counts = self
+            .motion
+            .hold_target
+            .saturating_sub(self.live.enc.position());
+        Bridge::Drive(self.speed_duty(x, RadiansPerSecond::ZERO, error_counts))
     }
 
     /// Whether the speed loop's integrator is kept across a change of state: always for a

@@ -324,8 +324,8 @@ impl LubeMonitor {
 
     /// The lift came to rest (or faulted): close the motion's sums, solve a pair if there is
     /// one, and forget both directions if it stopped at the lower stop. Returns the new report
-    /// when a pair was solved. Out of line: once per motion, ≈ 1 KiB that was inlined into
-    /// the control task's poll with the tick (issue 5/8).
+    /// when a pair was solved. Out of line: it runs once per motion, and inlined it would sit in
+    /// the control task's poll with the tick.
     #[inline(never)]
     pub fn end_motion(
         &mut self,

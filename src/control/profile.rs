@@ -248,7 +248,7 @@ impl Profile {
     fn step_trapezoid(&mut self) {
         // The distance clamped to ±2^61 (2^29 counts, far beyond any lift): every sum below
         // then stays in i64 (|v|, accel ≤ cruise ≤ 2^38) in plain arithmetic, ≈ 40
-        // instructions fewer than saturating ones (issue 8). Beyond 2^61 the step is the one
+        // instructions fewer than saturating ones. Beyond 2^61 the step is the one
         // for a target 2^61 away on the same side: the same unless braking from cruise takes
         // more than 2^61 (`cruise_room` > 2^62 − 2^39: a ramp of hours), where it brakes
         // earlier (proptest against the saturating step).
@@ -478,7 +478,7 @@ mod tests {
         }
     }
 
-    /// The trapezoid step before issue 8's plain arithmetic (saturating sums).
+    /// The trapezoid step in saturating sums (the twin of the plain arithmetic).
     fn saturating_step(s: &mut Profile) {
         let d = s.target.saturating_sub(s.p);
         let dir = d.signum();

@@ -98,7 +98,7 @@ const G_N_Q16: i64 = 642_689;
 /// Interpolation error of the height allowed between nodes, a tenth of its budget
 /// (docs/model.md): 5 µm (Q24 m). R + F₀·dir: [`PoseBudget`].
 const POSE_HEIGHT_TOL: i32 = 84; // 5·10⁻⁶·2^24
-/// The operating envelope T_r's budget holds over (issue 3, docs/model.md "Pose between
+/// The operating envelope T_r's budget holds over (docs/model.md "Pose between
 /// nodes"): |θ̇| ≤ 400 rad/s, |θ̈| ≤ 2000 rad/s² (the twin proptests' range), load ≤
 /// [`LOAD_MAX`] (2× the largest rated load a configuration accepts, 5 t).
 const BUDGET_SPEED: u32 = 400;
@@ -133,8 +133,8 @@ pub(super) struct PoseBudget {
 }
 
 impl PoseBudget {
-    /// In u64 (every quantity below bounded): the configuration-time i128 forms cost 850 B of
-    /// flash.
+    /// In u64: every quantity below is bounded, and 128-bit products and quotients expand into
+    /// long code on the board.
     pub(super) fn new(screw: &ScrewModel, law: &CompiledLaw, mass_lead_q32: i32) -> PoseBudget {
         // μ_hi ≥ μ(x) for |θ̇| ≤ 400 rad/s (law input x, Q16): μ = base + amp·e^(−y) +
         // lin(min(x, x_max)) with 0 < e^(−y) ≤ 1 and lin linear, so μ ≤ max(amp, 0) +
@@ -183,8 +183,8 @@ impl PoseBudget {
 
 /// What the pose segments need of the estimator's configuration (borrowed): also usable
 /// while `Estimator::new` is still choosing the node spacing, so that the estimator is built
-/// once, in its caller's slot (a local adjusted and then moved into `Ok` was a second 1 KiB
-/// copy on the frame of every caller of `new`).
+/// once, in its caller's slot (a local adjusted and then moved into `Ok` would be a second
+/// copy of the estimator on the frame of every caller of `new`).
 pub(super) struct PoseCtx<'a> {
     pub(super) geometry: &'a Geometry,
     pub(super) two_mu_pin: Ratio,
@@ -237,7 +237,7 @@ impl Estimator {
 
     /// One piece of filling segment `j`'s slot: a node at its start or end missing from the
     /// ring computed (false), or both there and the segment filled from them (true; with k = 0
-    /// no nodes: exact). Out of line: the step's refill and `prepare` share it (flash).
+    /// no nodes: exact). Out of line: the step's refill and `prepare` share one copy.
     #[inline(never)]
     fn fill_piece(&mut self, j: i32) -> bool {
         let ctx = pose_ctx!(self);
@@ -355,7 +355,7 @@ impl PoseCtx<'_> {
     }
 
     /// The node at segment boundary `i` (count i·2^k); unusable beyond i32 counts. Out of
-    /// line: the refills and `prepare` share it (flash).
+    /// line: the refills and `prepare` share one copy.
     #[inline(never)]
     fn node_at(&self, i: i32) -> Node {
         // i·2^k in i32 iff shifting back gives i (k ≤ 16): no 64-bit shift.
@@ -387,7 +387,7 @@ impl PoseCtx<'_> {
     /// and whether it is evaluated exactly: an unusable node, a row of Table 1 strictly inside
     /// (cos α falls along the segment: c_x's slope changes there), or below count 0 (α₀ − 5° …
     /// α₀, outside the envelope the spacing is checked over). Out of line: the refill, the
-    /// slot's refill and `prepare` share it (flash).
+    /// slot's refill and `prepare` share one copy.
     #[inline(never)]
     fn fill(&self, seg: &mut PoseSegment, index: i32, n0: &Node, n1: &Node) {
         seg.index = index;
@@ -434,9 +434,9 @@ impl PoseCtx<'_> {
     /// in the count, so every segment above passes (1) and the height. 0 if none passes.
     /// Configuration time: three poses per segment walked (the default lift: 621 segments for
     /// the k it takes, ≈ 1 860 poses; a few for each larger k, which fail at α₀), at most
-    /// [`POSE_WALK_MAX`] segments in all, beyond which it returns 0. Carrying the
-    /// end node to the next segment saves a third of them but cost 100 B of flash and 320 B of
-    /// the console task's stack. Out of line: its frame is not on `new`'s while the law's table
+    /// [`POSE_WALK_MAX`] segments in all, beyond which it returns 0. The end node is
+    /// not carried to the next segment: it would save a third of them for more code and a
+    /// larger frame on the console task's stack. Out of line: its frame is not on `new`'s while the law's table
     /// is built.
     #[inline(never)]
     pub(super) fn choose_pose_shift(&mut self, budget: &PoseBudget) -> u32 {

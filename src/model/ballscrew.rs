@@ -139,7 +139,7 @@ impl BallScrewConfig {
         let arm_scale = Scale::from_ratio(num52, sa << 16);
         // Lever l/(2π): F (Q8) → N·m (Q16) is ×lever·2^8 = lead/(2^16·2π).
         let lever_scale = Scale::from_ratio(lead << 60, TWO_PI_Q60 << 16);
-        // Through the one out-of-line `div128` (an inline `/` on i128 is a 0.6 KiB loop here).
+        // Through the one out-of-line `div128` (an inline `/` on i128 expands a long division at each use).
         let lever_q24 = crate::math::div128(lead << 60, TWO_PI_Q60);
         // Helix angle β: cos β = 2π r_m / √((2π r_m)² + l²), lengths in Q32 (≤ 0.63 m).
         let circ = (rm * TWO_PI_Q60) >> 52;

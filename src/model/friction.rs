@@ -198,9 +198,8 @@ impl CompiledLaw {
     }
 
     /// [`Self::mu_unfloored`] out of line: one copy of the law's code for the callers that
-    /// run it at configuration time or as a fallback. Compiled for size (136 B instead of
-    /// 292 B for speed): on the tick only a [`MuTable`] segment marked exact and the
-    /// stick-slip detector's branch test reach it.
+    /// run it at configuration time or as a fallback: on the tick only a [`MuTable`] segment
+    /// marked exact and the stick-slip detector's branch test reach it.
     #[inline(never)]
     pub fn mu_unfloored_call(&self, input: u32) -> i32 {
         self.mu_unfloored(input)
@@ -259,8 +258,8 @@ const MU_SEGMENTS: usize = MU_TABLE_LEN - 1;
 ///
 /// A segment is only interpolated where that is exact enough ([`MuTable::build`]): the
 /// interpolation is checked against the exact law at every segment's midpoint and at the viscous
-/// term's kink (in the segment that holds it), within μ/8192 (0.012 %, the T_r budget is
-/// 0.2 %) or, where μ is near 0, the exact law's own step (|amp|·2^-16: it quantises e^(−y)'s
+/// term's kink (in the segment that holds it), within μ/8192 (0.012 %; T_r's budget is
+/// 0.2 %, docs/model.md) or, where μ is near 0, the exact law's own step (|amp|·2^-16: it quantises e^(−y)'s
 /// argument to 2^-16). The exponential term is smooth and the viscous term linear between nodes,
 /// so the midpoint is where a segment's error peaks (up to e^(rate·h) times more elsewhere in a
 /// segment of width h, where e^(−rate·s) is already below 10⁻³). The table holds the law before
@@ -289,7 +288,7 @@ impl MuTable {
     /// The table of `law`, each segment interpolated if that reproduces the law within μ/8192
     /// there and marked exact otherwise (struct docs). Configuration time: ≈ 460 evaluations of
     /// the law. Out of line, with the law behind one call ([`CompiledLaw::mu_unfloored_call`]):
-    /// flash.
+    /// one copy of the law's code.
     #[inline(never)]
     pub fn build(law: &CompiledLaw) -> MuTable {
         let mut t = MuTable {

@@ -26,8 +26,8 @@ pub const fn damping_table_cos(deg: i32) -> Ratio {
 }
 
 /// [`DAMPING_TABLE`] as [`Geometry`] interpolates it: (cos α, c_x, slope of c_x per unit of
-/// cos α below the row's, Q24), at compile time (it depends on no setting; built by every
-/// `Geometry::new` it was ≈ 0.1 KiB of code).
+/// cos α below the row's, Q24), at compile time (it depends on no setting, so no
+/// `Geometry::new` builds it).
 const DAMPING: [(Ratio, KilogramsPerSecond, i64); 3] = {
     let mut damping = [(Ratio::ZERO, KilogramsPerSecond::ZERO, 0i64); 3];
     let mut i = 0;

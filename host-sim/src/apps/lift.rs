@@ -4,10 +4,10 @@
 //! core believes (height, speed, estimated thread friction torque T_r) with the plant's
 //! truth, then the halt error and a plot of both.
 
-use crate::inject::{Injection, Plan};
-use crate::physics::{Geometry, Lubricant};
 use crate::plotting;
-use crate::sim::{Driver, Sim, SimConfig};
+use crate::twin::inject::{Injection, Plan};
+use crate::twin::physics::{Geometry, Lubricant};
+use crate::twin::sim::{Driver, Sim, SimConfig};
 use liftfw::console::service::write_fault;
 use liftfw::control::config::ControlConfig;
 use liftfw::control::{Command, Controller, Event, Refusal, State};
@@ -32,7 +32,7 @@ pub struct LiftArgs {
     pub seed: u64,
     /// Where to write the PNG (`None`: no plot).
     pub plot: Option<PathBuf>,
-    /// Faults to inject ([`crate::inject`]).
+    /// Faults to inject ([`crate::twin::inject`]).
     pub faults: Vec<Injection>,
 }
 

@@ -12,9 +12,9 @@
 //! screw is self-locking) and the encoder position, and boots a new controller from what the
 //! store loads, as the firmware does.
 
-use crate::inject::{Injection, Plan};
-use crate::physics::Lubricant;
-use crate::sim::{Driver, Sim, SimConfig};
+use crate::twin::inject::{Injection, Plan};
+use crate::twin::physics::Lubricant;
+use crate::twin::sim::{Driver, Sim, SimConfig};
 use clap::Args;
 use liftfw::config::sim_flash::{SimFlash, ERASE_SIZE};
 use liftfw::config::store::{geometry_stamp, ConfigStore, Loaded, Parked};
@@ -333,7 +333,7 @@ impl Server {
         let flash = read_flash(args.flash.as_deref())?;
         let probe = Controller::new(ValidatedConfig::factory().get(), 0)
             .map_err(|e| io::Error::other(format!("{e}")))?;
-        let h = crate::physics::Geometry::paper().height(args.start_deg.to_radians());
+        let h = crate::twin::physics::Geometry::paper().height(args.start_deg.to_radians());
         let position = probe
             .estimator()
             .geometry()
@@ -344,7 +344,7 @@ impl Server {
         let start_deg = match parked {
             Some(p) => {
                 let h = board.controller.estimator().geometry().pose(p).height;
-                crate::physics::Geometry::paper()
+                crate::twin::physics::Geometry::paper()
                     .alpha_of_height(h.to_f64())
                     .to_degrees()
             }

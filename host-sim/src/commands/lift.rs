@@ -2,7 +2,7 @@
 
 use crate::apps::lift::{self, LiftArgs};
 use crate::cli::Lube;
-use crate::physics::Lubricant;
+use crate::twin::physics::Lubricant;
 use std::error::Error;
 use std::path::PathBuf;
 
@@ -33,7 +33,7 @@ pub struct Args {
     /// current-offset@1.5:4, supply-sag@3:9.5+0.5, jam@4, overload@2:500,
     /// lower-switch-dead@0, watchdog-stall@3:0.2; repeat the flag for more.
     #[arg(long, value_name = "FAULT", value_parser = parse_fault)]
-    fault: Vec<crate::inject::Injection>,
+    fault: Vec<crate::twin::inject::Injection>,
     /// Lift with the flashed firmware instead of the core: the ELF on the emulated STM32G431
     /// (the `fwsim` program, docs/fwsim.md); without a path, scripts/fw-build's default image
     /// (built when missing). Prints the firmware's status beside the plant and the halt.
@@ -41,7 +41,7 @@ pub struct Args {
     firmware: Option<PathBuf>,
 }
 
-fn parse_fault(s: &str) -> Result<crate::inject::Injection, String> {
+fn parse_fault(s: &str) -> Result<crate::twin::inject::Injection, String> {
     s.parse()
 }
 

@@ -3,9 +3,9 @@
 
 use super::{CaseArgs, Direction, SimArgs};
 use crate::cli::Lube;
-use crate::physics::Lubricant;
-use crate::plant::{SpeedProfile, StructureDamping};
-use crate::sim::{Driver, OpenLoopDuty, Sim, SimConfig, Stepping};
+use crate::twin::physics::Lubricant;
+use crate::twin::plant::{SpeedProfile, StructureDamping};
+use crate::twin::sim::{Driver, OpenLoopDuty, Sim, SimConfig, Stepping};
 use clap::ValueEnum;
 use serde::Deserialize;
 use std::error::Error;
@@ -46,7 +46,7 @@ struct Scenario {
     control_hz: f64,
     record_hz: f64,
     csv: Option<PathBuf>,
-    /// Faults to inject in closed mode (`host_sim::inject`), e.g. ["jam@2:800"].
+    /// Faults to inject in closed mode ([`crate::twin::inject`]), e.g. ["jam@2:800"].
     faults: Vec<String>,
 }
 
@@ -61,11 +61,11 @@ impl Default for Scenario {
             duration: 5.0,
             cx: None,
             mode: Mode::Paper,
-            cruise: crate::plant::profile::PAPER_CRUISE,
+            cruise: crate::twin::plant::profile::PAPER_CRUISE,
             duty: 1.0,
             seed: 0,
             noise: 1.0,
-            dt: crate::sim::DEFAULT_DT,
+            dt: crate::twin::sim::DEFAULT_DT,
             tol: None,
             h_max: None,
             control_hz: 1000.0,
@@ -193,12 +193,12 @@ pub fn run(a: &Args) -> Result<(), Box<dyn Error>> {
     let faults = sc
         .faults
         .iter()
-        .map(|f| f.parse::<crate::inject::Injection>())
+        .map(|f| f.parse::<crate::twin::inject::Injection>())
         .collect::<Result<Vec<_>, _>>()?;
     if !faults.is_empty() && sc.mode != Mode::Closed {
         return Err("faults are injected into closed-loop runs: add --mode closed".into());
     }
-    cfg.faults = crate::inject::Plan::new(&faults)?;
+    cfg.faults = crate::twin::inject::Plan::new(&faults)?;
     let sign = sc.direction.sign();
     let driver = match sc.mode {
         Mode::Paper => Driver::Paper(SpeedProfile::paper(sign * sc.cruise.abs())),

@@ -3,7 +3,7 @@
 //! and `--firmware [ELF]`: the flashed firmware's console instead (fwsim, [`super::firmware`]).
 
 use crate::apps::serve::ServeArgs;
-use crate::physics::{Geometry, Lubricant};
+use crate::twin::physics::{Geometry, Lubricant};
 use std::error::Error;
 use std::path::PathBuf;
 

@@ -2,7 +2,7 @@
 //!
 //! Every scenario is a closed-loop run of the liftfw core (the same `Controller::step` as the
 //! board, seeing only encoder counts and ADC codes) on the float64 plant: one UP or DOWN
-//! command at 20 ms, STOP 0.3 s before the end. The truth is [`crate::truth::label`] over the
+//! command at 20 ms, STOP 0.3 s before the end. The truth is [`crate::twin::truth::label`] over the
 //! phase log up to the STOP; the detections are the core's `Event::StickSlip` onsets.
 //!
 //! Matching, per run: each episode takes the first unused onset between its first breakaway
@@ -13,9 +13,9 @@
 //! whole set; the false-alarm rate is the share of runs without any episode (smooth runs) that
 //! raised at least one onset.
 
-use crate::physics::{Geometry, Lubricant};
-use crate::sim::{Driver, Sim, SimConfig};
-use crate::truth::{self, Labels, TruthParams};
+use crate::twin::physics::{Geometry, Lubricant};
+use crate::twin::sim::{Driver, Sim, SimConfig};
+use crate::twin::truth::{self, Labels, TruthParams};
 use liftfw::control::config::ControlConfig;
 use liftfw::control::{Command, Controller, Event, Inputs, State};
 use liftfw::detect::stickslip::Reaction;
@@ -939,10 +939,10 @@ pub fn pooled_report(results: &[RunResult], tune: &[u64]) -> String {
 
 /// The labels of one set at two steps, scenario by scenario (`a` and `b` in the same order):
 /// how many scenarios agree exactly at the nominal thresholds, how many under the band rule
-/// ([`crate::truth::agree`]), one line per scenario that does not, and whether the detector's
+/// ([`crate::twin::truth::agree`]), one line per scenario that does not, and whether the detector's
 /// onsets were the same.
 pub fn step_report(a: &[RunResult], b: &[RunResult], dt: (f64, f64)) -> String {
-    use crate::truth::{agree, agree_nominal};
+    use crate::twin::truth::{agree, agree_nominal};
     use std::fmt::Write;
     let mut o = String::new();
     let (mut nominal, mut banded, mut same_onsets) = (0, 0, 0);

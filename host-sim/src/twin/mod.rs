@@ -1,5 +1,7 @@
-//! The simulated lift: physics, plant, solver, a run and its ground truth.
+//! The simulated lift: physics, plant, solver, a run, its ground truth and the faults injected
+//! into it.
 
+pub mod inject;
 pub mod physics;
 pub mod plant;
 pub mod sim;

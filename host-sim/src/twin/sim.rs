@@ -14,17 +14,17 @@
 //! positive while stuck) the event time is bracketed by regula falsi on the step length, the
 //! step is cut there, the phase switched and the rest of the step taken in the new phase.
 
-use crate::physics::FrictionLaw;
-use crate::plant::kernel::Kernel;
-use crate::plant::screw_nut::Loads;
-use crate::plant::{
+use crate::twin::physics::FrictionLaw;
+use crate::twin::plant::kernel::Kernel;
+use crate::twin::plant::screw_nut::Loads;
+use crate::twin::plant::{
     drive::coast_clamp, BridgeState, DriveParams, Phase, ScrewNut, SensorParams, Sensors,
     SpeedProfile,
 };
-use crate::solver::{
+use crate::twin::solver::{
     bracket_root, rk23_embedded, rk23_step, rk23_step_from, OdeState, StepControl,
 };
-use crate::trace::{Energy, PhaseChange, Record, Trace};
+use crate::twin::trace::{Energy, PhaseChange, Record, Trace};
 use liftfw::control::{Bridge, Controller, Inputs};
 use liftfw::units::Instant;
 use std::cell::Cell;
@@ -203,9 +203,9 @@ pub struct SimConfig {
     pub window: (f64, f64),
     /// A spring-applied holding brake on the screw, driven by the board's brake output
     /// ([`Driver::Core`], [`Driver::Board`]); none by default.
-    pub brake: Option<crate::plant::BrakeParams>,
-    /// Faults injected into a closed-loop run ([`crate::inject`]); none by default.
-    pub faults: crate::inject::Plan,
+    pub brake: Option<crate::twin::plant::BrakeParams>,
+    /// Faults injected into a closed-loop run ([`crate::twin::inject`]); none by default.
+    pub faults: crate::twin::inject::Plan,
 }
 
 /// Default base step, s (docs/plant.md, convergence study).
@@ -235,7 +235,7 @@ impl SimConfig {
             seed: 0,
             window: (0.999, 1.0),
             brake: None,
-            faults: crate::inject::Plan::default(),
+            faults: crate::twin::inject::Plan::default(),
         }
     }
 }
@@ -410,9 +410,9 @@ struct Eval {
     deriv: State,
     theta_i: f64,
     t_c: f64,
-    mech: crate::plant::screw_nut::Mechanics,
-    loads: crate::plant::screw_nut::Loads,
-    drive: crate::plant::drive::DriveRates,
+    mech: crate::twin::plant::screw_nut::Mechanics,
+    loads: crate::twin::plant::screw_nut::Loads,
+    drive: crate::twin::plant::drive::DriveRates,
 }
 
 impl Sim {
@@ -987,7 +987,7 @@ impl Sim {
             return false;
         }
         let since = *self.stall_since.get_or_insert(t);
-        if t - since < crate::inject::WATCHDOG_S {
+        if t - since < crate::twin::inject::WATCHDOG_S {
             return true;
         }
         // Reset: the pins float, the firmware boots again, the hang is over.
@@ -1017,7 +1017,7 @@ impl Sim {
     }
 
     /// Add a fault to a run under way (`host-sim serve`'s side channel).
-    pub fn inject(&mut self, f: crate::inject::Injection) -> Result<(), String> {
+    pub fn inject(&mut self, f: crate::twin::inject::Injection) -> Result<(), String> {
         self.cfg.faults.push(f)
     }
 

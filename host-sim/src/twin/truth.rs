@@ -22,8 +22,8 @@
 //!   a drop of 0.74 or 0.76 N·m, a period of 4.9 or 5.1 ms), so no step-independent truth can
 //!   draw the line sharply (docs/stick-slip.md, "Step independence").
 
-use crate::plant::Phase;
-use crate::trace::PhaseChange;
+use crate::twin::plant::Phase;
+use crate::twin::trace::PhaseChange;
 
 /// The thresholds of the definition.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -253,7 +253,7 @@ pub fn agree_nominal(a: &[Episode], b: &[Episode]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::plant::Dir;
+    use crate::twin::plant::Dir;
 
     fn ph(t: f64, phase: Phase, twist: f64) -> PhaseChange {
         PhaseChange { t, phase, twist }

@@ -36,11 +36,11 @@ pub struct Setting {
     /// Accepted range, for messages (the text of the validation that checks it).
     pub range: &'static str,
     /// One line of help, for a person on a host: only with the `help-text` feature (liftctl
-    /// and host-sim turn it on; the firmware leaves the ≈ 3 KiB of text and this field out and
+    /// and host-sim turn it on; the firmware leaves the text and this field out and
     /// its `help <key>` gives unit and range). Read it through [`Setting::about`].
     #[cfg(feature = "help-text")]
     pub(super) about: &'static str,
-    // No other field: 20 bytes per setting on the board. Whether it is stored
+    // No other field, so that the table stays small. Whether it is stored
     // ([`Setting::stored`]) and its position (the field [`Setting::get`] and [`Setting::set`]
     // reach) come from where it is in [`SETTINGS`].
 }

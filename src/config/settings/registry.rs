@@ -25,8 +25,8 @@ const LEN: Kind = Kind::Number {
 /// [`SETTINGS`] and the function that reaches a setting's field by its index (`index => key,
 /// kind, help line, [accessor]`; the key names the [`crate::keys`] constant that holds the
 /// console key and the range text). One `match` for both directions instead of a `get`
-/// and a `set` function per setting (or a `match` per direction): on the board the table is 8
-/// bytes per setting smaller and each setting's field access is one address and tag.
+/// and a `set` function per setting (or a `match` per direction): the table stays small
+/// and each setting's field access is one address and tag.
 ///
 /// The `ball_screw:` group is the ball-screw variant's (cargo feature `ball-screw`). Its entries
 /// come last, so the flash record holds their values last in either build: without the

@@ -2,7 +2,7 @@
 
 /// A unit a value is typed and shown in: its display unit, what it measures and the other
 /// suffixes it accepts, packed in one text (`display|what|suffix=power|…`; one reference per
-/// unit instead of three, and no table of (suffix, power) pairs: ≈ 0.4 KiB less flash).
+/// unit instead of three, and no table of (suffix, power) pairs).
 #[derive(Debug, PartialEq, Eq)]
 pub struct Unit {
     spec: &'static str,
@@ -100,7 +100,7 @@ macro_rules! units {
 }
 
 /// A unit by its position in [`UNITS`]; reads as the [`Unit`] (`Deref`). One byte instead of a
-/// reference keeps each registry entry 4 bytes smaller on the board.
+/// reference keeps the registry's entries small.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct UnitId(u8);
 
@@ -190,8 +190,8 @@ static CHOICES: [&[&str]; 7] = [
 pub enum Kind {
     /// `raw / 2^frac` in the field's base unit, shown as that times `10^pow10` in `unit.display`.
     Number {
-        /// Fractional bits of the field's Q format (0 for integers). (`u8`/`i8` keep each
-        /// registry entry 4 bytes smaller on the board.)
+        /// Fractional bits of the field's Q format (0 for integers). (`u8`/`i8` keep the
+        /// registry's entries small.)
         frac: u8,
         /// Display unit per base unit as a power of ten (mm per m: 3).
         pow10: i8,
@@ -200,8 +200,8 @@ pub enum Kind {
         /// The field's largest value means "no limit" (typed and shown as `none`).
         none_at_max: bool,
     },
-    /// An index into the names. (Ids of one byte: the kind is then 4 bytes instead of 8, 4
-    /// bytes less per registry entry on the board.)
+    /// An index into the names. (An id of one byte keeps the kind,
+    /// and so each registry entry, small.)
     Choice(ChoiceId),
 }
 

@@ -265,7 +265,7 @@ impl Plan {
             *frozen = None;
         }
         // The sensor's codes per ampere and its zero (host-sim's current sensor, `sensors`).
-        use crate::plant::sensors::{ADC_CODES, ADC_REF, CURRENT_GAIN, CURRENT_OFFSET};
+        use crate::twin::plant::sensors::{ADC_CODES, ADC_REF, CURRENT_GAIN, CURRENT_OFFSET};
         let per_amp = CURRENT_GAIN / ADC_REF * ADC_CODES;
         let zero = CURRENT_OFFSET / ADC_REF * ADC_CODES;
         let mut amps = (f64::from(inputs.current_raw) - zero) / per_amp;

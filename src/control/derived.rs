@@ -1,0 +1,183 @@
+//! What the controller derives from its configuration, once: the limit stops in counts, the
+//! scales between counts, radians and ticks, the speed loop's gains, the protections' limits,
+//! the supervisor's durations in ticks. Immutable while the configuration is in force;
+//! [`super::Controller::reconfigure`] builds a new one.
+
+use super::config::ControlConfig;
+use super::protect::Limits;
+use super::sense::Adc;
+use super::speed::SpeedGains;
+use crate::keys::ConfigError;
+#[cfg(feature = "ball-screw")]
+use crate::model::ballscrew::BallScrew;
+use crate::model::geometry::Geometry;
+use crate::model::Scale;
+use crate::units::{ms_to_ticks, qmul, sat32, Amperes, Factor, RadiansPerSecond, Ratio, Volts, Q};
+
+/// Ticks after the reference arrives during which the loop may settle before the bridge coasts.
+const SETTLE_MS: u32 = 300;
+/// Position error accepted as arrived, screw counts.
+pub(super) const ARRIVED_COUNTS: i32 = 40;
+/// Debounce of the switches, ticks at 1 kHz (scaled with the tick).
+const DEBOUNCE_MS: u32 = 3;
+/// Buttons must be seen released this long before they can start a motion.
+const ARM_MS: u32 = 50;
+/// Largest dynamic-braking current allowed, A (the BTS7960's low sides are rated 40 A).
+const BRAKE_AMPS: i32 = 30;
+/// Overload monitoring starts this long after a motion starts (breakaway, winding the coupling).
+const OVERLOAD_HOLDOFF_MS: u32 = 250;
+
+/// The supervisor's durations in control ticks.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct TickCounts {
+    /// Overload monitoring holdoff after a start (+ one ramp).
+    pub(super) overload_holdoff: u32,
+    /// Settling after the reference arrived / after a stop.
+    pub(super) settle: u32,
+    /// Buttons seen released before they arm.
+    pub(super) arm: u32,
+    /// The switches' debounce.
+    pub(super) debounce: u16,
+    /// The speed ramp.
+    pub(super) ramp: u32,
+}
+
+impl TickCounts {
+    fn new(tick_us: u32, ramp_ms: u32) -> TickCounts {
+        let t = |ms: u32| ms_to_ticks(ms, tick_us);
+        TickCounts {
+            overload_holdoff: t(OVERLOAD_HOLDOFF_MS).saturating_add(t(ramp_ms)),
+            settle: t(SETTLE_MS),
+            arm: t(ARM_MS),
+            debounce: t(DEBOUNCE_MS).max(1) as u16,
+            ramp: t(ramp_ms),
+        }
+    }
+}
+
+/// The configuration in force and every number the tick derives from it.
+#[derive(Clone, Debug)]
+pub(super) struct Derived {
+    pub(super) cfg: ControlConfig,
+    /// ADC codes → amperes and volts.
+    pub(super) adc: Adc,
+    /// Limit stops in encoder counts.
+    pub(super) lower_counts: i32,
+    pub(super) upper_counts: i32,
+    /// Where the lower limit switch closes, counts (the homing reference).
+    pub(super) switch_counts: i32,
+    /// counts → screw rad (Q16).
+    pub(super) rad_per_count: Scale,
+    /// Q16 counts/tick → screw rad/s (Q16).
+    pub(super) speed_scale: Scale,
+    /// Screw torque (Q16 N·m) → coupling twist in counts.
+    pub(super) twist_scale: Scale,
+    /// Durations in ticks, computed once (no division on the tick path).
+    pub(super) ticks: TickCounts,
+    pub(super) gains: SpeedGains,
+    pub(super) limits: Limits,
+    /// 1/(k_e·n), screw rad/s per volt.
+    pub(super) inv_ke_n: Ratio,
+    /// R·I_limit.
+    pub(super) current_headroom: Volts,
+    /// Highest screw speed at which shorting the motor keeps the current within [`BRAKE_AMPS`].
+    pub(super) brake_speed: RadiansPerSecond,
+    /// The cruise speeds the stick-slip reaction switches between, Q32 counts/tick: the
+    /// configured one and `stickslip.escape_speed`.
+    pub(super) cruise_q32: i64,
+    pub(super) escape_q32: i64,
+    /// How far the reference may lead the screw before the planner waits for it, counts.
+    pub(super) lag_counts: i32,
+    /// The ball screw (`cfg.ball_screw`, compiled).
+    #[cfg(feature = "ball-screw")]
+    pub(super) ball_screw: BallScrew,
+}
+
+impl Derived {
+    /// Validate what the estimator does not (the limit stops against `geometry`, the
+    /// protections, the ball screw) and derive the tick's numbers.
+    pub(super) fn new(cfg: &ControlConfig, geometry: &Geometry) -> Result<Derived, ConfigError> {
+        #[cfg(feature = "ball-screw")]
+        let ball_screw = cfg.ball_screw.compile()?;
+        let (lower_counts, upper_counts, switch_counts) = cfg.validate_limit_counts(geometry)?;
+        let tick_us = cfg.estimator.tick_us;
+        let tick_hz = i128::from(1_000_000 / tick_us);
+        let rad_per_count = geometry.screw_rad_per_count(); // counts → Q16 rad
+        let speed_scale = rad_per_count.times(tick_hz, 1 << 16);
+        // counts per screw rad (Q16) = 2^32 / rad_per_count(Q16 value).
+        // Unsigned products and quotients through the one out-of-line `mul_div_u64`: every
+        // operand is positive, and for a validated drive (4…65 536 counts/rev, gear 1…1000)
+        // counts/rad (Q16) < 2^40, so the speeds below stay far inside `u64`.
+        let (mant, shift) = rad_per_count.parts();
+        let mul_div = crate::math::mul_div_u64;
+        let counts_per_rad_q16 = mul_div(
+            1 << 32,
+            1 << shift.min(63),
+            mant.max(1).unsigned_abs().into(),
+        ) as i64;
+        // Twist counts = T/k · counts/rad: from Q16 N·m.
+        let k = i128::from(cfg.estimator.mechanics.coupling_stiffness.bits()); // Q16
+        let twist_scale = Scale::from_ratio(i128::from(counts_per_rad_q16), k << 16);
+        // Cruise: rad/s → Q32 counts/tick = ω·counts/rad·T·2^32.
+        // (Both speeds are validated positive: 0.2…20 rad/s.)
+        let counts_per_rad_tick = counts_per_rad_q16.unsigned_abs() * u64::from(tick_us);
+        let per_tick_q32 = |speed: RadiansPerSecond| {
+            mul_div(
+                speed.bits().unsigned_abs().into(),
+                counts_per_rad_tick,
+                1_000_000,
+            ) as i64
+        };
+        let gear_ratio = cfg.estimator.drive.gear_ratio;
+        let counts_per_motor_rad_q16 = mul_div(
+            counts_per_rad_q16.unsigned_abs(),
+            1 << 16,
+            gear_ratio.to_bits().max(1).unsigned_abs().into(),
+        );
+        // Nut metres per count in Q40: the travel of 2^16 counts in Q24.
+        let nut_q40 =
+            i64::from(geometry.travel(1 << 16).bits()) - i64::from(geometry.travel(0).bits());
+        let limits = Limits::new(
+            &cfg.protection,
+            tick_us,
+            counts_per_motor_rad_q16 as i64,
+            nut_q40,
+            cfg.motion.cruise_speed,
+        );
+        let motor = &cfg.estimator.motor;
+        let gains = SpeedGains::design(
+            motor.torque_constant,
+            motor.resistance,
+            Factor::from_raw(gear_ratio.to_bits()),
+            tick_us,
+        );
+        let inv_ke_n = Ratio::from_raw(sat32((1i64 << 44) / i64::from(gains.ke_n.bits().max(1))));
+        Ok(Derived {
+            cfg: *cfg,
+            adc: Adc::new(&cfg.sensing),
+            lower_counts,
+            upper_counts,
+            switch_counts,
+            rad_per_count,
+            speed_scale,
+            twist_scale,
+            ticks: TickCounts::new(tick_us, cfg.motion.ramp_ms),
+            gains,
+            limits,
+            inv_ke_n,
+            current_headroom: qmul(cfg.protection.current_limit, motor.resistance),
+            brake_speed: qmul(
+                qmul::<_, _, Volts>(Amperes::from_int(BRAKE_AMPS), motor.resistance),
+                inv_ke_n,
+            ),
+            cruise_q32: per_tick_q32(cfg.motion.cruise_speed),
+            escape_q32: per_tick_q32(cfg.stick_slip.escape_speed),
+            // The planner waits while the screw lags its reference by more than 0.25 rad of
+            // the screw (≈ 0.08 mm of nut on the S12x2; at least the arrival window), see
+            // `drive`.
+            lag_counts: sat32(counts_per_rad_q16 >> 18).max(ARRIVED_COUNTS),
+            #[cfg(feature = "ball-screw")]
+            ball_screw,
+        })
+    }
+}

@@ -198,7 +198,7 @@ pub struct StickSlipDetector {
     chain: u32,
     falling: bool,
     /// The branch test in halves on the two ticks before the one that arms it, one law
-    /// evaluation each (issue 8: two on one tick put it over budget): on the tick with
+    /// evaluation each (two on one tick put the control tick over its instruction budget): on the tick with
     /// `steady + 2 == settle_ticks` the speed above the reference speed v and μ(v), on the
     /// next one the answer, used on the next one again.
     branch_above: (RadiansPerSecond, Ratio),
@@ -340,7 +340,7 @@ impl Periodicity {
     /// Forget everything. The history ring (and where its head is) stays as it is: after a
     /// reset the ring is read only once LAG_MAX + 1 new values have been written (`filled`),
     /// so no old value is ever seen, and clearing its 64 words (a `memclr`) was ≈ 380
-    /// instructions on the control tick that reset (issue 8). The EWMAs are zeroed when they
+    /// instructions on the control tick that reset. The EWMAs are zeroed when they
     /// start (`step`), not here: the tick that resets is often a busy one (a stop).
     pub fn reset(&mut self) {
         let Periodicity {

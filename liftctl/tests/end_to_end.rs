@@ -4,52 +4,15 @@
 //! protocol version.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
+mod support;
+
 use host_sim::apps::serve::{ServeArgs, Server};
 use liftfw::config::ValidatedConfig;
-use liftfw::console::{service, Feed, LineBuffer};
+use liftfw::console::service;
 use liftfw::control::Controller;
-use std::io::{Read, Write};
-use std::net::{SocketAddr, TcpListener};
-use std::process::{Command, Output};
+use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
-
-fn board() -> Server {
-    Server::start(&ServeArgs {
-        listen: "127.0.0.1:0".parse().unwrap(),
-        speed: 0.0,
-        ..ServeArgs::default()
-    })
-    .unwrap()
-}
-
-struct Run {
-    code: i32,
-    out: String,
-    err: String,
-}
-
-fn liftctl(addr: SocketAddr, args: &[&str]) -> Run {
-    liftctl_on(&format!("tcp://{addr}"), args)
-}
-
-fn liftctl_on(port: &str, args: &[&str]) -> Run {
-    let Output {
-        status,
-        stdout,
-        stderr,
-    } = Command::new(env!("CARGO_BIN_EXE_liftctl"))
-        .arg("--port")
-        .arg(port)
-        .args(args)
-        .env_remove("LIFTCTL_PORT")
-        .output()
-        .unwrap();
-    Run {
-        code: status.code().unwrap_or(-1),
-        out: String::from_utf8(stdout).unwrap(),
-        err: String::from_utf8(stderr).unwrap(),
-    }
-}
+use support::{board, fake, liftctl, liftctl_on, Seen};
 
 fn ok(addr: SocketAddr, args: &[&str]) -> String {
     let r = liftctl(addr, args);
@@ -62,9 +25,7 @@ fn ok(addr: SocketAddr, args: &[&str]) -> String {
 }
 
 fn temp(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("liftctl-e2e-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+    support::temp("e2e", name)
 }
 
 #[test]
@@ -258,46 +219,6 @@ fn export_edit_import_save() {
     );
     server.shutdown();
 }
-
-/// A board on loopback whose replies a closure decides (`None`: the reply is lost). Returns
-/// its address and the lines it received.
-fn fake(
-    mut answer: impl FnMut(&[u8]) -> Option<Vec<u8>> + Send + 'static,
-) -> (SocketAddr, Arc<Mutex<Vec<String>>>) {
-    let l = TcpListener::bind("127.0.0.1:0").unwrap();
-    let addr = l.local_addr().unwrap();
-    let seen = Arc::new(Mutex::new(Vec::new()));
-    let log = Arc::clone(&seen);
-    std::thread::spawn(move || {
-        for s in l.incoming() {
-            let Ok(mut s) = s else { return };
-            let mut lb = LineBuffer::new();
-            let mut buf = [0u8; 256];
-            while let Ok(n) = s.read(&mut buf) {
-                if n == 0 {
-                    break;
-                }
-                for &b in &buf[..n] {
-                    if let Feed::Line(line) = lb.feed(b) {
-                        log.lock()
-                            .unwrap()
-                            .push(String::from_utf8_lossy(line).to_string());
-                        if let Some(mut r) = answer(line) {
-                            if !r.is_empty() {
-                                r.extend_from_slice(b"\r\n");
-                                let _ = s.write_all(&r);
-                            }
-                        }
-                    }
-                }
-            }
-        }
-    });
-    (addr, seen)
-}
-
-/// The lines a fake board received.
-type Seen = Arc<Mutex<Vec<String>>>;
 
 /// A fake backed by the real console service and a controller at rest.
 fn serviced(

@@ -3,94 +3,33 @@
 //! serve`, in process) and fake boards on loopback TCP.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
-use host_sim::apps::serve::{ServeArgs, Server};
-use liftfw::console::{Feed, LineBuffer};
-use std::io::{Read, Write};
-use std::net::{SocketAddr, TcpListener};
-use std::process::{Command, Output};
-use std::sync::{Arc, Mutex};
+mod support;
 
-fn board() -> Server {
-    Server::start(&ServeArgs {
-        listen: "127.0.0.1:0".parse().unwrap(),
-        speed: 0.0,
-        ..ServeArgs::default()
-    })
-    .unwrap()
-}
-
-struct Run {
-    code: i32,
-    out: String,
-    err: String,
-}
-
-fn liftctl(addr: SocketAddr, args: &[&str]) -> Run {
-    let Output {
-        status,
-        stdout,
-        stderr,
-    } = Command::new(env!("CARGO_BIN_EXE_liftctl"))
-        .arg("--port")
-        .arg(format!("tcp://{addr}"))
-        .args(args)
-        .env_remove("LIFTCTL_PORT")
-        .output()
-        .unwrap();
-    Run {
-        code: status.code().unwrap_or(-1),
-        out: String::from_utf8(stdout).unwrap(),
-        err: String::from_utf8(stderr).unwrap(),
-    }
-}
+use std::net::SocketAddr;
+use std::process::Command;
+use support::{board, liftctl, Seen};
 
 fn temp(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("liftctl-harden-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+    support::temp("harden", name)
 }
-
-/// The lines a fake board received.
-type Seen = Arc<Mutex<Vec<String>>>;
 
 /// A fake board: `answer` replies to each line (its `version` first).
 fn fake(mut answer: impl FnMut(&str) -> String + Send + 'static) -> (SocketAddr, Seen) {
-    let l = TcpListener::bind("127.0.0.1:0").unwrap();
-    let addr = l.local_addr().unwrap();
-    let seen = Arc::new(Mutex::new(Vec::new()));
-    let log = Arc::clone(&seen);
     let version = format!(
         "liftfw console v{} firmware=0.1.0 schema={:08x}",
         liftfw::console::service::PROTOCOL_VERSION,
         liftfw::config::record::schema()
     );
-    std::thread::spawn(move || {
-        for s in l.incoming() {
-            let Ok(mut s) = s else { return };
-            let mut lb = LineBuffer::new();
-            let mut buf = [0u8; 256];
-            while let Ok(n) = s.read(&mut buf) {
-                if n == 0 {
-                    break;
-                }
-                for &b in &buf[..n] {
-                    if let Feed::Line(line) = lb.feed(b) {
-                        let line = String::from_utf8_lossy(line).to_string();
-                        log.lock().unwrap().push(line.clone());
-                        let r = if line == "version" {
-                            version.clone()
-                        } else if line.is_empty() {
-                            continue;
-                        } else {
-                            answer(&line)
-                        };
-                        let _ = s.write_all(format!("{r}\r\n").as_bytes());
-                    }
-                }
-            }
-        }
-    });
-    (addr, seen)
+    support::fake(move |line| {
+        let line = String::from_utf8_lossy(line);
+        Some(if line == "version" {
+            version.clone().into_bytes()
+        } else if line.is_empty() {
+            Vec::new()
+        } else {
+            answer(&line).into_bytes()
+        })
+    })
 }
 
 #[test]

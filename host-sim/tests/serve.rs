@@ -2,40 +2,10 @@
 //! flash, and a power cycle that boots from it.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
+mod board;
+
+use board::{fast, Console};
 use host_sim::apps::serve::{ServeArgs, Server};
-use std::io::{BufRead, BufReader, Write};
-use std::net::TcpStream;
-
-struct Console {
-    w: TcpStream,
-    r: BufReader<TcpStream>,
-}
-
-impl Console {
-    fn open(server: &Server) -> Console {
-        let w = TcpStream::connect(server.addr()).unwrap();
-        w.set_read_timeout(Some(std::time::Duration::from_secs(20)))
-            .unwrap();
-        let r = BufReader::new(w.try_clone().unwrap());
-        Console { w, r }
-    }
-
-    fn ask(&mut self, line: &str) -> String {
-        self.w.write_all(format!("{line}\r\n").as_bytes()).unwrap();
-        let mut s = String::new();
-        self.r.read_line(&mut s).unwrap();
-        assert!(s.ends_with("\r\n"), "{s:?}");
-        s.trim_end().to_string()
-    }
-}
-
-fn fast() -> ServeArgs {
-    ServeArgs {
-        listen: "127.0.0.1:0".parse().unwrap(),
-        speed: 0.0,
-        ..ServeArgs::default()
-    }
-}
 
 #[test]
 fn saved_settings_survive_a_power_cycle_and_unsaved_ones_do_not() {

@@ -4,58 +4,14 @@
 //! bytes echoed back in error replies.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
+mod board;
+
+use board::{fast, Console};
 use host_sim::apps::serve::{ServeArgs, Server};
 use std::io::{BufRead, BufReader, Write};
 use std::net::TcpStream;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
-
-struct Console {
-    w: TcpStream,
-    r: BufReader<TcpStream>,
-}
-
-impl Console {
-    fn open(server: &Server) -> Console {
-        let w = TcpStream::connect(server.addr()).unwrap();
-        w.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
-        let r = BufReader::new(w.try_clone().unwrap());
-        Console { w, r }
-    }
-
-    fn send(&mut self, bytes: &[u8]) -> String {
-        self.w.write_all(bytes).unwrap();
-        let mut s = String::new();
-        self.r.read_line(&mut s).unwrap();
-        assert!(s.ends_with("\r\n"), "{s:?}");
-        s.trim_end().to_string()
-    }
-
-    fn ask(&mut self, line: &str) -> String {
-        self.send(format!("{line}\r\n").as_bytes())
-    }
-
-    /// Ask `status` until `pred` holds (at most 60 s of wall time).
-    fn wait_status(&mut self, pred: impl Fn(&str) -> bool) -> String {
-        let t0 = Instant::now();
-        loop {
-            let s = self.ask("status");
-            if pred(&s) {
-                return s;
-            }
-            assert!(t0.elapsed() < Duration::from_secs(60), "still {s}");
-            std::thread::sleep(Duration::from_millis(20));
-        }
-    }
-}
-
-fn fast() -> ServeArgs {
-    ServeArgs {
-        listen: "127.0.0.1:0".parse().unwrap(),
-        speed: 0.0,
-        ..ServeArgs::default()
-    }
-}
 
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("host-sim-harden-{}-{name}", std::process::id()));

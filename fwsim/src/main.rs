@@ -1,12 +1,13 @@
 //! `fwsim`: the flashed firmware on an emulated STM32G431 against host-sim's plant
 //! (docs/fwsim.md).
 
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{Parser, Subcommand};
 use fwsim::elf::Image;
 use fwsim::flash::Store;
 use fwsim::lift::{self, LiftArgs};
 use fwsim::machine::Machine;
 use fwsim::plant::Rig;
+use host_sim::cli::Lube;
 use host_sim::physics::Lubricant;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -18,23 +19,6 @@ use std::path::{Path, PathBuf};
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-enum Lube {
-    Dry,
-    Ptfe,
-    Lithium,
-}
-
-impl From<Lube> for Lubricant {
-    fn from(l: Lube) -> Self {
-        match l {
-            Lube::Dry => Lubricant::Dry,
-            Lube::Ptfe => Lubricant::Ptfe,
-            Lube::Lithium => Lubricant::Lithium,
-        }
-    }
 }
 
 #[derive(Subcommand)]

@@ -156,6 +156,10 @@ pub struct Bus {
     pub base_insns: u64,
     /// Instructions executed since reset.
     pub insns: u64,
+    /// Translated blocks executed since reset (statistics).
+    pub blocks: u64,
+    /// Register reads, writes and slices of execution since reset (statistics).
+    pub stats: [u64; 3],
     /// Ticks per CPU cycle (HCLK): 1 instruction = 1 cycle (docs/fwsim.md).
     pub cycle_ticks: u64,
     /// Stop the slice at this instruction count.
@@ -213,6 +217,8 @@ impl Bus {
             base_t: 0,
             base_insns: 0,
             insns: 0,
+            blocks: 0,
+            stats: [0; 3],
             cycle_ticks: TICK_HZ / sys::HSI_HZ,
             stop_at: 0,
             scs: Scs::default(),
@@ -384,6 +390,7 @@ impl Bus {
 
     /// A CPU read of `size` bytes at `addr` (a mapped peripheral region).
     pub fn read(&mut self, addr: u32, size: usize) -> u32 {
+        self.stats[0] += 1;
         let r = self.read_inner(addr, size);
         let v = match r {
             Ok(v) => v,
@@ -438,6 +445,7 @@ impl Bus {
 
     /// A CPU write of `size` bytes at `addr`.
     pub fn write(&mut self, addr: u32, size: usize, value: u32) {
+        self.stats[1] += 1;
         self.trace_access('W', addr, value);
         if let Err(e) = self.write_inner(addr, size, value) {
             self.fail(format!(

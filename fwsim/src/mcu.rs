@@ -132,8 +132,16 @@ impl Mcu {
             }),
         )
         .map_err(|e| uc_err("map store", e))?;
-        uc.mem_map(u64::from(RAM_BASE), u64::from(RAM_SIZE), Prot::ALL)
-            .map_err(|e| uc_err("map ram", e))?;
+        // RAM: read and write, not execute (the firmware runs from flash only). QEMU keeps
+        // no dirty tracking under Unicorn, so a store to an executable page always takes the
+        // slow path that checks for translated code on it: a quarter of the run time when the
+        // RAM was mapped executable. A jump into RAM stops the run ("fetch from").
+        uc.mem_map(
+            u64::from(RAM_BASE),
+            u64::from(RAM_SIZE),
+            Prot::READ | Prot::WRITE,
+        )
+        .map_err(|e| uc_err("map ram", e))?;
         if let Some(ram) = ram {
             uc.mem_write(u64::from(RAM_BASE), ram)
                 .map_err(|e| uc_err("ram", e))?;
@@ -172,18 +180,33 @@ impl Mcu {
             )
             .map_err(|e| uc_err("map peripherals", e))?;
         }
-        // Instruction count: the time base. The hook runs before each instruction: stopping
-        // there leaves that instruction to the next slice (stopping inside a memory callback
-        // would make Unicorn run the accessing instruction again).
-        uc.add_code_hook(1, 0, |uc: &mut Unicorn<Bus>, _addr, _size| {
+        // Instruction count: the time base, charged per translated block. The hook runs when a
+        // block starts, before any of its instructions: it stops the slice there once the
+        // budget is spent (the block runs in the next slice), else charges the whole block. A
+        // block ends at every branch, exception-raising instruction (WFI, WFE, UDF, BKPT, SVC)
+        // and exception return, so a slice always ends on a charged block boundary: the count
+        // is exact at every stop. Inside a block, a peripheral access sees the time at the
+        // block's end (docs/fwsim.md "Cycle model").
+        let mut blocks = BlockLengths::new(flash.clone());
+        uc.add_block_hook(1, 0, move |uc: &mut Unicorn<Bus>, addr, size| {
+            let n = match blocks.count(addr as u32, size) {
+                Some(n) => n,
+                None => {
+                    // Code outside the flash image (none in our firmware): read it.
+                    let mut code = vec![0u8; size as usize];
+                    let _ = uc.mem_read(addr, &mut code);
+                    thumb_count(&code)
+                }
+            };
             let b = uc.get_data_mut();
             if b.insns >= b.stop_at {
                 let _ = uc.emu_stop();
             } else {
-                b.insns += 1;
+                b.insns += u64::from(n);
+                b.blocks += 1;
             }
         })
-        .map_err(|e| uc_err("code hook", e))?;
+        .map_err(|e| uc_err("block hook", e))?;
         // SEV sets the event register (Unicorn executes it as a NOP): hooks on the image's SEV
         // encodings (0xBF40), so only those addresses pay for a hook.
         for a in sev_addresses(&flash) {
@@ -464,6 +487,7 @@ impl Mcu {
             let insns = bus.insns;
             self.bus().stop_at = insns + budget;
             let pc = self.pc();
+            self.bus().stats[2] += 1;
             let r = self.uc.emu_start(u64::from(pc | 1), 0, 0, 0);
             match r {
                 Ok(()) => {}
@@ -558,6 +582,51 @@ fn check_stop(uc: &mut Unicorn<Bus>) {
     let b = uc.get_data_mut();
     if b.error.is_some() || b.scs.sys_pending != 0 {
         b.end_slice();
+    }
+}
+
+/// Instructions in Thumb code: a half-word whose top five bits are 0b11101, 0b11110 or
+/// 0b11111 starts a 32-bit instruction (ARMv7-M ARM A5.1), any other a 16-bit one.
+fn thumb_count(code: &[u8]) -> u32 {
+    let mut n = 0;
+    let mut i = 0;
+    while i + 1 < code.len() {
+        let hw = u16::from_le_bytes([code[i], code[i + 1]]);
+        i += if hw >> 11 >= 0b11101 { 4 } else { 2 };
+        n += 1;
+    }
+    n
+}
+
+/// The instruction count of each translated block in the flash image, by start address and
+/// size (the block hook's arguments), decoded once.
+struct BlockLengths {
+    flash: Vec<u8>,
+    /// Per half-word of the image: (block size in bytes, instructions); size 0 = not yet seen.
+    cache: Vec<(u16, u16)>,
+}
+
+impl BlockLengths {
+    fn new(flash: Vec<u8>) -> Self {
+        let cache = vec![(0, 0); flash.len() / 2];
+        Self { flash, cache }
+    }
+
+    /// The instructions of the block at `addr` of `size` bytes, if it lies in the image.
+    fn count(&mut self, addr: u32, size: u32) -> Option<u32> {
+        let off = addr.checked_sub(FLASH_BASE)? as usize;
+        let end = off.checked_add(size as usize)?;
+        let code = self.flash.get(off..end)?;
+        let slot = self.cache.get_mut(off / 2)?;
+        if usize::from(slot.0) != size as usize || size == 0 {
+            let n = thumb_count(code);
+            *slot = (
+                u16::try_from(size).unwrap_or(0),
+                u16::try_from(n).unwrap_or(0),
+            );
+            return Some(n);
+        }
+        Some(u32::from(slot.1))
     }
 }
 

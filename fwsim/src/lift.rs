@@ -185,7 +185,7 @@ pub fn main(
             state
         );
         if a.show_log {
-            for l in std::mem::take(&mut rig.machine.log) {
+            for l in rig.machine.take_log() {
                 println!("    [defmt {:.3}] {}", l.t, l.text);
             }
         }

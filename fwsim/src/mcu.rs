@@ -132,10 +132,9 @@ impl Mcu {
             }),
         )
         .map_err(|e| uc_err("map store", e))?;
-        // RAM: read and write, not execute (the firmware runs from flash only). QEMU keeps
-        // no dirty tracking under Unicorn, so a store to an executable page always takes the
-        // slow path that checks for translated code on it: a quarter of the run time when the
-        // RAM was mapped executable. A jump into RAM stops the run ("fetch from").
+        // RAM: read and write, not execute (the firmware runs from flash only). QEMU keeps no
+        // dirty tracking under Unicorn: a store to a page Unicorn maps executable always looks
+        // for translated code on the page (a quarter of the run time when RAM was executable).
         uc.mem_map(
             u64::from(RAM_BASE),
             u64::from(RAM_SIZE),
@@ -216,23 +215,31 @@ impl Mcu {
             })
             .map_err(|e| uc_err("sev hook", e))?;
         }
-        uc.add_mem_hook(
-            HookType::MEM_INVALID,
-            1,
-            0,
-            |uc: &mut Unicorn<Bus>, kind: MemType, addr, size, value| {
-                let what = match kind {
-                    MemType::READ_UNMAPPED | MemType::READ_PROT => "read of",
-                    MemType::WRITE_UNMAPPED | MemType::WRITE_PROT => "write to",
-                    _ => "fetch from",
-                };
-                uc.get_data_mut().fail(format!(
-                    "{what} {addr:#010x} ({size} bytes, value {value:#x}): nothing modelled there"
-                ));
-                false
-            },
-        )
-        .map_err(|e| uc_err("mem hook", e))?;
+        // Accesses to unmapped or protected memory, everywhere but the RAM (fully mapped): a
+        // memory hook over a page keeps every store to it on QEMU's slow path (no dirty
+        // tracking under Unicorn), so the RAM has none.
+        for (begin, end) in [
+            (0u64, u64::from(RAM_BASE) - 1),
+            (u64::from(RAM_BASE + RAM_SIZE), u64::from(u32::MAX)),
+        ] {
+            uc.add_mem_hook(
+                HookType::MEM_INVALID,
+                begin,
+                end,
+                |uc: &mut Unicorn<Bus>, kind: MemType, addr, size, value| {
+                    let what = match kind {
+                        MemType::READ_UNMAPPED | MemType::READ_PROT => "read of",
+                        MemType::WRITE_UNMAPPED | MemType::WRITE_PROT => "write to",
+                        _ => "fetch from",
+                    };
+                    uc.get_data_mut().fail(format!(
+                        "{what} {addr:#010x} ({size} bytes, value {value:#x}): nothing modelled there"
+                    ));
+                    false
+                },
+            )
+            .map_err(|e| uc_err("mem hook", e))?;
+        }
 
         let mut mcu = Self {
             uc,

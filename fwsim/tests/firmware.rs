@@ -89,7 +89,12 @@ fn boot_greeting_and_version_as_the_core_writes_them() {
     );
     assert_eq!(r.command("version", 1.0).unwrap(), version);
     // The defmt log decoded from RTT: the boot line with the firmware's version.
-    let log: Vec<String> = r.machine.log.iter().map(|l| l.text.clone()).collect();
+    let log: Vec<String> = r
+        .machine
+        .take_log()
+        .iter()
+        .map(|l| l.text.clone())
+        .collect();
     assert!(
         log.iter().any(|l| l.contains("liftfw 0.1.0 booting")),
         "defmt log: {log:#?}"

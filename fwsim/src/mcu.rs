@@ -30,7 +30,9 @@ use crate::elf::Image;
 use crate::flash::{Store, FLASH_BASE, FLASH_SIZE, STORE_LEN, STORE_OFFSET};
 use crate::scs::HARD_FAULT;
 use crate::sys::ResetCause;
-use unicorn_engine::{Arch, ArmCpuModel, HookType, MemType, Mode, Prot, RegisterARM, Unicorn};
+use unicorn_engine::{
+    Arch, ArmCpuModel, HookType, MemType, Mode, Prot, RegisterARM, TlbEntry, TlbType, Unicorn,
+};
 
 /// RAM: 32 KiB at 0x2000_0000 (memory.x; SRAM1 + SRAM2 + CCM SRAM contiguous).
 pub const RAM_BASE: u32 = 0x2000_0000;
@@ -89,6 +91,35 @@ impl Mcu {
         .map_err(|e| uc_err("unicorn", e))?;
         uc.ctl_set_cpu_model(ArmCpuModel::CORTEX_M4 as i32)
             .map_err(|e| uc_err("cpu model", e))?;
+        // Page permissions from the memory map below instead of the M-profile default map
+        // (ARMv7-M B3.1, which makes SRAM executable): the firmware does not enable the MPU
+        // (an MPU register access stops the run). QEMU under Unicorn keeps no dirty-page
+        // tracking, so a store to a page whose TLB entry allows execution always takes the
+        // slow path that looks for translated code on the page; with RAM read/write only, a
+        // page's stores take the fast path after its first (a quarter of the run time).
+        uc.ctl_set_tlb_type(TlbType::VIRTUAL)
+            .map_err(|e| uc_err("tlb type", e))?;
+        uc.add_tlb_hook(1, 0, |uc: &mut Unicorn<Bus>, addr, kind| {
+            // Unicorn restores the CPU state of the accessing instruction before this hook,
+            // in the middle of a translated block that goes on executing. Inside a block QEMU
+            // keeps the IT state at 0 in the CPU state (it writes it back only when leaving
+            // the block: translate.c, arm_tr_tb_start), so a restored IT state from inside an
+            // IT block would outlive the block and condition the next one's instructions.
+            // Put the 0 back. (Fetches fill the TLB before a block runs: nothing restored.)
+            if matches!(kind, MemType::READ | MemType::WRITE) {
+                if let Ok(cpsr) = uc.reg_read(RegisterARM::CPSR) {
+                    const IT: u64 = 0x0600_FC00;
+                    if cpsr & IT != 0 {
+                        let _ = uc.reg_write(RegisterARM::CPSR, cpsr & !IT);
+                    }
+                }
+            }
+            Some(TlbEntry {
+                paddr: addr,
+                perms: page_perms(addr),
+            })
+        })
+        .map_err(|e| uc_err("tlb hook", e))?;
         // Flash below the store: plain read/execute memory with the image.
         uc.mem_map(
             u64::from(FLASH_BASE),
@@ -589,6 +620,25 @@ fn check_stop(uc: &mut Unicorn<Bus>) {
     let b = uc.get_data_mut();
     if b.error.is_some() || b.scs.sys_pending != 0 {
         b.end_slice();
+    }
+}
+
+/// The permissions of the page at `addr` (the mapping in [`Mcu::new`]): the flash below the
+/// store read/execute, the store's pages (programmed through the flash model) and RAM
+/// read/write, the peripherals and the system control space read/write; elsewhere all, so the
+/// access reaches Unicorn's unmapped-memory report.
+fn page_perms(addr: u64) -> Prot {
+    let a = addr as u32;
+    if (FLASH_BASE..FLASH_BASE + STORE_OFFSET).contains(&a) {
+        Prot::READ | Prot::EXEC
+    } else if (FLASH_BASE + STORE_OFFSET..FLASH_BASE + FLASH_SIZE).contains(&a)
+        || (RAM_BASE..RAM_BASE + RAM_SIZE).contains(&a)
+        || (0x4000_0000..0x6000_0000).contains(&a)
+        || a >= 0xE000_0000
+    {
+        Prot::READ | Prot::WRITE
+    } else {
+        Prot::ALL
     }
 }
 

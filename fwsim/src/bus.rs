@@ -483,20 +483,9 @@ impl Bus {
             }
             Dev::Pwr => self.pwr.write(off, v)?,
             Dev::Rcc => {
-                let mut found = Vec::new();
-                let reset = self.rcc.write(
-                    off,
-                    v,
-                    now,
-                    self.flash.latency(),
-                    self.pwr.boost(),
-                    &mut found,
-                )?;
-                for f in found {
-                    if !self.findings.contains(&f) {
-                        self.findings.push(f);
-                    }
-                }
+                let reset = self
+                    .rcc
+                    .write(off, v, now, self.flash.latency(), self.pwr.boost())?;
                 if let Some((reg, bits)) = reset {
                     self.peripheral_resets(reg, bits);
                 }

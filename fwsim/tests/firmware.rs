@@ -383,3 +383,80 @@ fn an_over_current_on_the_adc_trips_within_a_millisecond() {
     );
     assert!(fw <= 1e-3, "firmware tripped after {:.3} ms", fw * 1e3);
 }
+
+/// Runs until the bridge has neither driven nor (after `min_t`) changed for 0.5 s, or `t_max`.
+fn run_to_rest(r: &mut Rig, min_t: f64, t_max: f64) {
+    let mut rest = None;
+    while r.t < t_max {
+        r.run_for(0.1).unwrap();
+        let moving = matches!(
+            fwsim::plant::bridge_of(&r.machine.board_out()),
+            Bridge::Drive(_)
+        );
+        if !moving && r.t > min_t {
+            let at = *rest.get_or_insert(r.t);
+            if r.t > at + 0.5 {
+                return;
+            }
+        } else {
+            rest = None;
+        }
+    }
+}
+
+#[test]
+#[ignore = "needs FWSIM_ELF"]
+fn the_upper_limit_switch_stops_a_lift_where_the_core_in_the_loop_stops() {
+    // The plant's upper switch at 200 mm, under the firmware's soft limit (410 mm): a goto
+    // 300 mm from 180 mm ends on the switch (its NC contact opens, PB10 reads high).
+    let switch_m = 0.200;
+    let config = || {
+        let mut cfg = plant_config(Lubricant::Dry, 1000.0, 180.0, 1).unwrap();
+        cfg.sensors.upper_limit = switch_m;
+        cfg
+    };
+    let parked = counts_at(180.0).unwrap();
+    let m = Machine::new(image("FWSIM_ELF"), parked_store(parked).unwrap()).unwrap();
+    let mut r = Rig::new(m, config()).unwrap();
+    boot(&mut r);
+    let reply = r.command("goto 300mm", 1.0).unwrap();
+    assert!(reply.starts_with("ok"), "{reply}");
+    run_to_rest(&mut r, 1.0, 20.0);
+    let fw = height_mm(&r);
+    let status = r.command("status", 1.0).unwrap();
+    assert_eq!(
+        fwsim::lift::field(&status, "state"),
+        Some("holding"),
+        "{status}"
+    );
+    assert_eq!(
+        fwsim::lift::field(&status, "fault"),
+        Some("none"),
+        "{status}"
+    );
+
+    // The core in the loop: the same plant, the same goto after boot.
+    let mut sent = false;
+    let (sim, t_end, c) = core_in_the_loop(config(), Some(parked), r.t, move |t, c| {
+        if !sent && t >= 0.05 {
+            sent = true;
+            c.command(Command::GoTo(Metres::from_f64(0.3))).unwrap();
+        }
+        0
+    });
+    let core = sim.record(t_end).height * 1e3;
+    let st = c.lock().unwrap().status();
+    println!(
+        "upper switch at {:.0} mm: firmware stopped at {fw:.3} mm, core in the loop at {core:.3} mm",
+        switch_m * 1e3
+    );
+    assert!(st.fault.is_none(), "core: {:?}", st.fault);
+    assert!(
+        fw > switch_m * 1e3 && fw < switch_m * 1e3 + 2.0,
+        "firmware stopped at {fw:.3} mm"
+    );
+    assert!(
+        (fw - core).abs() <= 0.2,
+        "firmware {fw:.3} mm vs core {core:.3} mm"
+    );
+}

@@ -15,8 +15,15 @@ fn height_at(deg: f64) -> f64 {
     Geometry::paper().height(deg.to_radians())
 }
 
-/// Boot unhomed at `start_deg`, hold DOWN from 0.1 s until homed, then go to `target` m.
-fn home_then_goto(lub: Lubricant, load: f64, start_deg: f64, target: f64) -> support::Run {
+/// Boot unhomed at `start_deg`, hold DOWN from 0.1 s until homed, then go to `target` m
+/// `delay` s after the tick that homed.
+fn home_then_goto(
+    lub: Lubricant,
+    load: f64,
+    start_deg: f64,
+    target: f64,
+    delay: f64,
+) -> support::Run {
     let mut s = Scenario::new(lub, load, start_deg, 0.0);
     s.unhomed = true;
     // Head speed at the 3 rad/s cruise: 0.955 mm/s of nut travel × cot α.
@@ -46,7 +53,7 @@ fn home_then_goto(lub: Lubricant, load: f64, start_deg: f64, target: f64) -> sup
             match homed_at {
                 // A person holds DOWN (released at boot, so the button is armed).
                 None if k.t >= 0.1 => k.inputs.switches.0 |= Switches::BUTTON_DOWN,
-                Some(t) if !sent && k.t > t + 0.5 => {
+                Some(t) if !sent && k.t > t + delay => {
                     sent = true;
                     k.controller
                         .command(Command::GoTo(Metres::from_f64(target)))
@@ -66,7 +73,7 @@ fn an_unhomed_lift_homes_on_the_lower_switch_then_halts_at_a_set_height() {
         (Lubricant::Lithium, 0.0, 18.5),
     ] {
         let target = 0.152;
-        let r = home_then_goto(lub, load, start, target);
+        let r = home_then_goto(lub, load, start, target, 0.5);
         assert!(r.first_fault().is_none(), "{lub:?}: {:?}", r.first_fault());
         let homed = r
             .events
@@ -86,6 +93,32 @@ fn an_unhomed_lift_homes_on_the_lower_switch_then_halts_at_a_set_height() {
         eprintln!("{lub:?} {load} kg from {start}°: homed, goto error {err:+.3} mm");
         assert!(err.abs() < 0.5, "{lub:?}: final error {err} mm");
         assert_eq!(r.controller.state(), State::Holding);
+    }
+}
+
+/// A `goto` sent right after the homing notice, while the screw still turns down (the lift
+/// stopped on the switch a tick ago): the drive must not start against the back-EMF. It
+/// tripped the over-current limit at 56–66 A, on every lubricant, before the drive waited for
+/// the screw to slow (`Motion::reversing`) and the re-home kept the speed filter's speed.
+#[test]
+fn a_goto_on_the_tick_after_homing_waits_for_the_screw_to_stop_turning_down() {
+    for delay in [0.0005, 0.001] {
+        for (lub, load, start) in [
+            (Lubricant::Ptfe, 500.0, 18.0),
+            (Lubricant::Dry, 1000.0, 17.5),
+            (Lubricant::Lithium, 0.0, 18.5),
+        ] {
+            let target = 0.152;
+            let r = home_then_goto(lub, load, start, target, delay);
+            assert!(
+                r.first_fault().is_none(),
+                "{lub:?} {load} kg, goto {delay} s after homing: {:?}",
+                r.first_fault()
+            );
+            let err = (r.final_height() - target) * 1e3;
+            assert!(err.abs() < 0.5, "{lub:?}: final error {err} mm");
+            assert_eq!(r.controller.state(), State::Holding);
+        }
     }
 }
 

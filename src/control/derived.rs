@@ -24,6 +24,9 @@ const DEBOUNCE_MS: u32 = 3;
 const ARM_MS: u32 = 50;
 /// Largest dynamic-braking current allowed, A (the BTS7960's low sides are rated 40 A).
 const BRAKE_AMPS: i32 = 30;
+/// After a motion ends above the brake speed, the bridge may brake regeneratively for at most
+/// this long (`Controller::rest_bridge`); the rotor of the default motor needs a few ms.
+const REGEN_MS: u32 = 50;
 /// Overload monitoring starts this long after a motion starts (breakaway, winding the coupling).
 const OVERLOAD_HOLDOFF_MS: u32 = 250;
 
@@ -40,6 +43,8 @@ pub(super) struct TickCounts {
     pub(super) debounce: u16,
     /// The speed ramp.
     pub(super) ramp: u32,
+    /// The longest regenerative stop.
+    pub(super) regen: u16,
 }
 
 impl TickCounts {
@@ -51,6 +56,7 @@ impl TickCounts {
             arm: t(ARM_MS),
             debounce: t(DEBOUNCE_MS).max(1) as u16,
             ramp: t(ramp_ms),
+            regen: t(REGEN_MS).min(u32::from(u16::MAX)) as u16,
         }
     }
 }

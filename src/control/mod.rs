@@ -207,11 +207,10 @@ impl Controller {
     }
 
     fn set_position(&mut self, position: i32) {
-        self.motion
-            .edges
-            .shift(position.saturating_sub(self.live.enc.position()));
+        let by = position.saturating_sub(self.live.enc.position());
+        self.motion.edges.shift(by);
         self.live.enc.rebase(position);
-        self.est.reset(position);
+        self.est.rebase(by);
         self.live.hold_position = position;
         self.motion.hold_target = position;
         self.motion.profile.reset(position);

@@ -10,7 +10,7 @@ use super::lube;
 use super::profile::Profile;
 use super::protect::Monitors;
 use super::sense::Debouncer;
-use super::speed::{SpeedInputs, SpeedLoop};
+use super::speed::{duty_q15, SpeedInputs, SpeedLoop};
 use super::{hold, Bridge, Controller, Event, Reading, State};
 use crate::detect::stickslip::{DetectorInputs, Reaction, StickSlipDetector};
 use crate::units::{qmul, sat32, NewtonMetres, Radians, RadiansPerSecond, Volts, Q};
@@ -48,6 +48,14 @@ pub(super) struct Motion {
     pub(super) cruise_reported: bool,
     /// The last driving tick found the screw lagging (the planner waited): a stall sign.
     pub(super) lagging: bool,
+    /// A motion from rest has not driven yet: if the screw still turns the other way (a
+    /// command on the tick after a switch stop or homing, the coupling unwinding), the bridge
+    /// brakes or coasts (`rest_bridge`) and the profile waits until it turns slower than
+    /// `estimator.rest_speed`. Driving against the back-EMF would plug the motor: at 1 rad/s
+    /// of screw speed the current tripped the over-current limit.
+    pub(super) reversing: bool,
+    /// Ticks of regenerative braking left in this rest (`rest_bridge`).
+    pub(super) regen_left: u16,
     /// The identification of the ball screw's friction.
     #[cfg(feature = "ball-screw")]
     pub(super) lube: lube::LubeMonitor,
@@ -80,6 +88,8 @@ impl Motion {
             stick_slip: StickSlipDetector::new(&cfg.stick_slip, tick_us),
             cruise_limit: None,
             cruise_reported: false,
+            reversing: false,
+            regen_left: 0,
             lagging: false,
             #[cfg(feature = "ball-screw")]
             lube: lube::LubeMonitor::new(
@@ -183,6 +193,18 @@ impl Controller {
 
     /// Profile → speed loop → bridge, and the arrival check.
     pub(super) fn drive(&mut self, x: &Reading) -> Bridge {
+        let dir = if self.live.state == State::Lowering {
+            -1
+        } else {
+            1
+        };
+        if self.motion.reversing {
+            let w = x.estimate.screw_speed;
+            if w.bits().signum() == -dir && w.sat_abs() > self.derived.cfg.estimator.rest_speed {
+                return self.rest_bridge(x);
+            }
+            self.motion.reversing = false;
+        }
         if let Some(releasing) = self.releasing_brake(x) {
             return releasing;
         }
@@ -190,11 +212,6 @@ impl Controller {
         // heavier load or a lower supply than `reachable_cruise` assumed): the reference never
         // runs ahead to the target and "arrives" with the head short of it, and lowering, its
         // ramp-down never leaves a lagging lift looking like a runaway.
-        let dir = if self.live.state == State::Lowering {
-            -1
-        } else {
-            1
-        };
         let behind = self
             .motion
             .last_ref_counts
@@ -304,16 +321,48 @@ impl Controller {
     }
 
     /// The bridge at rest: short the motor (dynamic brake) once it turns slowly enough that the
-    /// short-circuit current k_e·ω/R stays within the brake limit; coast above that. Braking
-    /// matters: when a move ends, the wound-up coupling unwinds through the motor, and a coasting
-    /// rotor would overshoot and drag the screw back (host-sim shows 0.7 mm of head height
-    /// lost with dry threads); the brake damps it with a time constant J·R/k² of about 3 ms.
-    pub(super) fn rest_bridge(&self, x: &Reading) -> Bridge {
-        if x.estimate.screw_speed.sat_abs() <= self.derived.brake_speed {
+    /// short-circuit current k_e·ω/R stays within the brake limit; faster than that, brake
+    /// regeneratively at that current where `regen_bridge` may, else coast. Braking matters:
+    /// when a move ends, the wound-up coupling unwinds through the motor, and a coasting rotor
+    /// would overshoot and drag the screw back (host-sim shows 0.7 mm of head height lost with
+    /// dry threads); the brake damps it with a time constant J·R/k² of about 3 ms.
+    pub(super) fn rest_bridge(&mut self, x: &Reading) -> Bridge {
+        let w = x.estimate.screw_speed;
+        if w.sat_abs() <= self.derived.brake_speed {
+            self.motion.regen_left = 0;
             Bridge::Brake
+        } else if self.motion.regen_left > 0 && self.live.state != State::Fault {
+            self.regen_bridge(w, x.supply)
         } else {
             Bridge::Coast
         }
+    }
+
+    /// A motion ended above the brake speed (a limit switch, the homing switch, a stop before
+    /// the brake took the load): drive with the motion at k_e·n·(|ω| − brake speed) =
+    /// e − R·I_brake, so the current is −`BRAKE_AMPS` (the bridge returns the energy to the
+    /// supply) and the rotor slows as fast as the low sides allow. Coasting instead carried an
+    /// empty lift 0.54 mm past the lower switch at the end of a homing run.
+    ///
+    /// The encoder's speed sets this duty, so a lying encoder must not be able to drive a
+    /// motor at rest: it only continues the drive of the tick before (never more duty than
+    /// that tick, never the other way), at most `REGEN_MS` after the motion ended (set in
+    /// `enter_rest`), never in a fault, and it ends for good at the first tick below the brake
+    /// speed. Out of line: only on such ticks.
+    #[cold]
+    #[inline(never)]
+    fn regen_bridge(&mut self, w: RadiansPerSecond, supply: Volts) -> Bridge {
+        self.motion.regen_left -= 1;
+        let last = self.motion.last_duty;
+        let forward = w >= RadiansPerSecond::ZERO;
+        if last == 0 || (last > 0) != forward {
+            self.motion.regen_left = 0;
+            return Bridge::Coast;
+        }
+        let over = w.sat_abs().sat_sub(self.derived.brake_speed);
+        let v: Volts = qmul(over, self.derived.gains.ke_n);
+        let d = duty_q15(v, supply).min(last.saturating_abs());
+        Bridge::Drive(if forward { d } else { -d })
     }
 
     /// The profile's speed of the last tick in screw rad/s.

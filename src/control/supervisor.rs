@@ -376,6 +376,9 @@ impl Controller {
             }
             self.motion.monitors.reset();
             self.motion.motion_ticks = 0;
+            // The homing run's or the last motion's reference speed is not this one's.
+            self.motion.last_ref_rad = RadiansPerSecond::ZERO;
+            self.motion.reversing = true;
         }
         self.motion.profile.set_target(target);
         self.motion.settle_ticks = 0;
@@ -404,6 +407,7 @@ impl Controller {
         self.live.rest_ticks = 0;
         self.live.hold_position = here;
         self.motion.hold_target = here;
+        self.motion.regen_left = self.derived.ticks.regen;
         if !self.keeps_integrator(None) {
             self.motion.speed.reset();
         }

@@ -31,6 +31,14 @@ impl Estimator {
         self.last = None;
     }
 
+    /// Shift the filter's count reference by `by` counts and keep its speed and acceleration:
+    /// a re-home (the encoder rebased to the switch) while the screw still turns.
+    /// [`Estimator::reset`] there would read a spinning screw as at rest for the filter's
+    /// settling time, and a motion started in that time would drive against the back-EMF.
+    pub fn rebase(&mut self, by: i32) {
+        self.last_counts = self.last_counts.saturating_add(by);
+    }
+
     /// The α-β-γ tracking filter: (speed, acceleration, flags) for this tick.
     #[inline(always)]
     pub(super) fn filter(

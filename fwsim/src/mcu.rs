@@ -21,7 +21,8 @@
 //! - Interrupts are taken between slices of execution; a slice ends at the next peripheral
 //!   event, at a register write that may raise one, or within 200 instructions while an
 //!   interrupt is pending but masked (so unmasking takes it within that latency).
-//! - Time: every instruction is one HCLK cycle (docs/fwsim.md "Cycle model").
+//! - Time: every instruction is one HCLK cycle, charged per translated block by a block hook
+//!   (docs/fwsim.md "Cycle model", "Counting").
 //!
 //! Only the main stack is modelled (thread mode with PSP stops the run).
 

@@ -460,3 +460,58 @@ fn the_upper_limit_switch_stops_a_lift_where_the_core_in_the_loop_stops() {
         "firmware {fw:.3} mm vs core {core:.3} mm"
     );
 }
+
+/// The ball-screw plant of the core's closed-loop tests (tests/support: seed 001's 4008, not
+/// self-locking) carrying `load_kg` from `from_mm`.
+fn ball_screw_plant(load_kg: f64, from_mm: f64) -> SimConfig {
+    let mut cfg = plant_config(Lubricant::Dry, load_kg, from_mm, 1).unwrap();
+    let bs = host_sim::physics::ballscrew::BallScrewFriction::seed_001_4008();
+    cfg.plant.screw = bs.plant_screw(cfg.plant.screw);
+    cfg.plant.law = bs.equivalent_law(1000.0 * host_sim::physics::G);
+    cfg
+}
+
+#[test]
+#[ignore = "needs FWSIM_BALL_ELF (scripts/fw-build --ball-screw)"]
+fn the_ball_screw_image_boots_and_holds_its_load() {
+    // The ball-screw image with `drive.screw = ball` saved, on a ball screw carrying 1000 kg.
+    let from_mm = 250.0;
+    let m = Machine::new(image("FWSIM_BALL_ELF"), Store::default()).unwrap();
+    let mut r = Rig::new(m, ball_screw_plant(1000.0, from_mm)).unwrap();
+    boot(&mut r);
+    let reply = r.command("set drive.screw ball", 1.0).unwrap();
+    assert!(reply.starts_with("ok"), "{reply}");
+    let saved = r.command("save", 2.0).unwrap();
+    assert!(saved.starts_with("ok: saved"), "{saved}");
+    // A power cycle (1 ms off: the bridge coasts from the cut until the firmware drives it).
+    r.machine.power_cycle(1e-3).unwrap();
+    let greeting = boot(&mut r);
+    assert!(!greeting.contains("factory"), "{greeting}");
+    assert_eq!(
+        r.command("get drive.screw", 1.0).unwrap(),
+        "drive.screw = ball"
+    );
+    let h0 = height_mm(&r);
+    r.run_for(2.0).unwrap();
+    let h1 = height_mm(&r);
+    let status = r.command("status", 1.0).unwrap();
+    println!(
+        "ball screw, 1000 kg: {from_mm} mm before the power cycle, {h0:.3} mm after the boot, {h1:.3} mm 2 s later ({status})"
+    );
+    assert_eq!(
+        fwsim::lift::field(&status, "fault"),
+        Some("none"),
+        "{status}"
+    );
+    assert!((h1 - h0).abs() < 0.02, "drifted {:.3} mm in 2 s", h1 - h0);
+    assert!(from_mm - h1 < 1.0, "sank {:.3} mm", from_mm - h1);
+    // The same image told it has a lead screw: the rest bridge shorts the motor, and the load
+    // turns the ball screw back.
+    let reply = r.command("set drive.screw lead", 1.0).unwrap();
+    assert!(reply.starts_with("ok"), "{reply}");
+    let h2 = height_mm(&r);
+    r.run_for(2.0).unwrap();
+    let sink = h2 - height_mm(&r);
+    println!("with drive.screw = lead it sinks {sink:.3} mm in 2 s");
+    assert!(sink > 0.05, "sank {sink:.3} mm");
+}

@@ -179,6 +179,8 @@ pub struct Bus {
     pub insns: u64,
     /// Translated blocks executed since reset (statistics).
     pub blocks: u64,
+    /// The most instructions in one executed block (statistics).
+    pub longest_block: u32,
     /// Register reads, writes and slices of execution since reset (statistics).
     pub stats: [u64; 3],
     /// Ticks per CPU cycle (HCLK): 1 instruction = 1 cycle (docs/fwsim.md).
@@ -241,6 +243,7 @@ impl Bus {
             base_insns: 0,
             insns: 0,
             blocks: 0,
+            longest_block: 0,
             stats: [0; 3],
             cycle_ticks: TICK_HZ / sys::HSI_HZ,
             stop_at: 0,

@@ -210,8 +210,8 @@ pub fn main(
     let insns = bus.insns;
     if std::env::var_os("FWSIM_STATS").is_some() {
         println!(
-            "{insns} instructions in {} blocks, {} register reads, {} writes, {} slices",
-            bus.blocks, bus.stats[0], bus.stats[1], bus.stats[2]
+            "{insns} instructions in {} blocks (longest {}), {} register reads, {} writes, {} slices",
+            bus.blocks, bus.longest_block, bus.stats[0], bus.stats[1], bus.stats[2]
         );
     }
     println!(

@@ -235,6 +235,7 @@ impl Mcu {
             } else {
                 b.insns += u64::from(n);
                 b.blocks += 1;
+                b.longest_block = b.longest_block.max(n);
             }
         })
         .map_err(|e| uc_err("block hook", e))?;

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 /// A running `fwsim serve` and a console connection to it.
 struct Served {
-    child: Child,
+    child: Option<Child>,
     console: TcpStream,
     /// Console text not yet consumed.
     pending: String,
@@ -19,8 +19,10 @@ struct Served {
 
 impl Drop for Served {
     fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        if let Some(c) = self.child.as_mut() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
     }
 }
 
@@ -63,7 +65,7 @@ fn serve(flash: &std::path::Path) -> Served {
         .set_read_timeout(Some(Duration::from_millis(200)))
         .unwrap();
     Served {
-        child,
+        child: Some(child),
         console,
         pending: String::new(),
     }
@@ -131,4 +133,134 @@ fn serve_keeps_the_store_in_its_flash_file_across_a_restart() {
     assert_eq!(got, "limits.upper = 390 mm");
     drop(s);
     let _ = std::fs::remove_file(&flash);
+}
+
+/// A program built beside `fwsim` (the workspace's target directory): host-sim, liftctl.
+fn sibling(name: &str) -> std::path::PathBuf {
+    let p = std::path::Path::new(env!("CARGO_BIN_EXE_fwsim")).with_file_name(name);
+    assert!(
+        p.exists(),
+        "{} missing: build it first (cargo build -p host-sim -p liftctl; test-all's workspace tests do)",
+        p.display()
+    );
+    p
+}
+
+/// `host-sim serve --firmware ELF` in a process group of its own (host-sim runs fwsim as its
+/// child: killing the group cuts the board's power); returns it and the console's address.
+fn host_sim_serve(flash: &std::path::Path) -> (Child, String) {
+    use std::os::unix::process::CommandExt;
+    let elf = std::env::var("FWSIM_ELF").expect("FWSIM_ELF must name the firmware ELF");
+    let mut child = Command::new(sibling("host-sim"))
+        .args([
+            "serve",
+            "--firmware",
+            &elf,
+            "--listen",
+            "127.0.0.1:0",
+            "--speed",
+            "0",
+        ])
+        .arg("--flash")
+        .arg(flash)
+        .stdout(Stdio::piped())
+        .process_group(0)
+        .spawn()
+        .unwrap();
+    let mut out = BufReader::new(child.stdout.take().unwrap());
+    let mut line = String::new();
+    let addr = loop {
+        line.clear();
+        assert!(
+            out.read_line(&mut line).unwrap() > 0,
+            "host-sim serve ended"
+        );
+        if let Some(rest) = line.split("tcp://").nth(1) {
+            break rest.split_whitespace().next().unwrap().to_string();
+        }
+    };
+    std::thread::spawn(move || {
+        let mut sink = String::new();
+        while out.read_line(&mut sink).is_ok_and(|n| n > 0) {
+            sink.clear();
+        }
+    });
+    (child, addr)
+}
+
+/// host-sim serve and its fwsim: killed together when dropped (the board's power cut).
+struct Group((Child, String));
+
+impl Drop for Group {
+    fn drop(&mut self) {
+        let child = &mut self.0 .0;
+        let group = format!("-{}", child.id());
+        let _ = Command::new("kill").args(["-KILL", "--", &group]).status();
+        let _ = child.wait();
+    }
+}
+
+fn liftctl(addr: &str, args: &[&str]) -> String {
+    let out = Command::new(sibling("liftctl"))
+        .arg("--port")
+        .arg(format!("tcp://{addr}"))
+        .args(args)
+        .env_remove("LIFTCTL_PORT")
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "liftctl {args:?}: {text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    text
+}
+
+#[test]
+#[ignore = "needs FWSIM_ELF and the workspace's host-sim and liftctl"]
+fn host_sim_serve_firmware_keeps_the_stops_across_a_restart_and_liftctl_reads_them() {
+    let flash =
+        std::env::temp_dir().join(format!("fwsim-host-sim-test-{}.bin", std::process::id()));
+    let _ = std::fs::remove_file(&flash);
+
+    let board = Group(host_sim_serve(&flash));
+    let addr = board.0 .1.clone();
+    let version = liftctl(&addr, &["version"]);
+    assert!(version.contains("firmware="), "{version}");
+    // The change over the console itself: liftctl's `limits set` and `config set` refuse on
+    // the lead-screw image (liftctl is built with the ball-screw settings, and the image
+    // refuses their keys).
+    {
+        let mut console = Served {
+            child: None,
+            console: TcpStream::connect(&addr).unwrap(),
+            pending: String::new(),
+        };
+        console
+            .console
+            .set_read_timeout(Some(Duration::from_millis(200)))
+            .unwrap();
+        let reply = console.command("set limits.upper 390", |l| {
+            l.starts_with("ok") || l.starts_with("error")
+        });
+        assert!(reply.starts_with("ok"), "{reply}");
+        let reply = console.command("save", |l| l.starts_with("ok") || l.starts_with("error"));
+        assert!(reply.starts_with("ok: saved"), "{reply}");
+    }
+    let end = Instant::now() + Duration::from_secs(20);
+    while !flash.exists() && Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(flash.exists(), "{} never written", flash.display());
+    std::thread::sleep(Duration::from_millis(500));
+    drop(board);
+
+    let board = Group(host_sim_serve(&flash));
+    let addr = board.0 .1.clone();
+    let limits = liftctl(&addr, &["limits"]);
+    drop(board);
+    let _ = std::fs::remove_file(&flash);
+    println!("liftctl limits after the restart: {}", limits.trim());
+    assert!(limits.contains("limits.upper = 390.0 mm"), "{limits}");
 }

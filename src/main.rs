@@ -206,7 +206,7 @@ impl defmt::Format for HalError<usart::ConfigError> {
 /// where it stays), and whether the watchdog caused the last reset.
 #[inline(never)]
 fn bring_up() -> (&'static mut Board, ConsolePins, Peri<'static, FLASH>, bool) {
-    let p = embassy_stm32::init(board::clock_config());
+    let p = board::init();
     info!("liftfw {} booting", env!("CARGO_PKG_VERSION"));
     let watchdog_reset = board::Watchdog::caused_last_reset();
     let (board, console, flash) = Board::new(p);

@@ -148,6 +148,27 @@ fn clock(dev: Dev) -> Option<ClockBit> {
     }
 }
 
+/// The voltage code ADC `which` converts on channel `ch`: the board's wiring (ADC1 IN1 = PA0,
+/// IN2 = PA1, ADC2 IN17 = PA4), the pin in analog mode.
+fn adc_input(gpioa: &Port, analog: Analog, which: u8, ch: u32) -> Result<u16, String> {
+    let (pin, code) = match (which, ch) {
+        (1, 1) => (0, analog.r_is),
+        (1, 2) => (1, analog.l_is),
+        (2, 17) => (4, analog.supply),
+        _ => {
+            return Err(format!(
+                "ADC{which} converts IN{ch}, which the board does not wire"
+            ))
+        }
+    };
+    if gpioa.mode(pin) != 3 {
+        return Err(format!(
+            "ADC{which} converts IN{ch} while PA{pin} is not in analog mode"
+        ));
+    }
+    Ok(code)
+}
+
 /// Everything on the bus, and the emulated time.
 pub struct Bus {
     /// Time (ticks of [`TICK_HZ`]) at instruction count `base_insns`.
@@ -156,6 +177,12 @@ pub struct Bus {
     pub base_insns: u64,
     /// Instructions executed since reset.
     pub insns: u64,
+    /// Translated blocks executed since reset (statistics).
+    pub blocks: u64,
+    /// The most instructions in one executed block (statistics).
+    pub longest_block: u32,
+    /// Register reads, writes and slices of execution since reset (statistics).
+    pub stats: [u64; 3],
     /// Ticks per CPU cycle (HCLK): 1 instruction = 1 cycle (docs/fwsim.md).
     pub cycle_ticks: u64,
     /// Stop the slice at this instruction count.
@@ -202,6 +229,8 @@ pub struct Bus {
     pub trace: Option<Box<dyn Write>>,
     /// The event register (set by SEV).
     pub event: bool,
+    /// The ADC clock in ticks, while RCC and ADC12_CCR are unchanged.
+    adc_ticks: Option<u64>,
     /// The plant's last encoder count (4 per line).
     last_count: Option<u16>,
 }
@@ -213,6 +242,9 @@ impl Bus {
             base_t: 0,
             base_insns: 0,
             insns: 0,
+            blocks: 0,
+            longest_block: 0,
+            stats: [0; 3],
             cycle_ticks: TICK_HZ / sys::HSI_HZ,
             stop_at: 0,
             scs: Scs::default(),
@@ -236,6 +268,7 @@ impl Bus {
             findings: Vec::new(),
             trace: None,
             event: false,
+            adc_ticks: None,
             last_count: None,
         };
         b.clocks_changed();
@@ -272,6 +305,7 @@ impl Bus {
     }
 
     fn clocks_changed(&mut self) {
+        self.adc_ticks = None;
         let r = (|| -> Result<(), String> {
             let now = self.now();
             let cpu = Self::ticks_of(self.rcc.hclk()?)?;
@@ -297,6 +331,17 @@ impl Bus {
         Self::ticks_of(self.rcc.adc12_hz()? / self.adc_common.divider()?)
     }
 
+    /// The ADC clock's ticks, recomputed when RCC or ADC12_CCR is written (the ADCs are read
+    /// hundreds of times per millisecond while the firmware polls a conversion).
+    fn adc_clk_cached(&mut self) -> Result<u64, String> {
+        if let Some(t) = self.adc_ticks {
+            return Ok(t);
+        }
+        let t = self.adc_clk()?;
+        self.adc_ticks = Some(t);
+        Ok(t)
+    }
+
     /// Records the first error.
     pub fn fail(&mut self, e: String) {
         if self.error.is_none() {
@@ -304,86 +349,50 @@ impl Bus {
         }
     }
 
-    fn adc_input(&self, which: u8, ch: u32) -> Result<u16, String> {
-        let (port, pin, code) = match (which, ch) {
-            (1, 1) => (&self.gpioa, 0, self.analog.r_is),
-            (1, 2) => (&self.gpioa, 1, self.analog.l_is),
-            (2, 17) => (&self.gpioa, 4, self.analog.supply),
-            _ => {
-                return Err(format!(
-                    "ADC{which} converts IN{ch}, which the board does not wire"
-                ))
-            }
+    /// ADC `which` with what it needs from the rest of the bus (the analog pins, TIM1's CC4).
+    fn adc_with<R>(
+        &mut self,
+        which: u8,
+        adc_clk: u64,
+        f: impl FnOnce(&mut Adc, &adc::Env) -> R,
+    ) -> R {
+        let now = self.now();
+        let (gpioa, analog, tim1) = (&self.gpioa, self.analog, &self.tim1);
+        let input = |ch: u32| adc_input(gpioa, analog, which, ch);
+        let cc4 = |t: u64| tim1.last_match(3, t);
+        let env = adc::Env {
+            now,
+            adc_clk,
+            input: &input,
+            tim1_cc4_before: &cc4,
         };
-        if port.mode(pin) != 3 {
-            return Err(format!(
-                "ADC{which} converts IN{ch} while PA{pin} is not in analog mode"
-            ));
-        }
-        Ok(code)
+        let a = if which == 1 {
+            &mut self.adc1
+        } else {
+            &mut self.adc2
+        };
+        f(a, &env)
     }
 
     fn adc_access(&mut self, which: u8, write: Option<u32>, off: u32) -> Result<u32, String> {
-        let now = self.now();
-        let adc_clk = self.adc_clk()?;
-        let this: &Bus = self;
-        let input = |ch: u32| this.adc_input(which, ch);
-        let cc4 = |t: u64| this.tim1.last_match(3, t);
-        let env = adc::Env {
-            now,
-            adc_clk,
-            input: &input,
-            tim1_cc4_before: &cc4,
-        };
-        // The ADC borrows the bus immutably through `env`; work on a copy and put it back.
-        let mut a = if which == 1 {
-            self.adc1.clone()
-        } else {
-            self.adc2.clone()
-        };
-        let r = match write {
-            Some(v) => a.write(off, v, &env).map(|()| 0),
-            None => a.read(off, &env),
-        };
-        if which == 1 {
-            self.adc1 = a;
-        } else {
-            self.adc2 = a;
-        }
-        r
+        let adc_clk = self.adc_clk_cached()?;
+        self.adc_with(which, adc_clk, |a, env| match write {
+            Some(v) => a.write(off, v, env).map(|()| 0),
+            None => a.read(off, env),
+        })
     }
 
     /// ADC `which`'s interrupt line.
-    fn adc1_line(&mut self, which: u8) -> bool {
-        let Ok(adc_clk) = self.adc_clk() else {
+    fn adc_line(&mut self, which: u8) -> bool {
+        let Ok(adc_clk) = self.adc_clk_cached() else {
             return false;
         };
-        let now = self.now();
-        let this: &Bus = self;
-        let input = |ch: u32| this.adc_input(which, ch);
-        let cc4 = |t: u64| this.tim1.last_match(3, t);
-        let env = adc::Env {
-            now,
-            adc_clk,
-            input: &input,
-            tim1_cc4_before: &cc4,
-        };
-        let mut a = if which == 1 {
-            self.adc1.clone()
-        } else {
-            self.adc2.clone()
-        };
-        let l = a.line(&env);
-        if which == 1 {
-            self.adc1 = a;
-        } else {
-            self.adc2 = a;
-        }
-        l
+        self.adc_with(which, adc_clk, |a, env| a.line(env))
     }
 
     /// A CPU read of `size` bytes at `addr` (a mapped peripheral region).
     pub fn read(&mut self, addr: u32, size: usize) -> u32 {
+        self.stats[0] += 1;
         let r = self.read_inner(addr, size);
         let v = match r {
             Ok(v) => v,
@@ -438,6 +447,7 @@ impl Bus {
 
     /// A CPU write of `size` bytes at `addr`.
     pub fn write(&mut self, addr: u32, size: usize, value: u32) {
+        self.stats[1] += 1;
         self.trace_access('W', addr, value);
         if let Err(e) = self.write_inner(addr, size, value) {
             self.fail(format!(
@@ -476,20 +486,9 @@ impl Bus {
             }
             Dev::Pwr => self.pwr.write(off, v)?,
             Dev::Rcc => {
-                let mut found = Vec::new();
-                let reset = self.rcc.write(
-                    off,
-                    v,
-                    now,
-                    self.flash.latency(),
-                    self.pwr.boost(),
-                    &mut found,
-                )?;
-                for f in found {
-                    if !self.findings.contains(&f) {
-                        self.findings.push(f);
-                    }
-                }
+                let reset = self
+                    .rcc
+                    .write(off, v, now, self.flash.latency(), self.pwr.boost())?;
                 if let Some((reg, bits)) = reset {
                     self.peripheral_resets(reg, bits);
                 }
@@ -506,7 +505,10 @@ impl Bus {
             Dev::Adc2 => {
                 self.adc_access(2, Some(v), off)?;
             }
-            Dev::AdcCommon => self.adc_common.write(off, v)?,
+            Dev::AdcCommon => {
+                self.adc_ticks = None;
+                self.adc_common.write(off, v)?;
+            }
             Dev::Scs => self.scs.write(off, v, mask)?,
             Dev::Dbgmcu => self.dbgmcu.write(off, v)?,
         }
@@ -617,7 +619,7 @@ impl Bus {
         if self.usart2.line() {
             lines.push(38);
         }
-        if self.adc1_line(1) || self.adc1_line(2) {
+        if self.adc_line(1) || self.adc_line(2) {
             lines.push(18);
         }
         for irq in lines {

@@ -185,7 +185,7 @@ pub fn main(
             state
         );
         if a.show_log {
-            for l in std::mem::take(&mut rig.machine.log) {
+            for l in rig.machine.take_log() {
                 println!("    [defmt {:.3}] {}", l.t, l.text);
             }
         }
@@ -206,7 +206,14 @@ pub fn main(
     let err = final_mm - a.to_mm;
     println!("\nhalted at {final_mm:.3} mm: error {err:+.3} mm (goal ±0.5 mm)");
     let wall_s = wall.elapsed().as_secs_f64();
-    let insns = rig.machine.mcu.bus_ref().insns;
+    let bus = rig.machine.mcu.bus_ref();
+    let insns = bus.insns;
+    if std::env::var_os("FWSIM_STATS").is_some() {
+        println!(
+            "{insns} instructions in {} blocks (longest {}), {} register reads, {} writes, {} slices",
+            bus.blocks, bus.longest_block, bus.stats[0], bus.stats[1], bus.stats[2]
+        );
+    }
     println!(
         "{:.2} s emulated in {:.2} s wall ({:.1}× real time), {} resets",
         rig.t,

@@ -45,8 +45,8 @@ pub struct Machine {
     pub resets: Vec<ResetEvent>,
     /// Console bytes the firmware sent, not yet taken.
     pub console_out: Vec<u8>,
-    /// defmt lines, not yet taken.
-    pub log: Vec<LogLine>,
+    /// RTT bytes read and not yet decoded, with the global time they were read, s.
+    rtt_pending: Vec<(f64, Vec<u8>)>,
     defmt: Option<Defmt>,
     /// Raw RTT bytes read.
     pub rtt_raw: usize,
@@ -80,7 +80,7 @@ impl Machine {
             epoch: 0,
             resets: Vec::new(),
             console_out: Vec::new(),
-            log: Vec::new(),
+            rtt_pending: Vec::new(),
             defmt,
             rtt_raw: 0,
             findings: Vec::new(),
@@ -205,11 +205,14 @@ impl Machine {
             }
         }
         let Some(cb) = self.image.rtt else { return };
-        let rd = |m: &Mcu, a: u32| m.read_word(a).unwrap_or(0);
-        let buf = rd(&self.mcu, cb + 28);
-        let size = rd(&self.mcu, cb + 32);
-        let write = rd(&self.mcu, cb + 36);
-        let read = rd(&self.mcu, cb + 40);
+        // The up channel 0 descriptor: buffer, size, write offset, read offset (one read: this
+        // runs at every coupling period).
+        let mut desc = [0u8; 16];
+        if self.mcu.uc.mem_read(u64::from(cb + 28), &mut desc).is_err() {
+            return;
+        }
+        let word = |i: usize| u32::from_le_bytes([desc[i], desc[i + 1], desc[i + 2], desc[i + 3]]);
+        let (buf, size, write, read) = (word(0), word(4), word(8), word(12));
         if buf == 0 || size == 0 || write == read || write >= size || read >= size {
             return;
         }
@@ -234,8 +237,20 @@ impl Machine {
             .uc
             .mem_write(u64::from(cb + 40), &write.to_le_bytes());
         self.rtt_raw += bytes.len();
+        // Decoded when someone takes the log (the firmware logs every bridge change: decoding
+        // each period would cost a twentieth of the run).
         let t = self.t();
-        if let Some(d) = self.defmt.as_mut() {
+        self.rtt_pending.push((t, bytes));
+    }
+
+    /// The defmt lines logged since the last call, decoded as probe-rs shows them.
+    pub fn take_log(&mut self) -> Vec<LogLine> {
+        let mut lines = Vec::new();
+        let Some(d) = self.defmt.as_mut() else {
+            self.rtt_pending.clear();
+            return lines;
+        };
+        for (t, bytes) in self.rtt_pending.drain(..) {
             d.decoder.received(&bytes);
             loop {
                 match d.decoder.decode() {
@@ -248,14 +263,14 @@ impl Machine {
                             .level()
                             .map(|l| l.as_str().to_uppercase())
                             .unwrap_or_default();
-                        self.log.push(LogLine {
+                        lines.push(LogLine {
                             t,
                             text: format!("{ts} {level:<5} {}", frame.display_message()),
                         });
                     }
                     Err(defmt_decoder::DecodeError::UnexpectedEof) => break,
                     Err(defmt_decoder::DecodeError::Malformed) => {
-                        self.log.push(LogLine {
+                        lines.push(LogLine {
                             t,
                             text: "(malformed defmt frame)".into(),
                         });
@@ -264,6 +279,12 @@ impl Machine {
                 }
             }
         }
+        lines
+    }
+
+    /// Drops the log read so far undecoded.
+    pub fn discard_log(&mut self) {
+        self.rtt_pending.clear();
     }
 
     /// Takes the console output as text.

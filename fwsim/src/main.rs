@@ -180,7 +180,7 @@ fn boot(elf: &Path, seconds: f64, trace: Option<&Path>) -> Result<(), String> {
     while m.now() < end {
         let t = (m.now() + step).min(end);
         r = m.run_until(t);
-        for l in std::mem::take(&mut m.log) {
+        for l in m.take_log() {
             println!("[defmt] {}", l.text);
         }
         let c = m.take_console();
@@ -278,11 +278,11 @@ fn serve(a: &ServeArgs) -> Result<(), String> {
             }
         }
         if a.log {
-            for l in std::mem::take(&mut rig.machine.log) {
+            for l in rig.machine.take_log() {
                 println!("[defmt] {}", l.text);
             }
         } else {
-            rig.machine.log.clear();
+            rig.machine.discard_log();
         }
         // The store's file follows the emulated flash (checked every 100 ms).
         if let Some(p) = &a.flash {

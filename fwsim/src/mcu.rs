@@ -21,7 +21,8 @@
 //! - Interrupts are taken between slices of execution; a slice ends at the next peripheral
 //!   event, at a register write that may raise one, or within 200 instructions while an
 //!   interrupt is pending but masked (so unmasking takes it within that latency).
-//! - Time: every instruction is one HCLK cycle (docs/fwsim.md "Cycle model").
+//! - Time: every instruction is one HCLK cycle, charged per translated block by a block hook
+//!   (docs/fwsim.md "Cycle model", "Counting").
 //!
 //! Only the main stack is modelled (thread mode with PSP stops the run).
 
@@ -30,7 +31,9 @@ use crate::elf::Image;
 use crate::flash::{Store, FLASH_BASE, FLASH_SIZE, STORE_LEN, STORE_OFFSET};
 use crate::scs::HARD_FAULT;
 use crate::sys::ResetCause;
-use unicorn_engine::{Arch, ArmCpuModel, HookType, MemType, Mode, Prot, RegisterARM, Unicorn};
+use unicorn_engine::{
+    Arch, ArmCpuModel, HookType, MemType, Mode, Prot, RegisterARM, TlbEntry, TlbType, Unicorn,
+};
 
 /// RAM: 32 KiB at 0x2000_0000 (memory.x; SRAM1 + SRAM2 + CCM SRAM contiguous).
 pub const RAM_BASE: u32 = 0x2000_0000;
@@ -89,6 +92,35 @@ impl Mcu {
         .map_err(|e| uc_err("unicorn", e))?;
         uc.ctl_set_cpu_model(ArmCpuModel::CORTEX_M4 as i32)
             .map_err(|e| uc_err("cpu model", e))?;
+        // Page permissions from the memory map below instead of the M-profile default map
+        // (ARMv7-M B3.1, which makes SRAM executable): the firmware does not enable the MPU
+        // (an MPU register access stops the run). QEMU under Unicorn keeps no dirty-page
+        // tracking, so a store to a page whose TLB entry allows execution always takes the
+        // slow path that looks for translated code on the page; with RAM read/write only, a
+        // page's stores take the fast path after its first (a quarter of the run time).
+        uc.ctl_set_tlb_type(TlbType::VIRTUAL)
+            .map_err(|e| uc_err("tlb type", e))?;
+        uc.add_tlb_hook(1, 0, |uc: &mut Unicorn<Bus>, addr, kind| {
+            // Unicorn restores the CPU state of the accessing instruction before this hook,
+            // in the middle of a translated block that goes on executing. Inside a block QEMU
+            // keeps the IT state at 0 in the CPU state (it writes it back only when leaving
+            // the block: translate.c, arm_tr_tb_start), so a restored IT state from inside an
+            // IT block would outlive the block and condition the next one's instructions.
+            // Put the 0 back. (Fetches fill the TLB before a block runs: nothing restored.)
+            if matches!(kind, MemType::READ | MemType::WRITE) {
+                if let Ok(cpsr) = uc.reg_read(RegisterARM::CPSR) {
+                    const IT: u64 = 0x0600_FC00;
+                    if cpsr & IT != 0 {
+                        let _ = uc.reg_write(RegisterARM::CPSR, cpsr & !IT);
+                    }
+                }
+            }
+            Some(TlbEntry {
+                paddr: addr,
+                perms: page_perms(addr),
+            })
+        })
+        .map_err(|e| uc_err("tlb hook", e))?;
         // Flash below the store: plain read/execute memory with the image.
         uc.mem_map(
             u64::from(FLASH_BASE),
@@ -132,8 +164,15 @@ impl Mcu {
             }),
         )
         .map_err(|e| uc_err("map store", e))?;
-        uc.mem_map(u64::from(RAM_BASE), u64::from(RAM_SIZE), Prot::ALL)
-            .map_err(|e| uc_err("map ram", e))?;
+        // RAM: read and write, not execute (the firmware runs from flash only). QEMU keeps no
+        // dirty tracking under Unicorn: a store to a page Unicorn maps executable always looks
+        // for translated code on the page (a quarter of the run time when RAM was executable).
+        uc.mem_map(
+            u64::from(RAM_BASE),
+            u64::from(RAM_SIZE),
+            Prot::READ | Prot::WRITE,
+        )
+        .map_err(|e| uc_err("map ram", e))?;
         if let Some(ram) = ram {
             uc.mem_write(u64::from(RAM_BASE), ram)
                 .map_err(|e| uc_err("ram", e))?;
@@ -172,18 +211,34 @@ impl Mcu {
             )
             .map_err(|e| uc_err("map peripherals", e))?;
         }
-        // Instruction count: the time base. The hook runs before each instruction: stopping
-        // there leaves that instruction to the next slice (stopping inside a memory callback
-        // would make Unicorn run the accessing instruction again).
-        uc.add_code_hook(1, 0, |uc: &mut Unicorn<Bus>, _addr, _size| {
+        // Instruction count: the time base, charged per translated block. The hook runs when a
+        // block starts, before any of its instructions: it stops the slice there once the
+        // budget is spent (the block runs in the next slice), else charges the whole block. A
+        // block ends at every branch, exception-raising instruction (WFI, WFE, UDF, BKPT, SVC)
+        // and exception return, so a slice always ends on a charged block boundary: the count
+        // is exact at every stop. Inside a block, a peripheral access sees the time at the
+        // block's end (docs/fwsim.md "Cycle model").
+        let mut blocks = BlockLengths::new(flash.clone());
+        uc.add_block_hook(1, 0, move |uc: &mut Unicorn<Bus>, addr, size| {
+            let n = match blocks.count(addr as u32, size) {
+                Some(n) => n,
+                None => {
+                    // Code outside the flash image (none in our firmware): read it.
+                    let mut code = vec![0u8; size as usize];
+                    let _ = uc.mem_read(addr, &mut code);
+                    thumb_count(&code)
+                }
+            };
             let b = uc.get_data_mut();
             if b.insns >= b.stop_at {
                 let _ = uc.emu_stop();
             } else {
-                b.insns += 1;
+                b.insns += u64::from(n);
+                b.blocks += 1;
+                b.longest_block = b.longest_block.max(n);
             }
         })
-        .map_err(|e| uc_err("code hook", e))?;
+        .map_err(|e| uc_err("block hook", e))?;
         // SEV sets the event register (Unicorn executes it as a NOP): hooks on the image's SEV
         // encodings (0xBF40), so only those addresses pay for a hook.
         for a in sev_addresses(&flash) {
@@ -193,23 +248,31 @@ impl Mcu {
             })
             .map_err(|e| uc_err("sev hook", e))?;
         }
-        uc.add_mem_hook(
-            HookType::MEM_INVALID,
-            1,
-            0,
-            |uc: &mut Unicorn<Bus>, kind: MemType, addr, size, value| {
-                let what = match kind {
-                    MemType::READ_UNMAPPED | MemType::READ_PROT => "read of",
-                    MemType::WRITE_UNMAPPED | MemType::WRITE_PROT => "write to",
-                    _ => "fetch from",
-                };
-                uc.get_data_mut().fail(format!(
-                    "{what} {addr:#010x} ({size} bytes, value {value:#x}): nothing modelled there"
-                ));
-                false
-            },
-        )
-        .map_err(|e| uc_err("mem hook", e))?;
+        // Accesses to unmapped or protected memory, everywhere but the RAM (fully mapped): a
+        // memory hook over a page keeps every store to it on QEMU's slow path (no dirty
+        // tracking under Unicorn), so the RAM has none.
+        for (begin, end) in [
+            (0u64, u64::from(RAM_BASE) - 1),
+            (u64::from(RAM_BASE + RAM_SIZE), u64::from(u32::MAX)),
+        ] {
+            uc.add_mem_hook(
+                HookType::MEM_INVALID,
+                begin,
+                end,
+                |uc: &mut Unicorn<Bus>, kind: MemType, addr, size, value| {
+                    let what = match kind {
+                        MemType::READ_UNMAPPED | MemType::READ_PROT => "read of",
+                        MemType::WRITE_UNMAPPED | MemType::WRITE_PROT => "write to",
+                        _ => "fetch from",
+                    };
+                    uc.get_data_mut().fail(format!(
+                        "{what} {addr:#010x} ({size} bytes, value {value:#x}): nothing modelled there"
+                    ));
+                    false
+                },
+            )
+            .map_err(|e| uc_err("mem hook", e))?;
+        }
 
         let mut mcu = Self {
             uc,
@@ -464,6 +527,7 @@ impl Mcu {
             let insns = bus.insns;
             self.bus().stop_at = insns + budget;
             let pc = self.pc();
+            self.bus().stats[2] += 1;
             let r = self.uc.emu_start(u64::from(pc | 1), 0, 0, 0);
             match r {
                 Ok(()) => {}
@@ -558,6 +622,70 @@ fn check_stop(uc: &mut Unicorn<Bus>) {
     let b = uc.get_data_mut();
     if b.error.is_some() || b.scs.sys_pending != 0 {
         b.end_slice();
+    }
+}
+
+/// The permissions of the page at `addr` (the mapping in [`Mcu::new`]): the flash below the
+/// store read/execute, the store's pages (programmed through the flash model) and RAM
+/// read/write, the peripherals and the system control space read/write; elsewhere all, so the
+/// access reaches Unicorn's unmapped-memory report.
+fn page_perms(addr: u64) -> Prot {
+    let a = addr as u32;
+    if (FLASH_BASE..FLASH_BASE + STORE_OFFSET).contains(&a) {
+        Prot::READ | Prot::EXEC
+    } else if (FLASH_BASE + STORE_OFFSET..FLASH_BASE + FLASH_SIZE).contains(&a)
+        || (RAM_BASE..RAM_BASE + RAM_SIZE).contains(&a)
+        || (0x4000_0000..0x6000_0000).contains(&a)
+        || a >= 0xE000_0000
+    {
+        Prot::READ | Prot::WRITE
+    } else {
+        Prot::ALL
+    }
+}
+
+/// Instructions in Thumb code: a half-word whose top five bits are 0b11101, 0b11110 or
+/// 0b11111 starts a 32-bit instruction (ARMv7-M ARM A5.1), any other a 16-bit one.
+fn thumb_count(code: &[u8]) -> u32 {
+    let mut n = 0;
+    let mut i = 0;
+    while i + 1 < code.len() {
+        let hw = u16::from_le_bytes([code[i], code[i + 1]]);
+        i += if hw >> 11 >= 0b11101 { 4 } else { 2 };
+        n += 1;
+    }
+    n
+}
+
+/// The instruction count of each translated block in the flash image, by start address and
+/// size (the block hook's arguments), decoded once.
+struct BlockLengths {
+    flash: Vec<u8>,
+    /// Per half-word of the image: (block size in bytes, instructions); size 0 = not yet seen.
+    cache: Vec<(u16, u16)>,
+}
+
+impl BlockLengths {
+    fn new(flash: Vec<u8>) -> Self {
+        let cache = vec![(0, 0); flash.len() / 2];
+        Self { flash, cache }
+    }
+
+    /// The instructions of the block at `addr` of `size` bytes, if it lies in the image.
+    fn count(&mut self, addr: u32, size: u32) -> Option<u32> {
+        let off = addr.checked_sub(FLASH_BASE)? as usize;
+        let end = off.checked_add(size as usize)?;
+        let code = self.flash.get(off..end)?;
+        let slot = self.cache.get_mut(off / 2)?;
+        if usize::from(slot.0) != size as usize || size == 0 {
+            let n = thumb_count(code);
+            *slot = (
+                u16::try_from(size).unwrap_or(0),
+                u16::try_from(n).unwrap_or(0),
+            );
+            return Some(n);
+        }
+        Some(u32::from(slot.1))
     }
 }
 

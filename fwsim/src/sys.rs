@@ -8,7 +8,7 @@
 //!   held in reset, stops the run); CSR's reset flags (BORRSTF/PINRSTF at power-on, IWDGRSTF,
 //!   SFTRSTF) and RMVF; the flash wait states required for SYSCLK (RM0440 "Read access latency"
 //!   table, range 1 boost) and the boost mode above 150 MHz (RM0440 PWR "Dynamic voltage
-//!   scaling") checked when SYSCLK switches.
+//!   scaling") checked when SYSCLK switches: either missing stops the run.
 //! - PWR: RM0440 ch. 6 "Power control (PWR)": CR1.VOS (range 1), CR5.R1MODE (boost when 0),
 //!   CR1.DBP, SR2 (VOSF: settled at once in this model), the pull registers.
 //! - IWDG: RM0440 ch. 42 "Independent watchdog (IWDG)": key register (0x5555 unlocks PR/RLR,
@@ -280,9 +280,8 @@ impl Rcc {
     /// Writes register `off` at `now`. Returns the peripherals whose reset bit was released
     /// (as (register index, bits)).
     ///
-    /// A clock the chip does not support at its voltage range (HCLK above 150 MHz without
-    /// the boost mode) is not an error of the model but of the firmware: it goes to `warn`
-    /// and the run goes on, so that the rest can be checked.
+    /// A clock the chip does not support (too few flash wait states; HCLK above 150 MHz
+    /// without the range-1 boost mode) stops the run like an unmodelled register.
     pub fn write(
         &mut self,
         off: u32,
@@ -290,7 +289,6 @@ impl Rcc {
         now: u64,
         flash_latency: u32,
         boost: bool,
-        warn: &mut Vec<String>,
     ) -> Result<Option<(usize, u32)>, Unimplemented> {
         self.settle(now);
         match off {
@@ -330,17 +328,18 @@ impl Rcc {
                 }
                 self.cfgr = (v & !0xC) | sws << 2;
                 let hz = self.hclk()?;
-                // RM0440 "Number of wait states according to CPU clock (HCLK) frequency",
-                // range 1 boost: 34 MHz per wait state.
-                let need = (hz.saturating_sub(1) / 34_000_000) as u32;
-                if flash_latency < need {
-                    return Err(format!("HCLK {} MHz with {flash_latency} flash wait states (FLASH.ACR.LATENCY; RM0440 needs {need})", hz / 1_000_000));
-                }
                 if hz > 150_000_000 && !boost {
-                    warn.push(format!(
+                    return Err(format!(
                         "HCLK {} MHz in range-1 normal mode: PWR_CR5.R1MODE (bit 8) is still 1 (RM0440 \"Dynamic voltage scaling management\": above 150 MHz the boost mode, R1MODE = 0, is required)",
                         hz / 1_000_000
                     ));
+                }
+                // RM0440 "Number of wait states according to CPU clock (HCLK) frequency",
+                // range 1: 34 MHz per wait state in boost mode, 30 MHz in normal mode.
+                let per_ws = if boost { 34_000_000 } else { 30_000_000 };
+                let need = (hz.saturating_sub(1) / per_ws) as u32;
+                if flash_latency < need {
+                    return Err(format!("HCLK {} MHz with {flash_latency} flash wait states (FLASH.ACR.LATENCY; RM0440 needs {need})", hz / 1_000_000));
                 }
             }
             0x0C => {
@@ -481,8 +480,15 @@ impl Pwr {
             0x18 => {}
             0x20..=0x54 => self.pull[((off - 0x20) / 4) as usize] = v,
             0x80 => {
-                // Bits other than R1MODE are reserved.
-                self.cr5 = v & 1 << 8;
+                // RM0440 PWR_CR5: R1MODE is bit 8; bits 31:9 and 7:0 are reserved, kept at
+                // their reset value 0. (stm32-metapac 21's `pwr_g4` puts R1MODE at bit 0: a
+                // write of that bit lands here.)
+                if v & !(1 << 8) != 0 {
+                    return Err(format!(
+                        "PWR.CR5 = {v:#x}: reserved bits set (RM0440: R1MODE is bit 8, the only one)"
+                    ));
+                }
+                self.cr5 = v;
             }
             _ => return Err(format!("write of PWR.{}", pwr_name(off).unwrap_or("?"))),
         }

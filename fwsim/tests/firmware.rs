@@ -89,7 +89,12 @@ fn boot_greeting_and_version_as_the_core_writes_them() {
     );
     assert_eq!(r.command("version", 1.0).unwrap(), version);
     // The defmt log decoded from RTT: the boot line with the firmware's version.
-    let log: Vec<String> = r.machine.log.iter().map(|l| l.text.clone()).collect();
+    let log: Vec<String> = r
+        .machine
+        .take_log()
+        .iter()
+        .map(|l| l.text.clone())
+        .collect();
     assert!(
         log.iter().any(|l| l.contains("liftfw 0.1.0 booting")),
         "defmt log: {log:#?}"
@@ -377,4 +382,136 @@ fn an_over_current_on_the_adc_trips_within_a_millisecond() {
         core * 1e3
     );
     assert!(fw <= 1e-3, "firmware tripped after {:.3} ms", fw * 1e3);
+}
+
+/// Runs until the bridge has neither driven nor (after `min_t`) changed for 0.5 s, or `t_max`.
+fn run_to_rest(r: &mut Rig, min_t: f64, t_max: f64) {
+    let mut rest = None;
+    while r.t < t_max {
+        r.run_for(0.1).unwrap();
+        let moving = matches!(
+            fwsim::plant::bridge_of(&r.machine.board_out()),
+            Bridge::Drive(_)
+        );
+        if !moving && r.t > min_t {
+            let at = *rest.get_or_insert(r.t);
+            if r.t > at + 0.5 {
+                return;
+            }
+        } else {
+            rest = None;
+        }
+    }
+}
+
+#[test]
+#[ignore = "needs FWSIM_ELF"]
+fn the_upper_limit_switch_stops_a_lift_where_the_core_in_the_loop_stops() {
+    // The plant's upper switch at 200 mm, under the firmware's soft limit (410 mm): a goto
+    // 300 mm from 180 mm ends on the switch (its NC contact opens, PB10 reads high).
+    let switch_m = 0.200;
+    let config = || {
+        let mut cfg = plant_config(Lubricant::Dry, 1000.0, 180.0, 1).unwrap();
+        cfg.sensors.upper_limit = switch_m;
+        cfg
+    };
+    let parked = counts_at(180.0).unwrap();
+    let m = Machine::new(image("FWSIM_ELF"), parked_store(parked).unwrap()).unwrap();
+    let mut r = Rig::new(m, config()).unwrap();
+    boot(&mut r);
+    let reply = r.command("goto 300mm", 1.0).unwrap();
+    assert!(reply.starts_with("ok"), "{reply}");
+    run_to_rest(&mut r, 1.0, 20.0);
+    let fw = height_mm(&r);
+    let status = r.command("status", 1.0).unwrap();
+    assert_eq!(
+        fwsim::lift::field(&status, "state"),
+        Some("holding"),
+        "{status}"
+    );
+    assert_eq!(
+        fwsim::lift::field(&status, "fault"),
+        Some("none"),
+        "{status}"
+    );
+
+    // The core in the loop: the same plant, the same goto after boot.
+    let mut sent = false;
+    let (sim, t_end, c) = core_in_the_loop(config(), Some(parked), r.t, move |t, c| {
+        if !sent && t >= 0.05 {
+            sent = true;
+            c.command(Command::GoTo(Metres::from_f64(0.3))).unwrap();
+        }
+        0
+    });
+    let core = sim.record(t_end).height * 1e3;
+    let st = c.lock().unwrap().status();
+    println!(
+        "upper switch at {:.0} mm: firmware stopped at {fw:.3} mm, core in the loop at {core:.3} mm",
+        switch_m * 1e3
+    );
+    assert!(st.fault.is_none(), "core: {:?}", st.fault);
+    assert!(
+        fw > switch_m * 1e3 && fw < switch_m * 1e3 + 2.0,
+        "firmware stopped at {fw:.3} mm"
+    );
+    assert!(
+        (fw - core).abs() <= 0.2,
+        "firmware {fw:.3} mm vs core {core:.3} mm"
+    );
+}
+
+/// The ball-screw plant of the core's closed-loop tests (tests/support: seed 001's 4008, not
+/// self-locking) carrying `load_kg` from `from_mm`.
+fn ball_screw_plant(load_kg: f64, from_mm: f64) -> SimConfig {
+    let mut cfg = plant_config(Lubricant::Dry, load_kg, from_mm, 1).unwrap();
+    let bs = host_sim::physics::ballscrew::BallScrewFriction::seed_001_4008();
+    cfg.plant.screw = bs.plant_screw(cfg.plant.screw);
+    cfg.plant.law = bs.equivalent_law(1000.0 * host_sim::physics::G);
+    cfg
+}
+
+#[test]
+#[ignore = "needs FWSIM_BALL_ELF (scripts/fw-build --ball-screw)"]
+fn the_ball_screw_image_boots_and_holds_its_load() {
+    // The ball-screw image with `drive.screw = ball` saved, on a ball screw carrying 1000 kg.
+    let from_mm = 250.0;
+    let m = Machine::new(image("FWSIM_BALL_ELF"), Store::default()).unwrap();
+    let mut r = Rig::new(m, ball_screw_plant(1000.0, from_mm)).unwrap();
+    boot(&mut r);
+    let reply = r.command("set drive.screw ball", 1.0).unwrap();
+    assert!(reply.starts_with("ok"), "{reply}");
+    let saved = r.command("save", 2.0).unwrap();
+    assert!(saved.starts_with("ok: saved"), "{saved}");
+    // A power cycle (1 ms off: the bridge coasts from the cut until the firmware drives it).
+    r.machine.power_cycle(1e-3).unwrap();
+    let greeting = boot(&mut r);
+    assert!(!greeting.contains("factory"), "{greeting}");
+    assert_eq!(
+        r.command("get drive.screw", 1.0).unwrap(),
+        "drive.screw = ball"
+    );
+    let h0 = height_mm(&r);
+    r.run_for(2.0).unwrap();
+    let h1 = height_mm(&r);
+    let status = r.command("status", 1.0).unwrap();
+    println!(
+        "ball screw, 1000 kg: {from_mm} mm before the power cycle, {h0:.3} mm after the boot, {h1:.3} mm 2 s later ({status})"
+    );
+    assert_eq!(
+        fwsim::lift::field(&status, "fault"),
+        Some("none"),
+        "{status}"
+    );
+    assert!((h1 - h0).abs() < 0.02, "drifted {:.3} mm in 2 s", h1 - h0);
+    assert!(from_mm - h1 < 1.0, "sank {:.3} mm", from_mm - h1);
+    // The same image told it has a lead screw: the rest bridge shorts the motor, and the load
+    // turns the ball screw back.
+    let reply = r.command("set drive.screw lead", 1.0).unwrap();
+    assert!(reply.starts_with("ok"), "{reply}");
+    let h2 = height_mm(&r);
+    r.run_for(2.0).unwrap();
+    let sink = h2 - height_mm(&r);
+    println!("with drive.screw = lead it sinks {sink:.3} mm in 2 s");
+    assert!(sink > 0.05, "sank {sink:.3} mm");
 }

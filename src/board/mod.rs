@@ -74,10 +74,32 @@ pub fn clock_config() -> embassy_stm32::Config {
         divr: Some(PllRDiv::DIV2),
     });
     config.rcc.sys = Sysclk::PLL1_R;
-    // Above 150 MHz the core regulator must be in range-1 boost mode (RM0440 §6.1.5).
+    // Above 150 MHz the core regulator must be in range-1 boost mode (RM0440 §6.1.5): this
+    // picks the boost wait states and RM0440's switching sequence; the mode itself is
+    // selected by [`init`].
     config.rcc.boost = true;
     config.rcc.mux.adc12sel = mux::Adcsel::SYS;
     config
+}
+
+/// The chip at 170 MHz in range-1 boost mode: embassy-stm32 brought up on HSI16, the boost
+/// mode selected by hand, then [`clock_config`]'s clock tree.
+///
+/// embassy-stm32 0.6 selects the boost mode through stm32-metapac 21's PWR_CR5, which has
+/// R1MODE at bit 0; RM0440 (PWR_CR5, offset 0x80, reset value 0x0000 0100) has it at bit 8
+/// (0 = boost). Its write leaves R1MODE at 1, range-1 normal mode, which RM0440 ("Dynamic
+/// voltage scaling management") allows up to 150 MHz only. embassy's `init` resets PWR before
+/// it sets the clocks, so the bit is cleared between `init` (left on HSI16) and `reinit`;
+/// boost mode at 16 MHz is allowed, and `reinit` then follows RM0440's sequence (AHB / 2,
+/// wait states for boost, the switch, AHB / 1).
+pub fn init() -> embassy_stm32::Peripherals {
+    let mut p = embassy_stm32::init(embassy_stm32::Config::default());
+    // RM0440 PWR_CR5: R1MODE (bit 8) = 0, range-1 boost; the other bits are reserved (0).
+    embassy_stm32::pac::PWR
+        .cr5()
+        .write_value(embassy_stm32::pac::pwr::regs::Cr5(0));
+    embassy_stm32::rcc::reinit(clock_config().rcc, &mut p.RCC);
+    p
 }
 
 /// The console UART's peripheral and pins, handed to the console task as they are.

@@ -1,0 +1,134 @@
+//! `fwsim serve` end to end (what `host-sim serve --firmware` runs): the firmware's console on
+//! TCP, its store's flash kept in a file, and a restart of the program as a power cycle.
+//!
+//! Needs the ELF: `FWSIM_ELF=path` (scripts/test-all runs it with `--ignored`).
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A running `fwsim serve` and a console connection to it.
+struct Served {
+    child: Child,
+    console: TcpStream,
+    /// Console text not yet consumed.
+    pending: String,
+}
+
+impl Drop for Served {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn serve(flash: &std::path::Path) -> Served {
+    let elf = std::env::var("FWSIM_ELF").expect("FWSIM_ELF must name the firmware ELF");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_fwsim"))
+        .args([
+            "serve",
+            "--elf",
+            &elf,
+            "--listen",
+            "127.0.0.1:0",
+            "--speed",
+            "0",
+        ])
+        .args(["--from-mm", "200", "--flash"])
+        .arg(flash)
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // "fwsim serve: ELF on the emulated STM32G431; console on tcp://ADDR (...)"
+    let mut out = BufReader::new(child.stdout.take().unwrap());
+    let mut line = String::new();
+    out.read_line(&mut line).unwrap();
+    // serve prints the console to stdout while no client is connected: keep reading it.
+    std::thread::spawn(move || {
+        let mut sink = String::new();
+        while out.read_line(&mut sink).is_ok_and(|n| n > 0) {
+            sink.clear();
+        }
+    });
+    let addr = line
+        .split("tcp://")
+        .nth(1)
+        .and_then(|r| r.split_whitespace().next())
+        .unwrap_or_else(|| panic!("no address in {line:?}"))
+        .to_string();
+    let console = TcpStream::connect(&addr).unwrap();
+    console
+        .set_read_timeout(Some(Duration::from_millis(200)))
+        .unwrap();
+    Served {
+        child,
+        console,
+        pending: String::new(),
+    }
+}
+
+impl Served {
+    /// Sends `line` and returns the first console line after it for which `done` holds
+    /// (within 20 s of wall time).
+    fn command(&mut self, line: &str, done: impl Fn(&str) -> bool) -> String {
+        self.console
+            .write_all(format!("{line}\r\n").as_bytes())
+            .unwrap();
+        let end = Instant::now() + Duration::from_secs(20);
+        let mut buf = [0u8; 512];
+        while Instant::now() < end {
+            while let Some(i) = self.pending.find("\r\n") {
+                let l: String = self.pending.drain(..i + 2).collect();
+                let l = l.trim_end();
+                if done(l) {
+                    return l.to_string();
+                }
+            }
+            match self.console.read(&mut buf) {
+                Ok(0) => panic!("the console closed"),
+                Ok(n) => self.pending.push_str(&String::from_utf8_lossy(&buf[..n])),
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                    ) => {}
+                Err(e) => panic!("console: {e}"),
+            }
+        }
+        panic!("no reply to {line:?} (console: {:?})", self.pending)
+    }
+}
+
+#[test]
+#[ignore = "needs FWSIM_ELF"]
+fn serve_keeps_the_store_in_its_flash_file_across_a_restart() {
+    let flash = std::env::temp_dir().join(format!("fwsim-serve-test-{}.bin", std::process::id()));
+    let _ = std::fs::remove_file(&flash);
+
+    let mut s = serve(&flash);
+    let version = s.command("version", |l| l.starts_with("liftfw console v"));
+    println!("console: version → {version}");
+    let reply = s.command("set limits.upper 390", |l| {
+        l.starts_with("ok") || l.starts_with("error")
+    });
+    assert!(reply.starts_with("ok"), "{reply}");
+    let reply = s.command("save", |l| l.starts_with("ok") || l.starts_with("error"));
+    assert!(reply.starts_with("ok: saved"), "{reply}");
+    // serve writes the store's pages to the file every 100 ms of emulated time.
+    let end = Instant::now() + Duration::from_secs(20);
+    while !flash.exists() && Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(flash.exists(), "{} never written", flash.display());
+    std::thread::sleep(Duration::from_millis(500));
+    // The program killed: the board loses its power.
+    drop(s);
+
+    let mut s = serve(&flash);
+    let got = s.command("get limits.upper", |l| l.starts_with("limits.upper"));
+    assert_eq!(got, "limits.upper = 390 mm");
+    drop(s);
+    let _ = std::fs::remove_file(&flash);
+}

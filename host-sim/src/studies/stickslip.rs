@@ -35,7 +35,7 @@ pub const STOP_BEFORE_END: f64 = 0.3;
 pub const MATCH_GRACE: f64 = 0.2;
 /// With this environment variable set to a directory, every run writes its ticks
 /// (`ticks_<set>_<id>.csv`: t s, measured screw torque N·m, slip, flag, falling branch,
-/// amplitude N·m) and the truth's cycles (`cycles_<set>_<id>.csv`: breakaway s, stuck s,
+/// amplitude N·m, estimated screw speed rad/s, cruise limit rad/s or NaN) and the truth's cycles (`cycles_<set>_<id>.csv`: breakaway s, stuck s,
 /// drop N·m, period s) there: to look at a few runs (`--only`).
 pub const DUMP_ENV: &str = "HOST_SIM_STICKSLIP_DUMP";
 
@@ -294,6 +294,11 @@ pub struct RunResult {
     pub motion_end: f64,
     /// Mean screw speed over the run's second half (truth), rad/s.
     pub late_speed: f64,
+    /// The controller's cruise limit at the end (`Status::cruise_limit`: the screw lagged its
+    /// reference and the profile's cruise came down to what the motor reached), rad/s, and how
+    /// many times it changed: each change ramps the reference, and the detector waits for a
+    /// steady one.
+    pub cruise_limit: (Option<f64>, usize),
     /// Simulation wall time, s.
     pub wall: f64,
     /// A digest of everything the score reads: the plant's phase changes up to the end of the
@@ -391,6 +396,8 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
         flagged_ticks: usize,
         moved: bool,
         motion_end: Option<f64>,
+        cruise_limit: Option<RadiansPerSecond>,
+        cruise_changes: usize,
         dump: Option<std::fs::File>,
     }
     let mut log0 = Log::default();
@@ -427,13 +434,19 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
             let o = c.stick_slip_output();
             let _ = writeln!(
                 d,
-                "{t:.4},{:.4},{},{},{},{}",
+                "{t:.4},{:.4},{},{},{},{},{:.4},{:.4}",
                 c.estimate().measured_screw_torque.to_f64(),
                 u8::from(o.slip),
                 u8::from(o.active),
                 u8::from(o.falling_branch),
-                o.amplitude.to_f64()
+                o.amplitude.to_f64(),
+                c.estimate().screw_speed.to_f64(),
+                st.cruise_limit.map_or(f64::NAN, |w| w.to_f64())
             );
+        }
+        if st.cruise_limit != log.cruise_limit {
+            log.cruise_limit = st.cruise_limit;
+            log.cruise_changes += 1;
         }
         log.flagged_ticks += usize::from(st.stick_slip);
         log.slips += usize::from(c.stick_slip_output().slip);
@@ -480,6 +493,7 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
         stop_at,
         motion_end,
         late_speed: summary.late_screw_speed,
+        cruise_limit: (g.1.cruise_limit.map(|w| w.to_f64()), g.1.cruise_changes),
         wall: 0.0,
         digest: 0,
     };
@@ -748,7 +762,10 @@ pub fn run_line(r: &RunResult) -> String {
         m.on_micro,
         m.spurious,
         r.wall
-    ) + &if r.motion_end < r.stop_at - 1e-3 {
+    ) + &match r.cruise_limit {
+        (Some(w), n) => format!(" | cruise limited to {w:.2} rad/s ({n} changes)"),
+        _ => String::new(),
+    } + &if r.motion_end < r.stop_at - 1e-3 {
         format!(" | motion ended at {:.3} s, before STOP", r.motion_end)
     } else {
         String::new()

@@ -361,7 +361,7 @@ pub fn qmul<A: Q, B: Q, O: Q>(a: A, b: B) -> O {
 }
 
 /// Mixed-format quotient `a/b` in the output's Q format, saturating; `b = 0` gives the bound
-/// of `a`'s sign. A 64-bit division: keep it off the per-tick path (see [`crate::math::recip`]).
+/// of `a`'s sign. A 64-bit division: keep it off the per-tick path (see [`crate::math::recip_q30`]).
 #[inline]
 pub fn qdiv<A: Q, B: Q, O: Q>(a: A, b: B) -> O {
     let num = shift_to(

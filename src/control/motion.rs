@@ -279,20 +279,28 @@ impl Controller {
             .max(step)
             .min(cruise)
             .max(const { RadiansPerSecond::lit("0.2") });
-        if w == prev || w >= cruise {
+        if w >= cruise {
             return;
         }
-        // Reported once it has settled on what the screw does.
-        if !self.motion.cruise_reported && seen >= step && self.live.pending_event.is_none() {
-            self.motion.cruise_reported = true;
-            self.live.pending_event = Some(Event::CruiseLimited { speed: w });
+        // Within 1/64 of the limit in force it is the speed estimate's jitter at the motor's top
+        // speed (a few LSB), not a new speed: the limit stays. Re-set on every lagging tick, it
+        // moved the reference by those LSB 100–160 times in 2 s, and the stick-slip detector,
+        // which watches only a steady reference, never armed in a cruise-limited motion.
+        if w.sat_sub(prev).sat_abs() > RadiansPerSecond::from_raw(prev.bits() >> 6) {
+            self.motion.cruise_limit = Some(w);
+            self.motion.profile.set_cruise(crate::math::mul_div_u64(
+                self.derived.cruise_q32.unsigned_abs(),
+                w.bits().unsigned_abs().into(),
+                cruise.bits().unsigned_abs().max(1).into(),
+            ) as i64);
         }
-        self.motion.cruise_limit = Some(w);
-        self.motion.profile.set_cruise(crate::math::mul_div_u64(
-            self.derived.cruise_q32.unsigned_abs(),
-            w.bits().unsigned_abs().into(),
-            cruise.bits().unsigned_abs().max(1).into(),
-        ) as i64);
+        // Reported once it has settled on what the screw does: the limit in force.
+        if let Some(limit) = self.motion.cruise_limit {
+            if !self.motion.cruise_reported && seen >= step && self.live.pending_event.is_none() {
+                self.motion.cruise_reported = true;
+                self.live.pending_event = Some(Event::CruiseLimited { speed: limit });
+            }
+        }
     }
 
     /// One step of the speed loop toward `reference` with `error_counts` of position error:

@@ -133,7 +133,7 @@ impl SpeedLoop {
 ///
 /// One 32-bit division (`UDIV`: one instruction, 2–12 cycles on the M4; it was a Newton
 /// reciprocal, ≈ 30 instructions more on every driving tick): |v|·2^11 over the
-/// supply rounded to Q12, the quotient rounded. Error ≤ ½ LSB + 2^15·2^−13/supply[V]
+/// supply rounded to Q12, the quotient rounded. Error ≤ ½ LSB + 2^15·2^−13/supply\[V\]
 /// (the supply's rounding: ≤ 0.8 LSB at 9 V), proptest below.
 pub fn duty_q15(v: Volts, supply: Volts) -> i16 {
     if supply < const { Volts::lit("1") } {

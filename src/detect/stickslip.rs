@@ -94,7 +94,7 @@ impl StickSlipConfig {
         escape_speed: RadiansPerSecond::lit("1.5"),
     };
 
-    /// Check the ranges (one constant table, [`crate::check_bounds`]).
+    /// Check the ranges (one constant table, `crate::keys::check_bounds`).
     pub fn validate(&self) -> Result<(), ConfigError> {
         static BOUNDS: [Bound; 3] = [
             Bound::new(

@@ -402,7 +402,7 @@ impl Estimator {
         self.mu_table.is_exact(x)
     }
 
-    /// log2 of the pose's node spacing in counts ([`PoseSegment`]); 0: the exact pose at every
+    /// log2 of the pose's node spacing in counts (`PoseSegment`); 0: the exact pose at every
     /// count.
     pub fn pose_shift(&self) -> u32 {
         self.pose_shift

@@ -269,7 +269,7 @@ impl Estimator {
     /// are ready, as it does with k = 0 (no nodes). After it has run on the two or four ticks
     /// following a crossing, a step whose count enters either neighbour reads it as it reads
     /// its own segment: no exact pose on the step. Skipping it is safe: the step then refills
-    /// the segment it enters ([`Self::refill_slot`]), the same bits more slowly.
+    /// the segment it enters (`refill_slot`), the same bits more slowly.
     ///
     /// Call it once a tick after the tick's outputs are applied
     /// ([`crate::control::Controller::finish_tick`]), so that the node work of a crossing does

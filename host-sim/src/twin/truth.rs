@@ -17,7 +17,12 @@
 //! - an episode is **borderline** when it does not survive the thresholds (drop, period,
 //!   duration) scaled by [`TruthParams::band`] either way ([`label`]): scored episodes must
 //!   hold at the stricter thresholds; what exists only at the looser ones or only at the
-//!   nominal ones is borderline, and the score neither asks for nor penalises an onset there.
+//!   nominal ones is borderline, and the score neither asks for nor penalises an onset there;
+//! - a scored episode's **extent** is the loose-threshold episode around it: the same
+//!   stick-slip, with its start and end decided by the looser thresholds. An onset anywhere in
+//!   it detects the episode (stick-slip that grows through the band into a scored episode is
+//!   one episode, as the detector's flag sees it); a loose episode that holds no scored one is
+//!   borderline as a whole, whatever nominal episodes it holds.
 //!   Stick-slip near a threshold is decided by the solver's step (the plant is chaotic there:
 //!   a drop of 0.74 or 0.76 N·m, a period of 4.9 or 5.1 ms), so no step-independent truth can
 //!   draw the line sharply (docs/stick-slip.md, "Step independence").
@@ -98,6 +103,9 @@ pub struct Episode {
     pub cycles: usize,
     /// Median drop, N·m.
     pub drop: f64,
+    /// The extent an onset detects it in, s: for a scored episode the loose-threshold episode
+    /// around it (its start and end), for the others `(start, end)`.
+    pub extent: (f64, f64),
 }
 
 /// The labels of a run.
@@ -111,8 +119,9 @@ pub struct Labels {
     /// under the same chain rule and overlap no episode nor borderline episode: reported, not
     /// scored.
     pub micro: Vec<Episode>,
-    /// Borderline episodes: at the nominal thresholds without a strict episode in them, or at
-    /// the loose thresholds overlapping no nominal episode. Not scored either way.
+    /// Borderline episodes: at the loose thresholds holding no scored episode, or at the
+    /// nominal thresholds without a strict episode in them (where the loose episode around
+    /// holds a scored one). Not scored either way.
     pub borderline: Vec<Episode>,
     /// The episodes at the nominal thresholds, without the band (scored or borderline).
     pub nominal: Vec<Episode>,
@@ -167,6 +176,7 @@ fn chain(cs: &[&Cycle], p: &TruthParams) -> Vec<Episode> {
                 end,
                 cycles: run.len(),
                 drop: drops[drops.len() / 2],
+                extent: (start, end),
             });
         }
         i = j;
@@ -193,24 +203,41 @@ fn overlaps(a: &Episode, b: &Episode) -> bool {
     a.start <= b.end && b.start <= a.end
 }
 
-/// Label a run: its phase log, coupling stiffness `k` and motion window. Episodes are those
-/// at the nominal thresholds that contain an episode at the strict ones (thresholds × band);
-/// the nominal ones without and the loose ones (thresholds / band) overlapping no nominal one
-/// are borderline.
+/// Label a run: its phase log, coupling stiffness `k` and motion window.
+///
+/// - **Scored** episodes: those at the nominal thresholds that contain an episode at the strict
+///   ones (thresholds × band). Each gets as its extent the loose episode (thresholds / band)
+///   around it.
+/// - **Borderline**: the nominal episodes without a strict one in them, and every loose
+///   episode that holds no scored one (whether or not it holds nominal ones: stick-slip whose
+///   period or drop sits in the band for most of a run, with a few cycles over the nominal
+///   threshold, is borderline throughout, not "nothing" outside those cycles).
+/// - **Micro**: chains of all cycles that overlap neither.
 pub fn label(phases: &[PhaseChange], k: f64, window: (f64, f64), p: &TruthParams) -> Labels {
     let cycles = cycles(phases, k, window);
     let (nominal, micro) = label_at(&cycles, &p.scaled(1.0));
     let (episodes, mut borderline): (Vec<Episode>, Vec<Episode>) = if p.band > 1.0 {
         let (strict, _) = label_at(&cycles, &p.scaled(p.band));
         let (loose, _) = label_at(&cycles, &p.scaled(1.0 / p.band));
-        let (episodes, mut border): (Vec<Episode>, Vec<Episode>) = nominal
+        let (mut episodes, mut border): (Vec<Episode>, Vec<Episode>) = nominal
             .iter()
             .partition(|e| strict.iter().any(|s| overlaps(e, s)));
-        border.extend(
-            loose
-                .into_iter()
-                .filter(|l| !nominal.iter().any(|e| overlaps(e, l))),
-        );
+        for e in &mut episodes {
+            // Every nominal cycle is a loose one, so a loose episode contains each nominal one;
+            // the guard keeps the extent a superset of the episode whatever the thresholds.
+            if let Some(l) = loose.iter().find(|l| overlaps(e, l)) {
+                e.extent = (l.start.min(e.start), l.end.max(e.end));
+            }
+        }
+        // A loose episode that holds no scored one is borderline as a whole; it covers the
+        // unscored nominal ones inside it, which stay listed only where their loose episode
+        // holds a scored one too.
+        let free: Vec<Episode> = loose
+            .into_iter()
+            .filter(|l| !episodes.iter().any(|e| overlaps(e, l)))
+            .collect();
+        border.retain(|b| !free.iter().any(|l| overlaps(b, l)));
+        border.extend(free);
         (episodes, border)
     } else {
         (nominal.clone(), Vec::new())
@@ -218,7 +245,12 @@ pub fn label(phases: &[PhaseChange], k: f64, window: (f64, f64), p: &TruthParams
     borderline.sort_by(|a, b| a.start.total_cmp(&b.start));
     let micro = micro
         .into_iter()
-        .filter(|m| !borderline.iter().any(|b| overlaps(b, m)))
+        .filter(|m| {
+            !borderline.iter().any(|b| overlaps(b, m))
+                && !episodes
+                    .iter()
+                    .any(|e| e.extent.0 <= m.end && m.start <= e.extent.1)
+        })
         .collect();
     Labels {
         cycles,
@@ -348,5 +380,57 @@ mod tests {
         let nb = TruthParams { band: 1.0, ..p };
         let l = label(&two_cycles(0.8), 160.0, (0.0, 5.0), &nb);
         assert_eq!((l.episodes.len(), l.borderline.len()), (1, 0));
+    }
+
+    /// Cycles of drop `d` N·m every `period` s from `t0`, `n` of them (k = 160 N·m/rad).
+    fn train(v: &mut Vec<PhaseChange>, t0: f64, period: f64, d: f64, n: usize) {
+        for i in 0..n {
+            let t = t0 + period * i as f64;
+            v.push(ph(t, Phase::Slip(Dir::Down), -d / 160.0));
+            v.push(ph(t + 0.0005, Phase::Stick, 0.0));
+        }
+    }
+
+    #[test]
+    fn band_stick_slip_with_a_short_nominal_episode_is_borderline_throughout() {
+        // Generator seed 20 #50's shape: 0.92 N·m every 4.8 ms for the whole run (loose, under
+        // the nominal 5 ms), and near its end three cycles 5.1 ms apart (a short nominal
+        // episode, no strict one). The loose episode overlaps that nominal one; it used to be
+        // dropped for it, leaving the run's first 0.5 s "nothing" and an onset there a false
+        // alarm. It is borderline throughout now.
+        let mut v = vec![ph(0.0, Phase::Stick, 0.0)];
+        train(&mut v, 0.1, 0.0048, 0.92, 100);
+        let t = v.last().map_or(0.0, |p| p.t) + 0.0043;
+        train(&mut v, t, 0.0051, 0.92, 4);
+        let t = v.last().map_or(0.0, |p| p.t) + 0.0043;
+        train(&mut v, t, 0.0048, 0.92, 20);
+        let l = label(&v, 160.0, (0.0, 5.0), &TruthParams::default());
+        assert!(l.episodes.is_empty(), "{:?}", l.episodes);
+        assert_eq!(l.nominal.len(), 1, "{:?}", l.nominal);
+        assert_eq!(l.borderline.len(), 1, "{:?}", l.borderline);
+        let b = l.borderline[0];
+        assert!(
+            (b.start - 0.1).abs() < 1e-9 && b.end >= l.nominal[0].end,
+            "{b:?}"
+        );
+        assert!(l.micro.is_empty());
+    }
+
+    #[test]
+    fn a_scored_episode_extends_over_the_band_stick_slip_around_it() {
+        // 0.7 N·m every 10 ms from 0.1 s (loose only), then 1.0 N·m every 10 ms from 0.3 s
+        // (scored), then 0.7 N·m again: one episode, detected by an onset anywhere in 0.1 s …
+        // its end.
+        let mut v = vec![ph(0.0, Phase::Stick, 0.0)];
+        train(&mut v, 0.1, 0.01, 0.7, 20);
+        train(&mut v, 0.3, 0.01, 1.0, 10);
+        train(&mut v, 0.4, 0.01, 0.7, 10);
+        let l = label(&v, 160.0, (0.0, 5.0), &TruthParams::default());
+        assert_eq!(l.episodes.len(), 1, "{:?}", l.episodes);
+        let e = l.episodes[0];
+        assert!((e.start - 0.3).abs() < 1e-9 && (e.confirmed - 0.31).abs() < 1e-9);
+        assert!((e.extent.0 - 0.1).abs() < 1e-9, "{e:?}");
+        assert!((e.extent.1 - 0.4905).abs() < 1e-9, "{e:?}");
+        assert!(l.borderline.is_empty() && l.micro.is_empty(), "{l:?}");
     }
 }

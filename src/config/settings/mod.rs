@@ -78,7 +78,7 @@ impl Setting {
     }
 
     /// The field's raw bits in `cfg`. (Through a copy: the registry reaches its fields by one
-    /// `&mut` access ([`slot`]) for both directions.)
+    /// `&mut` access (`slot`) for both directions.)
     pub fn get(&self, cfg: &ControlConfig) -> i64 {
         let mut c = *cfg;
         slot(self.index(), &mut c).read()

@@ -160,7 +160,7 @@ units! {
     MICRO_NMS, "uNms/rad", "a rotational damping", [("unms", 0)];
 }
 
-/// A choice setting's names, by position in [`CHOICES`]; reads as the names (`Deref`).
+/// A choice setting's names, by position in `CHOICES`; reads as the names (`Deref`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ChoiceId(pub(super) u8);
 

@@ -178,17 +178,56 @@ impl DriveParams {
             }
         }
         r.source_power = voc * r.battery_current;
-        let blend = (t_c.signum() * w / COULOMB_BAND).tanh();
+        // tanh is odd (glibc's and any correctly rounded one): sgn(T_c)·tanh(ω/band) is
+        // tanh(sgn(T_c)·ω/band) to the bit, one call for both terms.
+        let band = tanh_saturating(w / COULOMB_BAND);
+        let blend = t_c.signum() * band;
         // Torque factor at the motor: 1/η motoring (blend = +1), η back-driven (blend = −1),
         // and exactly 1 where the flow reverses, so the mesh loss is never negative.
-        let factor = self.efficiency.powf(-blend);
+        let factor = gear_factor(self.efficiency, blend);
         let t_load = t_c / self.ratio * factor;
-        let t_fric = self.motor_viscous * w + self.motor_coulomb * (w / COULOMB_BAND).tanh();
+        let t_fric = self.motor_viscous * w + self.motor_coulomb * band;
         r.dw = (self.torque_constant * i - t_fric - t_load) / self.inertia();
         r.motor_friction_loss = t_fric * w;
         r.gear_loss = t_load * w - t_c * w / self.ratio;
         r
     }
+}
+
+/// tanh(x), without the call where it is ±1 to the last bit: for |x| ≥ 19.1,
+/// 1 − tanh|x| = 2/(e^(2|x|) + 1) < 5.1·10⁻¹⁷, under half an ulp below 1 (5.55·10⁻¹⁷), so tanh
+/// rounds to ±1 exactly (glibc's tanh computes 1 − 2/(expm1(2|x|) + 2) there, or returns
+/// 1 − tiny from 22). The motor turns faster than 19.1 rad/s (0.32 rad/s at the screw) in most
+/// runs, and this is the plant's hottest transcendental call.
+#[inline]
+pub fn tanh_saturating(x: f64) -> f64 {
+    if x.abs() >= 19.1 {
+        1f64.copysign(x)
+    } else {
+        x.tanh()
+    }
+}
+
+/// η^(−blend), remembered for the last (η, blend) on this thread: saturated (blend = ±1 in
+/// steady motion) the same power is asked for at every evaluation. The same `powf` call makes
+/// every value, so the result is the same to the bit.
+#[inline]
+fn gear_factor(efficiency: f64, blend: f64) -> f64 {
+    use std::cell::Cell;
+    thread_local! {
+        static LAST: Cell<(u64, u64, f64)> = const { Cell::new((u64::MAX, u64::MAX, f64::NAN)) };
+    }
+    let key = (efficiency.to_bits(), blend.to_bits());
+    LAST.with(|c| {
+        let (e, b, f) = c.get();
+        if (e, b) == key {
+            f
+        } else {
+            let f = efficiency.powf(-blend);
+            c.set((key.0, key.1, f));
+            f
+        }
+    })
 }
 
 /// The coast diodes block reverse current: if i changed sign over a step while coasting, it
@@ -204,6 +243,32 @@ pub fn coast_clamp(bridge: BridgeState, i_before: f64, i_after: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_saturated_tanh_and_the_remembered_power_are_the_library_calls_to_the_bit() {
+        let mut x = 0.0f64;
+        while x < 40.0 {
+            for v in [x, -x] {
+                assert_eq!(tanh_saturating(v).to_bits(), v.tanh().to_bits(), "{v}");
+                let b = 0.3f64.signum() * tanh_saturating(v);
+                assert_eq!(b.to_bits(), (0.3f64.signum() * v).tanh().to_bits(), "{v}");
+                let b = (-0.3f64).signum() * tanh_saturating(v);
+                assert_eq!(
+                    b.to_bits(),
+                    ((-0.3f64).signum() * v).tanh().to_bits(),
+                    "{v}"
+                );
+                for eff in [0.7f64, 0.85] {
+                    let want = eff.powf(-b);
+                    // Twice: the second is the remembered value.
+                    assert_eq!(gear_factor(eff, b).to_bits(), want.to_bits());
+                    assert_eq!(gear_factor(eff, b).to_bits(), want.to_bits());
+                }
+            }
+            x += 0.000_37;
+        }
+        assert!(tanh_saturating(f64::NAN).is_nan());
+    }
 
     #[test]
     fn rated_lift_needs_less_than_forty_amps() {

@@ -179,6 +179,16 @@ fn host_sim_serve(flash: &std::path::Path) -> (Child, String) {
             break rest.split_whitespace().next().unwrap().to_string();
         }
     };
+    // The boot greeting goes to stdout while no client is connected; a client connecting in
+    // the middle of it would read the rest of a line as a reply. Its last line (the lift is
+    // not parked): "refused: position unknown; hold DOWN …".
+    loop {
+        line.clear();
+        assert!(out.read_line(&mut line).unwrap() > 0, "no boot greeting");
+        if line.contains("hold DOWN") {
+            break;
+        }
+    }
     std::thread::spawn(move || {
         let mut sink = String::new();
         while out.read_line(&mut sink).is_ok_and(|n| n > 0) {
@@ -204,6 +214,8 @@ fn liftctl(addr: &str, args: &[&str]) -> String {
     let out = Command::new(sibling("liftctl"))
         .arg("--port")
         .arg(format!("tcp://{addr}"))
+        // The emulator shares the machine with the tests beside it: generous reply timeouts.
+        .args(["--timeout", "10"])
         .args(args)
         .env_remove("LIFTCTL_PORT")
         .output()

@@ -299,6 +299,8 @@ pub struct RunResult {
     /// many times it changed: each change ramps the reference, and the detector waits for a
     /// steady one.
     pub cruise_limit: (Option<f64>, usize),
+    /// The first fault the controller latched, if any (what ended a motion before STOP).
+    pub fault: Option<String>,
     /// Simulation wall time, s.
     pub wall: f64,
     /// A digest of everything the score reads: the plant's phase changes up to the end of the
@@ -398,6 +400,7 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
         motion_end: Option<f64>,
         cruise_limit: Option<RadiansPerSecond>,
         cruise_changes: usize,
+        fault: Option<String>,
         dump: Option<std::fs::File>,
     }
     let mut log0 = Log::default();
@@ -443,6 +446,9 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
                 c.estimate().screw_speed.to_f64(),
                 st.cruise_limit.map_or(f64::NAN, |w| w.to_f64())
             );
+        }
+        if log.fault.is_none() {
+            log.fault = st.fault.map(|f| format!("{f:?}"));
         }
         if st.cruise_limit != log.cruise_limit {
             log.cruise_limit = st.cruise_limit;
@@ -494,6 +500,7 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
         motion_end,
         late_speed: summary.late_screw_speed,
         cruise_limit: (g.1.cruise_limit.map(|w| w.to_f64()), g.1.cruise_changes),
+        fault: g.1.fault.clone(),
         wall: 0.0,
         digest: 0,
     };
@@ -766,7 +773,13 @@ pub fn run_line(r: &RunResult) -> String {
         (Some(w), n) => format!(" | cruise limited to {w:.2} rad/s ({n} changes)"),
         _ => String::new(),
     } + &if r.motion_end < r.stop_at - 1e-3 {
-        format!(" | motion ended at {:.3} s, before STOP", r.motion_end)
+        format!(
+            " | motion ended at {:.3} s, before STOP{}",
+            r.motion_end,
+            r.fault
+                .as_ref()
+                .map_or(String::new(), |f| format!(" (fault {f})"))
+        )
     } else {
         String::new()
     }

@@ -1115,3 +1115,57 @@ pub fn step_report(a: &[RunResult], b: &[RunResult], dt: (f64, f64)) -> String {
     );
     o
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_identified_load_case_is_the_same_set_off_by_the_error_in_turn() {
+        let set = scenario_set(64, 3);
+        let off = with_load_error(&set, 0.08);
+        assert_eq!(set.len(), off.len());
+        for (a, b) in set.iter().zip(&off) {
+            assert_eq!(
+                Scenario {
+                    model_load: None,
+                    ..*b
+                },
+                *a
+            );
+            let want = (a.load * if a.id % 2 == 0 { 1.08 } else { 0.92 })
+                .clamp(10.0, 5000.0)
+                .round();
+            assert_eq!(b.model_load, Some(want), "{}", b.name());
+            assert!(b.name().contains("(model "), "{}", b.name());
+        }
+        assert!(set.iter().all(|s| s.model_load.is_none()));
+    }
+
+    #[test]
+    fn the_digest_sees_every_phase_change_and_onset_in_the_window() {
+        use crate::twin::plant::{Dir, Phase};
+        use crate::twin::trace::PhaseChange;
+        let r = run(&quick_set()[4], &ScoreConfig::default());
+        let ph = |t: f64, phase: Phase| PhaseChange {
+            t,
+            phase,
+            twist: 0.0,
+        };
+        let phases = [ph(0.0, Phase::Stick), ph(0.1, Phase::Slip(Dir::Up))];
+        let base = digest(&phases, 0.5, &r);
+        assert_eq!(base, digest(&phases, 0.5, &r));
+        // A phase change after the window is not scored: the same digest.
+        let later = [phases[0], phases[1], ph(0.7, Phase::Stick)];
+        assert_eq!(base, digest(&later, 0.5, &r));
+        // One bit of a time inside it, or one more onset: another digest.
+        let moved = [
+            phases[0],
+            ph(f64::from_bits(0.1f64.to_bits() + 1), phases[1].phase),
+        ];
+        assert_ne!(base, digest(&moved, 0.5, &r));
+        let mut more = r.clone();
+        more.onsets.push((0.3, 1.0));
+        assert_ne!(base, digest(&phases, 0.5, &more));
+    }
+}

@@ -38,12 +38,24 @@ pub fn parse_change(key: &str, value: &str) -> Result<Change, Error> {
     }
 }
 
+/// The ball-screw variant's keys: liftctl knows them (it is built with them), a board running
+/// the default lead-screw image refuses them.
+const BALL_PREFIX: &str = "ballscrew.";
+
+/// The lead-screw image's refusal of a ball-screw key
+/// (`liftfw::config::settings::unknown_key_template`).
+const NEEDS_BALL_IMAGE: &str = "needs the ball-screw firmware";
+
 /// The board's running configuration, read key by key, and the text of each stored value.
 pub struct Mirror {
     /// As validated here (the board's configuration passes the same validation).
     pub config: ValidatedConfig,
-    /// `(key, value text)` for every setting, in registry order (`friction.law` included).
+    /// `(key, value text)` for every setting the board has, in registry order
+    /// (`friction.law` included).
     pub texts: Vec<(&'static str, String)>,
+    /// The board runs the lead-screw image: it has no `ballscrew.*` settings. They keep their
+    /// factory values in `config` and are not in `texts`.
+    pub lead_image: bool,
 }
 
 impl Mirror {
@@ -51,9 +63,19 @@ impl Mirror {
     pub fn read(board: &mut Board) -> Result<Mirror, Error> {
         let mut cfg = *ValidatedConfig::factory().get();
         let mut texts = Vec::new();
+        let mut lead_image = false;
         for id in settings::all() {
             let s = id.setting();
-            let text = board.get(s.key)?;
+            let text = match board.get(s.key) {
+                Ok(text) => text,
+                Err(Error::Board(r))
+                    if s.key.starts_with(BALL_PREFIX) && r.contains(NEEDS_BALL_IMAGE) =>
+                {
+                    lead_image = true;
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
             if s.stored() {
                 let c = parse_change(s.key, &text).map_err(|_| Error::Garbled {
                     sent: format!("get {}", s.key),
@@ -69,7 +91,11 @@ impl Mirror {
                  from the same sources?"
             ))
         })?;
-        Ok(Mirror { config, texts })
+        Ok(Mirror {
+            config,
+            texts,
+            lead_image,
+        })
     }
 
     /// The value text of `id`.
@@ -155,7 +181,8 @@ pub fn plan(running: &ValidatedConfig, changes: &[Change]) -> Result<Vec<Change>
 pub fn apply(board: &mut Board, changes: &[Change]) -> Result<Vec<String>, Error> {
     board.check_schema()?;
     let mirror = Mirror::read(board)?;
-    let steps = plan(&mirror.config, changes)?;
+    let changes = for_image(&mirror, changes)?;
+    let steps = plan(&mirror.config, &changes)?;
     let mut done: Vec<SettingId> = Vec::new();
     let mut report = Vec::new();
     for c in &steps {
@@ -188,6 +215,29 @@ pub fn apply(board: &mut Board, changes: &[Change]) -> Result<Vec<String>, Error
         }
     }
     Ok(report)
+}
+
+/// The changes this board can take. On the lead-screw image a ball-screw value equal to the
+/// factory one (a file exported from a ball-screw board that never changed it) is nothing to
+/// change; any other ball-screw value is refused before anything is sent.
+fn for_image(mirror: &Mirror, changes: &[Change]) -> Result<Vec<Change>, Error> {
+    if !mirror.lead_image {
+        return Ok(changes.to_vec());
+    }
+    let mut out = Vec::new();
+    for c in changes {
+        let s = c.id.setting();
+        if !s.key.starts_with(BALL_PREFIX) {
+            out.push(c.clone());
+        } else if s.get(mirror.config.get()) != c.raw {
+            return Err(Error::Invalid(format!(
+                "error: '{}' needs the ball-screw firmware: the board runs the lead-screw \
+                 image; nothing was changed",
+                s.key
+            )));
+        }
+    }
+    Ok(out)
 }
 
 fn undo(board: &mut Board, mirror: &Mirror, done: &[SettingId]) -> Result<(), Error> {
@@ -363,7 +413,11 @@ mod tests {
                 (id.key(), v)
             })
             .collect();
-        let m = Mirror { config: run, texts };
+        let m = Mirror {
+            config: run,
+            texts,
+            lead_image: false,
+        };
         let t = export_toml(&m, "test");
         let changes = import_toml(&t).unwrap();
         let stored = settings::all().filter(|id| id.setting().stored()).count();

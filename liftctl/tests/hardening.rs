@@ -178,3 +178,75 @@ fn ctrl_c_ends_a_wait_for_a_reply_at_once() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("interrupted (Ctrl-C)"));
 }
+
+/// The default firmware is the lead-screw image: it refuses every `ballscrew.*` key, which
+/// this liftctl (built with them) knows. A board that does: the simulated board behind a proxy
+/// answering those keys as the lead-screw image does
+/// (`liftfw::config::settings::unknown_key_template`). `limits set` and `config set` failed
+/// on it (`get ballscrew.r_m` refused while reading the board's settings); fwsim's end-to-end
+/// test against the real image found it.
+#[test]
+fn the_lead_screw_image_has_no_ball_screw_keys_and_liftctl_still_changes_the_rest() {
+    use std::io::{BufRead, BufReader, Write};
+    use std::time::Duration;
+    let server = board();
+    let upstream = std::net::TcpStream::connect(server.addr()).unwrap();
+    upstream
+        .set_read_timeout(Some(Duration::from_millis(300)))
+        .unwrap();
+    let mut reader = BufReader::new(upstream.try_clone().unwrap());
+    // The greeting on connect.
+    let mut line = String::new();
+    while reader.read_line(&mut line).is_ok_and(|n| n > 0) {
+        line.clear();
+    }
+    upstream
+        .set_read_timeout(Some(Duration::from_secs(10)))
+        .unwrap();
+    let mut up = upstream;
+    let (addr, seen) = support::fake(move |l| {
+        let l = String::from_utf8_lossy(l).to_string();
+        if l.is_empty() {
+            return Some(Vec::new());
+        }
+        let key = l.split_whitespace().nth(1).unwrap_or("");
+        if (l.starts_with("get ") || l.starts_with("set ")) && key.starts_with("ballscrew.") {
+            return Some(
+                format!(
+                    "error: '{key}' needs the ball-screw firmware (this is the lead-screw \
+                     image); `help keys` lists them"
+                )
+                .into_bytes(),
+            );
+        }
+        up.write_all(format!("{l}\r\n").as_bytes()).unwrap();
+        let mut reply = String::new();
+        reader.read_line(&mut reply).unwrap();
+        Some(reply.trim_end().as_bytes().to_vec())
+    });
+    let r = liftctl(addr, &["limits", "set", "--upper", "390mm"]);
+    assert_eq!(r.code, 0, "{}{}", r.out, r.err);
+    let r = liftctl(addr, &["config", "get", "limits.upper"]);
+    assert!(r.out.contains("390"), "{}{}", r.out, r.err);
+    // A ball-screw value: refused here, nothing sent.
+    let before = seen.lock().unwrap().len();
+    let r = liftctl(addr, &["config", "set", "ballscrew.balls", "40"]);
+    assert_eq!(r.code, 1, "{}{}", r.out, r.err);
+    assert!(
+        r.err.contains("needs the ball-screw firmware") && r.err.contains("nothing was changed"),
+        "{}",
+        r.err
+    );
+    assert!(!seen.lock().unwrap()[before..]
+        .iter()
+        .any(|l| l.starts_with("set ")));
+    // The export has no ball-screw table, and imports back.
+    let f = temp("lead.toml");
+    let r = liftctl(addr, &["config", "export", f.to_str().unwrap()]);
+    assert_eq!(r.code, 0, "{}{}", r.out, r.err);
+    let text = std::fs::read_to_string(&f).unwrap();
+    assert!(!text.contains("ballscrew"), "{text}");
+    assert!(text.contains("upper"), "{text}");
+    let r = liftctl(addr, &["config", "import", f.to_str().unwrap()]);
+    assert_eq!(r.code, 0, "{}{}", r.out, r.err);
+}

@@ -284,7 +284,7 @@ impl Controller {
         }
         // Within 1/64 of the limit in force it is the speed estimate's jitter at the motor's top
         // speed (a few LSB), not a new speed: the limit stays. Re-set on every lagging tick, it
-        // moved the reference by those LSB 100–160 times in 2 s, and the stick-slip detector,
+        // moved the reference by those LSB up to 178 times in 2 s, and the stick-slip detector,
         // which watches only a steady reference, never armed in a cruise-limited motion.
         if w.sat_sub(prev).sat_abs() > RadiansPerSecond::from_raw(prev.bits() >> 6) {
             self.motion.cruise_limit = Some(w);

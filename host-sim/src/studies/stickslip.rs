@@ -299,6 +299,8 @@ pub struct RunResult {
     /// many times it changed: each change ramps the reference, and the detector waits for a
     /// steady one.
     pub cruise_limit: (Option<f64>, usize),
+    /// The first fault the controller latched, if any (what ended a motion before STOP).
+    pub fault: Option<String>,
     /// Simulation wall time, s.
     pub wall: f64,
     /// A digest of everything the score reads: the plant's phase changes up to the end of the
@@ -398,6 +400,7 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
         motion_end: Option<f64>,
         cruise_limit: Option<RadiansPerSecond>,
         cruise_changes: usize,
+        fault: Option<String>,
         dump: Option<std::fs::File>,
     }
     let mut log0 = Log::default();
@@ -443,6 +446,9 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
                 c.estimate().screw_speed.to_f64(),
                 st.cruise_limit.map_or(f64::NAN, |w| w.to_f64())
             );
+        }
+        if log.fault.is_none() {
+            log.fault = st.fault.map(|f| format!("{f:?}"));
         }
         if st.cruise_limit != log.cruise_limit {
             log.cruise_limit = st.cruise_limit;
@@ -494,6 +500,7 @@ pub fn run(s: &Scenario, sc: &ScoreConfig) -> RunResult {
         motion_end,
         late_speed: summary.late_screw_speed,
         cruise_limit: (g.1.cruise_limit.map(|w| w.to_f64()), g.1.cruise_changes),
+        fault: g.1.fault.clone(),
         wall: 0.0,
         digest: 0,
     };
@@ -766,7 +773,13 @@ pub fn run_line(r: &RunResult) -> String {
         (Some(w), n) => format!(" | cruise limited to {w:.2} rad/s ({n} changes)"),
         _ => String::new(),
     } + &if r.motion_end < r.stop_at - 1e-3 {
-        format!(" | motion ended at {:.3} s, before STOP", r.motion_end)
+        format!(
+            " | motion ended at {:.3} s, before STOP{}",
+            r.motion_end,
+            r.fault
+                .as_ref()
+                .map_or(String::new(), |f| format!(" (fault {f})"))
+        )
     } else {
         String::new()
     }
@@ -1101,4 +1114,58 @@ pub fn step_report(a: &[RunResult], b: &[RunResult], dt: (f64, f64)) -> String {
         same_onsets
     );
     o
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_identified_load_case_is_the_same_set_off_by_the_error_in_turn() {
+        let set = scenario_set(64, 3);
+        let off = with_load_error(&set, 0.08);
+        assert_eq!(set.len(), off.len());
+        for (a, b) in set.iter().zip(&off) {
+            assert_eq!(
+                Scenario {
+                    model_load: None,
+                    ..*b
+                },
+                *a
+            );
+            let want = (a.load * if a.id % 2 == 0 { 1.08 } else { 0.92 })
+                .clamp(10.0, 5000.0)
+                .round();
+            assert_eq!(b.model_load, Some(want), "{}", b.name());
+            assert!(b.name().contains("(model "), "{}", b.name());
+        }
+        assert!(set.iter().all(|s| s.model_load.is_none()));
+    }
+
+    #[test]
+    fn the_digest_sees_every_phase_change_and_onset_in_the_window() {
+        use crate::twin::plant::{Dir, Phase};
+        use crate::twin::trace::PhaseChange;
+        let r = run(&quick_set()[4], &ScoreConfig::default());
+        let ph = |t: f64, phase: Phase| PhaseChange {
+            t,
+            phase,
+            twist: 0.0,
+        };
+        let phases = [ph(0.0, Phase::Stick), ph(0.1, Phase::Slip(Dir::Up))];
+        let base = digest(&phases, 0.5, &r);
+        assert_eq!(base, digest(&phases, 0.5, &r));
+        // A phase change after the window is not scored: the same digest.
+        let later = [phases[0], phases[1], ph(0.7, Phase::Stick)];
+        assert_eq!(base, digest(&later, 0.5, &r));
+        // One bit of a time inside it, or one more onset: another digest.
+        let moved = [
+            phases[0],
+            ph(f64::from_bits(0.1f64.to_bits() + 1), phases[1].phase),
+        ];
+        assert_ne!(base, digest(&moved, 0.5, &r));
+        let mut more = r.clone();
+        more.onsets.push((0.3, 1.0));
+        assert_ne!(base, digest(&phases, 0.5, &more));
+    }
 }

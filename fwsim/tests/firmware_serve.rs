@@ -119,12 +119,7 @@ fn serve_keeps_the_store_in_its_flash_file_across_a_restart() {
     let reply = s.command("save", |l| l.starts_with("ok") || l.starts_with("error"));
     assert!(reply.starts_with("ok: saved"), "{reply}");
     // serve writes the store's pages to the file every 100 ms of emulated time.
-    let end = Instant::now() + Duration::from_secs(20);
-    while !flash.exists() && Instant::now() < end {
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    assert!(flash.exists(), "{} never written", flash.display());
-    std::thread::sleep(Duration::from_millis(500));
+    wait_for_store_file(&flash);
     // The program killed: the board loses its power.
     drop(s);
 
@@ -136,6 +131,16 @@ fn serve_keeps_the_store_in_its_flash_file_across_a_restart() {
 }
 
 /// A program built beside `fwsim` (the workspace's target directory): host-sim, liftctl.
+/// Until the flash file exists (at most 20 s), then 0.5 s more for the store's last pages.
+fn wait_for_store_file(flash: &std::path::Path) {
+    let end = Instant::now() + Duration::from_secs(20);
+    while !flash.exists() && Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(flash.exists(), "{} never written", flash.display());
+    std::thread::sleep(Duration::from_millis(500));
+}
+
 fn sibling(name: &str) -> std::path::PathBuf {
     let p = std::path::Path::new(env!("CARGO_BIN_EXE_fwsim")).with_file_name(name);
     assert!(
@@ -241,12 +246,7 @@ fn host_sim_serve_firmware_with_liftctl_keeps_the_stops_across_a_restart() {
     let version = liftctl(&addr, &["version"]);
     assert!(version.contains("firmware="), "{version}");
     liftctl(&addr, &["limits", "set", "--upper", "390mm", "--save"]);
-    let end = Instant::now() + Duration::from_secs(20);
-    while !flash.exists() && Instant::now() < end {
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    assert!(flash.exists(), "{} never written", flash.display());
-    std::thread::sleep(Duration::from_millis(500));
+    wait_for_store_file(&flash);
     drop(board);
 
     let board = Group(host_sim_serve(&flash));

@@ -38,11 +38,8 @@ pub fn parse_change(key: &str, value: &str) -> Result<Change, Error> {
     }
 }
 
-/// The ball-screw variant's keys: liftctl knows them (it is built with them), a board running
-/// the default lead-screw image refuses them.
-const BALL_PREFIX: &str = "ballscrew.";
-
-/// The lead-screw image's refusal of a ball-screw key
+/// The ball-screw variant's keys (`BALL_PREFIX`): liftctl knows them (it is built with them), a
+/// board running the default lead-screw image refuses them. That image's refusal of one
 /// (`liftfw::config::settings::unknown_key_template`).
 const NEEDS_BALL_IMAGE: &str = "needs the ball-screw firmware";
 
@@ -69,7 +66,7 @@ impl Mirror {
             let text = match board.get(s.key) {
                 Ok(text) => text,
                 Err(Error::Board(r))
-                    if s.key.starts_with(BALL_PREFIX) && r.contains(NEEDS_BALL_IMAGE) =>
+                    if s.key.starts_with(settings::BALL_PREFIX) && r.contains(NEEDS_BALL_IMAGE) =>
                 {
                     lead_image = true;
                     continue;
@@ -227,7 +224,7 @@ fn for_image(mirror: &Mirror, changes: &[Change]) -> Result<Vec<Change>, Error> 
     let mut out = Vec::new();
     for c in changes {
         let s = c.id.setting();
-        if !s.key.starts_with(BALL_PREFIX) {
+        if !s.key.starts_with(settings::BALL_PREFIX) {
             out.push(c.clone());
         } else if s.get(mirror.config.get()) != c.raw {
             return Err(Error::Invalid(format!(

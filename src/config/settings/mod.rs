@@ -165,8 +165,9 @@ pub fn unknown_key_template(key: &[u8]) -> &'static str {
     }
 }
 
-/// The ball-screw variant's keys' common prefix.
-const BALL_PREFIX: &str = "ballscrew.";
+/// The ball-screw variant's keys' common prefix (liftctl tells a lead-screw board's refusal
+/// of them by it).
+pub const BALL_PREFIX: &str = "ballscrew.";
 
 #[cfg(test)]
 mod tests {

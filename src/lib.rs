@@ -16,6 +16,7 @@
 //! - [`keys`]: every setting's key and accepted range, and [`ConfigError`], which names them.
 //! - [`model`]: the fixed-point screw-nut model of seed 000 (geometry, friction laws, contact).
 //! - [`estimator`]: the real-time friction-torque estimator built on the model.
+//! - [`ident`]: online identification of the load and the thread's friction scale.
 //! - [`detect`]: detectors on board-visible signals and the model's state (stick-slip).
 //! - [`control`]: the per-tick entry point shared by the board and host-sim.
 //! - [`config`]: the settings registry and the flash record.
@@ -30,6 +31,7 @@ pub mod console;
 pub mod control;
 pub mod detect;
 pub mod estimator;
+pub mod ident;
 pub mod keys;
 pub mod math;
 pub mod model;

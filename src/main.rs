@@ -34,7 +34,9 @@ use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
 use embassy_time::{Duration, Instant as Clock, Ticker};
-use liftfw::config::store::{geometry_stamp, ConfigStore, Loaded, Parked, Source, StoreError};
+use liftfw::config::store::{
+    friction_stamp, geometry_stamp, ConfigStore, Loaded, Parked, Source, StoreError,
+};
 use liftfw::config::ValidatedConfig;
 use liftfw::console::service::{self, Action, Lift};
 use liftfw::console::{Feed, LineBuffer};
@@ -118,6 +120,8 @@ enum StoreRequest {
     Config(ValidatedConfig),
     /// The position record, with the stamp of the geometry it is counted in.
     Position(Parked, u32),
+    /// The thread's identified friction scale, with the stamp of the law it scales.
+    Friction(liftfw::units::Ratio, u32),
 }
 
 static STORE_REQUESTS: Channel<CriticalSectionRawMutex, StoreRequest, 2> = Channel::new();
@@ -152,6 +156,9 @@ fn boot(spawner: Spawner) {
     let greeting = log_source(&boot.loaded.source);
     let parked = trusted_position(&boot);
     let controller = install_controller(boot.loaded.config.get(), parked);
+    if let Some(scale) = boot.friction {
+        controller.restore_friction_scale(scale);
+    }
     #[cfg(not(feature = "ball-screw"))]
     if boot.loaded.source.needs_ball_screw() {
         // A lead-screw image on a ball screw's record: braked and locked, the record kept.
@@ -226,6 +233,8 @@ struct Boot {
     loaded: Loaded,
     /// The parked position in encoder counts, if one is recorded.
     parked: Option<i32>,
+    /// The thread's friction scale identified before the power went, if one is recorded.
+    friction: Option<liftfw::units::Ratio>,
     /// The store holds an intact position record (`Source::lost_stored`).
     position_record: bool,
 }
@@ -240,11 +249,13 @@ fn load_store(flash: Peri<'static, FLASH>) -> Boot {
             let loaded = store.load();
             let stamp = geometry_stamp(loaded.config.get());
             let parked = store.load_position(stamp);
+            let friction = store.load_friction_scale(friction_stamp(loaded.config.get()));
             let position_record = store.has_position_record();
             Boot {
                 store: Some(store),
                 loaded,
                 parked,
+                friction,
                 position_record,
             }
         }
@@ -256,6 +267,7 @@ fn load_store(flash: Peri<'static, FLASH>) -> Boot {
                 source: Source::Unreadable(e),
             },
             parked: None,
+            friction: None,
             position_record: false,
         },
     };
@@ -408,13 +420,14 @@ async fn control(board: &'static mut Board, lift: &'static SharedController, mut
     let mut ticks: u32 = 0;
     // A position record not yet accepted by the storage task (only the newest matters).
     let mut unsent: Option<StoreRequest> = None;
+    let mut unsent_friction: Option<StoreRequest> = None;
     board.watchdog.start();
     loop {
         ticker.next().await;
         // Truncation to u32 is the core's wrapping µs clock (71.6 min period).
         let now = Instant(Clock::now().as_micros() as u32);
         let inputs = board.sensors.sample();
-        let (outputs, status, record) = lift.lock(|c| {
+        let (outputs, status, record, friction) = lift.lock(|c| {
             let mut ctl = c.borrow_mut();
             let outputs = ctl.step(now, &inputs);
             board.bridge.apply(outputs.bridge);
@@ -427,7 +440,10 @@ async fn control(board: &'static mut Board, lift: &'static SharedController, mut
             let record = park
                 .step(&status)
                 .map(|p| StoreRequest::Position(p, geometry_stamp(ctl.config())));
-            (outputs, status, record)
+            let friction = ctl
+                .take_friction_store()
+                .map(|f| StoreRequest::Friction(f, friction_stamp(ctl.config())));
+            (outputs, status, record, friction)
         });
         if outputs.feed_watchdog {
             board.watchdog.feed();
@@ -440,6 +456,15 @@ async fn control(board: &'static mut Board, lift: &'static SharedController, mut
         if let Some(r) = unsent.take() {
             if let Err(embassy_sync::channel::TrySendError::Full(r)) = STORE_REQUESTS.try_send(r) {
                 unsent = Some(r);
+            }
+        }
+        // The friction scale's record (rare: only when it moved), kept apart from the position's.
+        if friction.is_some() {
+            unsent_friction = friction;
+        }
+        if let Some(r) = unsent_friction.take() {
+            if let Err(embassy_sync::channel::TrySendError::Full(r)) = STORE_REQUESTS.try_send(r) {
+                unsent_friction = Some(r);
             }
         }
 
@@ -484,6 +509,7 @@ fn report_event(e: Event) {
         Event::CruiseLimited { .. } => true,
         #[cfg(feature = "ball-screw")]
         Event::Lubrication(_) => true,
+        Event::ThreadDry(_) => true,
         _ => false,
     };
     match e {
@@ -518,6 +544,11 @@ async fn storage(store: &'static mut ConfigStore<StoreFlash>) {
                     error!("position record {} failed: {}", p, e);
                 }
             }
+            StoreRequest::Friction(scale, stamp) => {
+                if let Err(e) = store.save_friction_scale(scale, stamp) {
+                    error!("friction record {} failed: {}", scale, e);
+                }
+            }
         }
     }
 }
@@ -528,6 +559,9 @@ fn write_notice(out: &mut dyn core::fmt::Write, e: &Event) -> core::fmt::Result 
         Event::Fault(f) => {
             out.write_str("warning: fault latched: ")?;
             out.write_str(f.kind.name())?;
+            if f.kind == liftfw::control::FaultKind::Overload {
+                liftfw::console::write_load(out, f.load)?;
+            }
             out.write_str(" (`fault` shows the snapshot, `fault clear` clears it)")
         }
         Event::Homed { .. } => out.write_str("warning: homed on the lower limit switch"),
@@ -546,6 +580,7 @@ fn write_notice(out: &mut dyn core::fmt::Write, e: &Event) -> core::fmt::Result 
         ),
         #[cfg(feature = "ball-screw")]
         Event::Lubrication(r) => liftfw::console::write_lube_warning(out, r.f_last, r.law),
+        Event::ThreadDry(r) => liftfw::console::write_thread_dry_warning(out, &r),
         Event::CruiseLimited { speed } => liftfw::console::write_cruise_warning(out, speed),
         Event::State { .. } => Ok(()),
     }

@@ -249,6 +249,15 @@ fn status_line_is_readable() {
         stick_slip_amplitude: NewtonMetres::ZERO,
         stick_slip_episodes: 0,
         fault: None,
+        load: liftfw::ident::LoadReport {
+            load: liftfw::units::Kilograms::lit("612.4"),
+            load_lo: liftfw::units::Kilograms::lit("580"),
+            load_hi: liftfw::units::Kilograms::lit("1150.6"),
+            identified: true,
+            scale: liftfw::units::Ratio::ONE,
+            scale_known: false,
+            pairs: 0,
+        },
         cruise_limit: None,
         #[cfg(feature = "ball-screw")]
         ball_f: None,
@@ -256,14 +265,16 @@ fn status_line_is_readable() {
     assert_eq!(
         reply(|s| console::write_status(s, &v)),
         "state=lifting height=212.4mm speed=3.00rad/s current=12.35A T_r=0.851Nm \
-         stick_slip=no ss_amp=0.00Nm ss_episodes=0 fault=none homed=yes"
+         stick_slip=no ss_amp=0.00Nm ss_episodes=0 fault=none homed=yes load=612kg \
+         load_range=580..1151kg load_src=current mu_scale=1.000(assumed)"
     );
     // Unhomed, the board does not know the height: it says so instead of its assumption.
     let u = StatusView { homed: false, ..v };
     assert_eq!(
         reply(|s| console::write_status(s, &u)),
         "state=lifting height=unknown speed=3.00rad/s current=12.35A T_r=0.851Nm \
-         stick_slip=no ss_amp=0.00Nm ss_episodes=0 fault=none homed=no"
+         stick_slip=no ss_amp=0.00Nm ss_episodes=0 fault=none homed=no load=612kg \
+         load_range=580..1151kg load_src=current mu_scale=1.000(assumed)"
     );
     let v = StatusView {
         screw_speed: RadiansPerSecond::lit("-2.5"),
@@ -278,7 +289,9 @@ fn status_line_is_readable() {
     let s = reply(|s| console::write_status(s, &v));
     assert!(s.contains("speed=-2.50rad/s"), "{s}");
     assert!(
-        s.ends_with("stick_slip=yes ss_amp=31.26Nm ss_episodes=3 fault=overcurrent homed=yes"),
+        s.contains(
+            "stick_slip=yes ss_amp=31.26Nm ss_episodes=3 fault=overcurrent homed=yes load=612kg"
+        ),
         "{s}"
     );
 }

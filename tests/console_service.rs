@@ -94,7 +94,10 @@ fn status_reports_the_controller() {
         "{r}"
     );
     assert!(
-        r.ends_with(" stick_slip=no ss_amp=0.00Nm ss_episodes=0 fault=none homed=yes"),
+        r.contains(
+            " stick_slip=no ss_amp=0.00Nm ss_episodes=0 fault=none homed=yes load=1000kg \
+             load_range=0..2000kg load_src=prior mu_scale=1.000(assumed)"
+        ),
         "{r}"
     );
     let s = b.c.status();
@@ -241,8 +244,10 @@ fn fault_is_shown_kept_by_set_and_cleared() {
         r.contains(" state=idle height=250.0mm speed=0.00rad/s current=0.00A supply=17.8"),
         "{r}"
     );
-    assert!(r.ends_with("Nm"), "{r}");
-    assert!(b.reply("status").ends_with("fault=over-voltage homed=yes"));
+    assert!(r.ends_with("Nm load=1000kg"), "{r}");
+    assert!(b
+        .reply("status")
+        .contains("fault=over-voltage homed=yes load="));
     assert_eq!(
         b.reply("up"),
         "error: up refused: a fault is latched (see `fault`, then `fault clear`)"
@@ -416,6 +421,7 @@ fn status_fault_names_are_one_word() {
         stick_slip_amplitude: Default::default(),
         stick_slip_episodes: 0,
         fault: Some(FaultKind::LimitSwitch.name()),
+        load: Default::default(),
         cruise_limit: None,
         #[cfg(feature = "ball-screw")]
         ball_f: None,
@@ -423,7 +429,7 @@ fn status_fault_names_are_one_word() {
     let mut s = String::new();
     liftfw::console::write_status(&mut s, &v).unwrap();
     assert!(
-        s.ends_with(" fault=limit-switch-before-soft-limit-missed homed=yes"),
+        s.contains(" fault=limit-switch-before-soft-limit-missed homed=yes load="),
         "{s}"
     );
 }

@@ -2,7 +2,7 @@
 //! a lower one, and no files import each other in a circle.
 //!
 //! Layers, lowest first (README "Architecture"):
-//! `units`, `math`, `text`, `keys` and the crate root → `model` → `estimator`, `detect` →
+//! `units`, `math`, `text`, `keys` and the crate root → `model` → `estimator`, `detect`, `ident` →
 //! `control` → `config` → `console`. The firmware (`src/main.rs`, `src/board/`) is another
 //! crate (the binary) above them all, which the library cannot name: it is not read here.
 //!
@@ -25,7 +25,7 @@ use std::path::{Path, PathBuf};
 const LAYERS: [&[&str]; 6] = [
     &["", "units", "math", "text", "keys"],
     &["model"],
-    &["estimator", "detect"],
+    &["estimator", "detect", "ident"],
     &["control"],
     &["config"],
     &["console"],

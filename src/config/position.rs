@@ -7,9 +7,13 @@ use crate::control::config::ControlConfig;
 pub use crate::control::park::Parked;
 use core::ops::Range;
 
-/// Position record: magic, sequence, kind, counts, geometry stamp, CRC-32.
+/// Position record: magic, sequence, kind, counts, geometry stamp, CRC-32. The friction-scale
+/// record has the same layout under its own magic (kind 0, the scale's Q28 bits for counts,
+/// [`friction_stamp`] for the stamp).
 pub(super) const POSITION_LEN: usize = 4 + 4 + 1 + 4 + 4 + 4;
 const POSITION_MAGIC: [u8; 4] = *b"LFPS";
+/// The friction-scale record's magic.
+pub(super) const FRICTION_MAGIC: [u8; 4] = *b"LFFS";
 
 /// A position record as stored: the parked state, its sequence number, and the stamp of the
 /// geometry it was counted in.
@@ -22,8 +26,13 @@ pub(super) struct PositionRecord {
 
 impl PositionRecord {
     pub(super) fn encode(&self) -> [u8; POSITION_LEN] {
+        self.encode_as(POSITION_MAGIC)
+    }
+
+    /// [`Self::encode`] under `magic`.
+    pub(super) fn encode_as(&self, magic: [u8; 4]) -> [u8; POSITION_LEN] {
         let mut b = [0u8; POSITION_LEN];
-        b[..4].copy_from_slice(&POSITION_MAGIC);
+        b[..4].copy_from_slice(&magic);
         b[4..8].copy_from_slice(&self.seq.to_le_bytes());
         let (kind, counts) = match self.parked {
             Parked::At(c) => (0u8, c),
@@ -38,8 +47,13 @@ impl PositionRecord {
     }
 
     pub(super) fn decode(b: &[u8]) -> Option<PositionRecord> {
+        Self::decode_as(b, POSITION_MAGIC)
+    }
+
+    /// [`Self::decode`] under `magic`.
+    pub(super) fn decode_as(b: &[u8], magic: [u8; 4]) -> Option<PositionRecord> {
         let word = |i: usize| -> Option<[u8; 4]> { b.get(i..i + 4)?.try_into().ok() };
-        if b.len() != POSITION_LEN || word(0)? != POSITION_MAGIC {
+        if b.len() != POSITION_LEN || word(0)? != magic {
             return None;
         }
         if u32::from_le_bytes(word(17)?) != record::crc32(b.get(..17)?) {
@@ -65,6 +79,24 @@ pub fn geometry_stamp(cfg: &ControlConfig) -> u32 {
     let mut crc = 0xFFFF_FFFF;
     for s in &SETTINGS[STAMPED.start..STAMPED.end] {
         crc = record::crc32_update(crc, &s.get(cfg).to_le_bytes());
+    }
+    crc ^ 0xFFFF_FFFF
+}
+
+/// The stamp a stored friction scale is valid under: the geometry stamp and the configured
+/// friction law's raw bits (a scale on another law, or on another screw, means nothing).
+pub fn friction_stamp(cfg: &ControlConfig) -> u32 {
+    let l = &cfg.estimator.law;
+    let mut crc = !geometry_stamp(cfg);
+    for v in [
+        i64::from(l.base.to_bits()),
+        i64::from(l.amp.to_bits()),
+        l.rate.to_bits(),
+        l.slope.to_bits(),
+        l.s_max.to_bits(),
+        l.variable as i64,
+    ] {
+        crc = record::crc32_update(crc, &v.to_le_bytes());
     }
     crc ^ 0xFFFF_FFFF
 }

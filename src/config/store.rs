@@ -14,11 +14,13 @@
 //! [`ValidatedConfig::new`]. docs/config-store.md gives the whole argument.
 
 use crate::config::blocking::{read, run, Blocking};
-use crate::config::position::PositionRecord;
+pub use crate::config::position::friction_stamp;
 pub use crate::config::position::{geometry_stamp, Parked};
+use crate::config::position::{PositionRecord, FRICTION_MAGIC};
 use crate::config::record::{self, DecodeError, MAX_RECORD_LEN};
 use crate::config::ValidatedConfig;
 use crate::control::config::ControlConfig;
+use crate::units::Ratio;
 use crate::ConfigError;
 use core::ops::Range;
 use embedded_storage::nor_flash::{NorFlash, NorFlashError, NorFlashErrorKind};
@@ -30,6 +32,11 @@ pub const CONFIG_KEY: u8 = 1;
 
 /// The map key of the position record (where the lift was parked, or that it was moving).
 pub const POSITION_KEY: u8 = 2;
+
+/// The map key of the friction-scale record (the thread's identified friction on the
+/// configured law, `crate::ident`): the position record's layout under its own magic
+/// ([`crate::config::position`]).
+pub const FRICTION_KEY: u8 = 3;
 
 /// Work buffer: key + record, rounded up to the 8-byte program unit of the G4.
 const BUF_LEN: usize = (1 + MAX_RECORD_LEN).div_ceil(8) * 8;
@@ -335,6 +342,8 @@ pub struct ConfigStore<F: NorFlash> {
     first: usize,
     /// Sequence number of the newest position record (0: none).
     pos_seq: u32,
+    /// Sequence number of the newest friction-scale record.
+    friction_seq: u32,
     /// The stored record needs the ball-screw firmware: refuse every write.
     locked: bool,
 }
@@ -378,6 +387,7 @@ where
             seq: 0,
             first: 0,
             pos_seq: 0,
+            friction_seq: 0,
             locked: false,
         })
     }
@@ -570,6 +580,47 @@ where
             self.put(copy, POSITION_KEY, &bytes.as_slice())?;
         }
         self.pos_seq = rec.seq;
+        Ok(())
+    }
+
+    /// The thread's friction scale identified before the power went (`crate::ident`), if a
+    /// record stamped `stamp` ([`friction_stamp`] of the configuration in force) is intact in
+    /// either copy (the newer of the two).
+    pub fn load_friction_scale(&mut self, stamp: u32) -> Option<Ratio> {
+        let mut best: Option<PositionRecord> = None;
+        for copy in 0..2 {
+            if let Ok(Some(bytes)) = self.fetch(copy, FRICTION_KEY) {
+                if let Some(r) = PositionRecord::decode_as(bytes, FRICTION_MAGIC) {
+                    if best.is_none_or(|b| newer(r.seq, b.seq)) {
+                        best = Some(r);
+                    }
+                }
+            }
+        }
+        let best = best?;
+        self.friction_seq = best.seq;
+        match best.parked {
+            Parked::At(bits) if best.stamp == stamp && bits > 0 => Some(Ratio::from_bits(bits)),
+            _ => None,
+        }
+    }
+
+    /// Record the identified friction scale in both copies. The core asks for it only when
+    /// the scale moved by more than `ident::STORE_STEP` (flash wear).
+    pub fn save_friction_scale(&mut self, scale: Ratio, stamp: u32) -> Result<(), StoreError> {
+        if self.locked {
+            return Err(StoreError::Locked);
+        }
+        let rec = PositionRecord {
+            parked: Parked::At(scale.to_bits()),
+            seq: self.friction_seq.wrapping_add(1),
+            stamp,
+        };
+        let bytes = rec.encode_as(FRICTION_MAGIC);
+        for copy in 0..2 {
+            self.put(copy, FRICTION_KEY, &bytes.as_slice())?;
+        }
+        self.friction_seq = rec.seq;
         Ok(())
     }
 

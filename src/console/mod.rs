@@ -20,9 +20,9 @@ pub use crate::text::Words;
 pub use line::{Feed, LineBuffer};
 pub use parse::{parse, HelpTopic, ParseError, Request};
 pub use reply::{
-    write_cruise_warning, write_get, write_help, write_key_help, write_limits, write_lube_warning,
-    write_parse_error, write_refused, write_set, write_status, write_stick_slip_warning,
-    StatusView,
+    write_cruise_warning, write_get, write_help, write_key_help, write_limits, write_load,
+    write_lube_warning, write_parse_error, write_refused, write_set, write_status,
+    write_stick_slip_warning, write_thread_dry_warning, StatusView,
 };
 pub use value::ValueError;
 

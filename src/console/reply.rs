@@ -296,6 +296,9 @@ pub struct StatusView {
     pub stick_slip_episodes: u32,
     /// The active fault's name, if any.
     pub fault: Option<&'static str>,
+    /// The identified load (or the prior), its interval, whether it was identified, and the
+    /// friction scale on the configured law (`crate::ident`).
+    pub load: crate::ident::LoadReport,
     /// The motion's cruise speed when the motor cannot reach `motion.cruise_speed`
     /// (` cruise_limit=4.41rad/s` at the end of the line).
     pub cruise_limit: Option<RadiansPerSecond>,
@@ -325,6 +328,19 @@ pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
             Arg::Str(if s.homed { "yes" } else { "no" }),
         ],
     )?;
+    let l = &s.load;
+    fill(
+        out,
+        " load=\x01kg load_range=\x01..\x01kg load_src=\x01 mu_scale=\x01\x01",
+        &[
+            Arg::Fixed(l.load.to_bits(), 12, 0),
+            Arg::Fixed(l.load_lo.to_bits(), 12, 0),
+            Arg::Fixed(l.load_hi.to_bits(), 12, 0),
+            Arg::Str(if l.identified { "current" } else { "prior" }),
+            Arg::Fixed(l.scale.to_bits(), 28, 3),
+            Arg::Str(if l.scale_known { "" } else { "(assumed)" }),
+        ],
+    )?;
     if let Some(w) = s.cruise_limit {
         fill(
             out,
@@ -346,6 +362,29 @@ pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
         ),
         None => Ok(()),
     }
+}
+
+/// The console warning of a lift/lowering pair that found the thread drier than configured
+/// (`crate::ident`), one line.
+pub fn write_thread_dry_warning(out: &mut dyn Write, r: &crate::ident::LoadReport) -> fmt::Result {
+    fill(
+        out,
+        "warning: the thread runs \x01x the configured friction law (identified load \x01 kg): \
+         check lubrication",
+        &[
+            Arg::Fixed(r.scale.to_bits(), 28, 2),
+            Arg::Fixed(r.load.to_bits(), 12, 0),
+        ],
+    )
+}
+
+/// ` at an identified load of N kg` (an overload's notice).
+pub fn write_load(out: &mut dyn Write, load: crate::units::Kilograms) -> fmt::Result {
+    fill(
+        out,
+        " at an identified load of \x01 kg",
+        &[Arg::Fixed(load.to_bits(), 12, 0)],
+    )
 }
 
 /// The console warning of a ball screw whose identified friction coefficient left the band
@@ -454,9 +493,19 @@ mod tests {
                 ),
                 None => String::new(),
             };
+            let l = &s.load;
+            let load = format!(
+                " load={}kg load_range={}..{}kg load_src={} mu_scale={}{}",
+                fixed(l.load.to_bits(), 12, 0),
+                fixed(l.load_lo.to_bits(), 12, 0),
+                fixed(l.load_hi.to_bits(), 12, 0),
+                if l.identified { "current" } else { "prior" },
+                fixed(l.scale.to_bits(), 28, 3),
+                if l.scale_known { "" } else { "(assumed)" }
+            );
             format!(
                 "state={} height={} speed={}rad/s current={}A T_r={}Nm stick_slip={} \
-                 ss_amp={}Nm ss_episodes={} fault={} homed={}{}{ball}",
+                 ss_amp={}Nm ss_episodes={} fault={} homed={}{load}{}{ball}",
                 s.state,
                 if s.homed {
                     mm(s.height) + "mm"
@@ -484,7 +533,7 @@ mod tests {
             let p = permille.unsigned_abs();
             format!(
                 "fault={} t={}.{:03}s state={} height={} speed={}rad/s current={}A supply={}V \
-                 duty={}{}.{}% torque={}Nm model_torque={}Nm",
+                 duty={}{}.{}% torque={}Nm model_torque={}Nm load={}kg",
                 word(f.kind.name()),
                 ms / 1000,
                 ms % 1000,
@@ -501,7 +550,8 @@ mod tests {
                 p / 10,
                 p % 10,
                 fixed(f.measured_torque.to_bits(), 16, 3),
-                fixed(f.model_torque.to_bits(), 16, 3)
+                fixed(f.model_torque.to_bits(), 16, 3),
+                fixed(f.load.to_bits(), 12, 0)
             )
         }
     }
@@ -607,6 +657,15 @@ mod tests {
                 stick_slip_amplitude: NewtonMetres::from_bits(b(29)),
                 stick_slip_episodes: b(37) as u32,
                 fault: [None, Some("encoder lost"), Some("over-current")][i % 3],
+                load: crate::ident::LoadReport {
+                    load: crate::units::Kilograms::from_bits(b(45)),
+                    load_lo: crate::units::Kilograms::from_bits(b(49)),
+                    load_hi: crate::units::Kilograms::from_bits(b(51)),
+                    identified: i % 2 == 1,
+                    scale: Ratio::from_bits(b(55)),
+                    scale_known: i % 3 == 1,
+                    pairs: 0,
+                },
                 cruise_limit: (i % 4 == 2).then(|| RadiansPerSecond::from_bits(b(45))),
                 #[cfg(feature = "ball-screw")]
                 ball_f: (i % 4 == 1).then(|| (Ratio::from_bits(b(47)), Ratio::from_bits(b(53)))),
@@ -627,6 +686,7 @@ mod tests {
                 duty: b(31) as i16,
                 measured_torque: NewtonMetres::from_bits(b(41)),
                 model_torque: NewtonMetres::from_bits(b(43)),
+                load: crate::units::Kilograms::from_bits(b(57)),
             };
             let mut out = String::new();
             service::write_fault(&mut out, Some(&f)).unwrap();

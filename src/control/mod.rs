@@ -31,6 +31,7 @@ pub mod config;
 mod derived;
 pub mod edges;
 mod hold;
+mod loadid;
 pub mod lube;
 mod motion;
 pub mod park;
@@ -127,6 +128,10 @@ pub struct Status {
     pub position: i32,
     /// The position is known (false: homing on the lower limit switch is required).
     pub homed: bool,
+    /// The identified load, its interval and the friction scale (`crate::ident`).
+    pub load: crate::ident::LoadReport,
+    /// T_r at the ends of the friction scale's interval (with the loads it implies).
+    pub friction_torque_range: (NewtonMetres, NewtonMetres),
     /// The motion under way (or the last one) runs slower than `motion.cruise_speed`: the
     /// screw speed the motor reached at the present load and supply (`limit_cruise`).
     pub cruise_limit: Option<RadiansPerSecond>,
@@ -159,6 +164,8 @@ pub struct Controller {
     motion: Motion,
     /// The live state a new configuration keeps.
     live: Live,
+    /// The load and friction identification (`loadid.rs`).
+    loadid: loadid::Identification,
 }
 
 impl Controller {
@@ -169,11 +176,13 @@ impl Controller {
         // rate (`ControlConfig::build_estimator`).
         let est = cfg.build_estimator()?;
         let derived = Derived::new(cfg, est.geometry())?;
+        let loadid = loadid::Identification::new(cfg, &est, position);
         Ok(Controller {
             motion: Motion::new(&derived, position),
             derived,
             est,
             live: Live::new(position),
+            loadid,
         })
     }
     /// Validate `cfg` and start at rest with the position unknown (power was lost while the
@@ -271,19 +280,22 @@ impl Controller {
     pub fn status(&self) -> Status {
         let latest = &self.live.latest;
         let stick_slip = self.motion.stick_slip.output();
+        let friction_torque = self.friction_at_load();
         Status {
             state: self.live.state,
             height: latest.estimate.height,
             screw_speed: latest.estimate.screw_speed,
             current: latest.current,
             supply: latest.supply,
-            friction_torque: latest.estimate.friction_torque,
+            friction_torque,
             stick_slip: stick_slip.active,
             stick_slip_amplitude: stick_slip.amplitude,
             stick_slip_episodes: stick_slip.episodes,
             fault: self.live.fault.map(|f| f.kind),
             position: self.live.enc.position(),
             homed: self.live.homed,
+            load: self.loadid.ident.report(),
+            friction_torque_range: self.loadid.ident.friction_range(friction_torque),
             cruise_limit: self.motion.cruise_limit,
             #[cfg(feature = "ball-screw")]
             lube: if self.holds_actively() {
@@ -334,6 +346,15 @@ impl Controller {
             next.motion.debounce = self.motion.debounce;
         }
         next.motion.brake.keep_timing(&self.motion.brake);
+        // The car stays on the lift and the thread is the same: keep what was identified.
+        if same_model {
+            next.loadid = self.loadid;
+        } else {
+            if self.loadid.ident.report().scale_known {
+                next.restore_friction_scale(self.loadid.ident.scale());
+            }
+            next.loadid.store = self.loadid.store;
+        }
         #[cfg(feature = "ball-screw")]
         if cfg.ball_screw == old.ball_screw
             && cfg.lube == old.lube
@@ -386,7 +407,9 @@ impl Controller {
             State::Lowering => -1,
             _ => 0,
         };
-        // 2. Estimate at rated load; the speed filter gets the position between counts.
+        // 2. Estimate at the rated load (the speed loop's feed-forward keeps its tuning; the
+        // status reports the model at the identified load, `loadid.rs`); the speed filter gets
+        // the position between counts.
         let position = self.live.enc.position();
         let between = self
             .motion
@@ -448,7 +471,9 @@ impl Controller {
                 position.saturating_sub(self.live.hold_position)
             },
             measured_torque: project(x.estimate.measured_screw_torque),
-            model_torque: project(x.estimate.model_screw_torque),
+            // The model at the identified load (the torque monitor then watches for an
+            // obstruction, not for a heavier car: the load trip does, `loadid.rs`).
+            model_torque: project(x.estimate.model_screw_torque.sat_add(self.loadid.offset)),
             overload_armed: moving
                 && matches!(self.motion.last_bridge, Bridge::Drive(_))
                 && self.motion.motion_ticks > holdoff,
@@ -459,6 +484,7 @@ impl Controller {
                 self.latch(now, kind);
             }
         }
+        self.identify_load(now, moving, dir);
         // Limit switches: both closed is a wiring fault; one closed in the direction of
         // travel stops the lift at once.
         let both = Switches::LIMIT_UPPER | Switches::LIMIT_LOWER;

@@ -53,6 +53,9 @@ pub struct Profile {
     v: i64,
     target: i64,
     done: bool,
+    /// The last step was within braking reach of the target (the braking root was taken):
+    /// the load identification samples no braking tick.
+    near_target: bool,
     // S-curve smoothing: a moving average of the trapezoid's speed.
     window: [i64; SMOOTH_LEN],
     ticks_per_entry: u32,
@@ -154,6 +157,7 @@ impl Profile {
             v: 0,
             target: p,
             done: true,
+            near_target: false,
             window: [0; SMOOTH_LEN],
             ticks_per_entry,
             tick_in_entry: 0,
@@ -222,6 +226,12 @@ impl Profile {
         self.out_v = 0;
     }
 
+    /// The last step was within braking reach of the target (braking, or about to): a motion
+    /// that ends here is no longer steady.
+    pub fn near_target(&self) -> bool {
+        self.near_target
+    }
+
     /// The target, counts.
     pub fn target_counts(&self) -> i32 {
         crate::units::sat32(self.target >> 32)
@@ -266,7 +276,8 @@ impl Profile {
         // the root's rounding: skip the 128-bit discriminant and the root, same result.
         let v_toward = dir * self.v;
         let room = 2 * d.abs() - v_toward;
-        let brake = if room >= self.cruise_room {
+        self.near_target = room < self.cruise_room;
+        let brake = if !self.near_target {
             self.cruise
         } else {
             // accel ≥ 1 (`new`).

@@ -144,8 +144,10 @@ pub struct Fault {
     pub duty: i16,
     /// Screw torque measured from the current.
     pub measured_torque: NewtonMetres,
-    /// Screw torque of the model at rated load.
+    /// Screw torque of the model at the rated load (the tick's; `load` is the identified one).
     pub model_torque: NewtonMetres,
+    /// The identified load (or the prior) at the moment it tripped.
+    pub load: crate::units::Kilograms,
 }
 
 /// What a tick reports for the logs.
@@ -188,6 +190,9 @@ pub enum Event {
     /// `ballscrew.lube_band` around the law (`lube`): lubrication or wear to check.
     #[cfg(feature = "ball-screw")]
     Lubrication(super::lube::LubeReport),
+    /// A lift/lowering pair found the thread drier than `1 + ident::LUBE_BAND` times the
+    /// configured law (`crate::ident`): lubrication to check.
+    ThreadDry(crate::ident::LoadReport),
 }
 
 /// The controller's state that a new configuration keeps: the encoder, the supervisor's state
@@ -435,6 +440,7 @@ impl Controller {
             duty: self.motion.last_duty,
             measured_torque: e.measured_screw_torque,
             model_torque: e.model_screw_torque,
+            load: self.loadid.load,
         };
         let here = live.enc.position();
         self.live.fault = Some(f);

@@ -447,6 +447,36 @@ impl Estimator {
         }
     }
 
+    /// Run the model with the configured law `configured` (the one the estimator was built
+    /// with) scaled by `scale` (μ = scale·μ_law: base,
+    /// amplitude and slope scaled, the floor at 0 commutes), the friction identification's
+    /// result (`crate::ident`). Recompiles the law and its table (≈ 150 exact law evaluations):
+    /// call at rest. The pose's node spacing, chosen for the configured law's μ, is kept.
+    /// Refused (and nothing changed) when the scaled law leaves the law's validated ranges.
+    pub fn set_friction_scale(
+        &mut self,
+        configured: &FrictionLaw,
+        scale: Ratio,
+    ) -> Result<(), ConfigError> {
+        let c = *configured;
+        let s64 = i64::from(scale.bits());
+        let fx = |v: fixed::types::I32F32| {
+            fixed::types::I32F32::from_bits(
+                ((i128::from(v.to_bits()) * i128::from(s64)) >> 28) as i64,
+            )
+        };
+        let law = FrictionLaw {
+            base: qmul(c.base, scale),
+            amp: qmul(c.amp, scale),
+            slope: fx(c.slope),
+            ..c
+        };
+        let compiled = law.compile(self.screw.pitch_radius(), self.screw.cos_lambda())?;
+        self.mu_table = MuTable::build(&compiled);
+        self.law = compiled;
+        Ok(())
+    }
+
     /// The whole estimate of a tick that [`Self::step`] returned `tick` for, with `m` its
     /// measurements: the same numbers (bit for bit) plus the diagnostics (pose, R, F₀, c_x, μ,
     /// ξ, N, residual, self-locking margin). Recomputed from the tick's inputs (the pose

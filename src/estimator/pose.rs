@@ -295,9 +295,25 @@ impl Estimator {
         self.fill_piece(j);
     }
 
+    /// G_d = (R + F₀·d)/M at `counts` in direction `dir`, Q23 N/kg: the axial force per
+    /// kilogram on the head, as the step's model evaluates it (from the pose segment holding
+    /// `counts`, or the exact pose where no prepared segment does). With a step's
+    /// `thread_torque` and `axial`, the load identification's gain ∂T/∂M (`crate::ident`),
+    /// which reads it once per window: out of the step.
+    #[inline(never)]
+    pub fn g_per_kg(&self, counts: i32, dir: i8) -> i32 {
+        let index = counts >> self.pose_shift;
+        let seg = &self.segments[(index & 3) as usize];
+        if seg.index == index {
+            self.pose_on(seg, counts, dir).g
+        } else {
+            self.exact_pose(counts, dir).g
+        }
+    }
+
     /// [`PoseCtx::exact_pose`] for this estimator.
     #[inline(never)]
-    fn exact_pose(&self, counts: i32, dir: i8) -> FastPose {
+    pub(super) fn exact_pose(&self, counts: i32, dir: i8) -> FastPose {
         self.pose_ctx().exact_pose(counts, dir)
     }
 

@@ -52,6 +52,9 @@ pub struct Scenario {
     pub motor_friction_factor: f64,
     /// A spring-applied holding brake in the plant, driven by the core's brake output.
     pub brake: Option<host_sim::plant::BrakeParams>,
+    /// The plant's thread friction as a multiple of the lubricant's law (1: as configured;
+    /// more: a drier thread than the core's law says).
+    pub thread_friction_factor: f64,
     /// Faults injected by the simulation (`host_sim::inject`): sensors, supply, jam, overload.
     pub faults: host_sim::inject::Plan,
 }
@@ -75,6 +78,7 @@ impl Scenario {
             ball_friction_factor: 1.0,
             motor_friction_factor: 1.0,
             brake: None,
+            thread_friction_factor: 1.0,
             faults: host_sim::inject::Plan::default(),
         }
     }
@@ -190,6 +194,9 @@ pub fn run(s: &Scenario, mut hook: Hook) -> Run {
     cfg.drive.motor_coulomb *= s.motor_friction_factor;
     cfg.drive.motor_viscous *= s.motor_friction_factor;
     cfg.brake = s.brake;
+    cfg.plant.law.base *= s.thread_friction_factor;
+    cfg.plant.law.amp *= s.thread_friction_factor;
+    cfg.plant.law.slope *= s.thread_friction_factor;
     cfg.faults = s.faults;
     if s.ball_screw {
         let mut bs = host_sim::physics::ballscrew::BallScrewFriction::seed_001_4008();

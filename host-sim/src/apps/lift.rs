@@ -47,6 +47,10 @@ struct Sample {
     true_tr: f64,
     core_tr: f64,
     current: f64,
+    /// The core's identified load (or its prior), kg.
+    core_load: f64,
+    /// The profile's reference is at cruise speed.
+    cruise: bool,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -90,6 +94,10 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
     let to_deg = to_angle(a.to_mm)?;
     let mut control = ControlConfig::DEFAULT;
     control.estimator.law = core_law(a.lubricant);
+    // Commissioned for host-sim's motor: its no-load current at the cruise speed.
+    control.lube.no_load_current = liftfw::units::Amperes::from_f64(
+        crate::studies::estimate::no_load_current(control.motion.cruise_speed.to_f64()),
+    );
     let probe = Controller::new(&control, 0).map_err(|e| e.to_string())?;
     let start = probe
         .estimator()
@@ -139,8 +147,8 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
         a.to_mm
     );
     println!(
-        "{:>6}  {:>10} {:>10}  {:>9} {:>9}  {:>9} {:>9}  {:>7}  state",
-        "t s", "height mm", "core mm", "ω rad/s", "core", "T_r N·m", "estimate", "I A"
+        "{:>6}  {:>10} {:>10}  {:>9} {:>9}  {:>9} {:>9}  {:>7}  {:>8}  state",
+        "t s", "height mm", "core mm", "ω rad/s", "core", "T_r N·m", "estimate", "I A", "load kg"
     );
     let dt: f64 = 4e-6;
     let per_tick = (1e-3 / dt).round() as u64;
@@ -177,6 +185,10 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
             true_tr: r.friction_torque,
             core_tr: st.friction_torque.to_f64(),
             current: r.current,
+            core_load: st.load.load.to_f64(),
+            cruise: matches!(c.state(), State::Lifting | State::Lowering)
+                && (c.reference().to_f64().abs() - control.motion.cruise_speed.to_f64()).abs()
+                    < 1e-3,
         };
         samples.push(s);
         let state = c.state();
@@ -185,7 +197,7 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
             || (rested_at.is_none() && *sent && !moving && t > 0.06)
         {
             println!(
-                "{:6.2}  {:10.3} {:10.3}  {:9.3} {:9.3}  {:9.3} {:9.3}  {:7.2}  {}",
+                "{:6.2}  {:10.3} {:10.3}  {:9.3} {:9.3}  {:9.3} {:9.3}  {:7.2}  {:8.1}  {}",
                 s.t,
                 s.true_height,
                 s.core_height,
@@ -194,6 +206,7 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
                 s.true_tr,
                 s.core_tr,
                 s.current,
+                s.core_load,
                 state.name()
             );
         }
@@ -263,11 +276,9 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
                 }
             });
     let over = ((extreme - a.to_mm) * if up { 1.0 } else { -1.0 }).max(0.0);
-    // Estimate vs truth while cruising (reference steady, screw turning).
-    let cruise: Vec<&Sample> = samples
-        .iter()
-        .filter(|s| s.t > 0.5 && s.true_speed.abs() > 1.0)
-        .collect();
+    // Estimate vs truth over the whole cruise (the reference at cruise speed: stick and slip
+    // ticks alike).
+    let cruise: Vec<&Sample> = samples.iter().filter(|s| s.cruise).collect();
     let n = cruise.len().max(1) as f64;
     let mean_true = cruise.iter().map(|s| s.true_tr).sum::<f64>() / n;
     let mean_core = cruise.iter().map(|s| s.core_tr).sum::<f64>() / n;
@@ -276,12 +287,30 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
         last.true_height, err, over
     );
     println!(
-        "T_r while moving: plant {:.3} N·m mean, core estimate {:.3} N·m ({:+.1} %), {} ticks",
+        "T_r over the whole cruise: plant {:.3} N·m mean, core estimate {:.3} N·m ({:+.1} %, {:+.3} N·m), {} ticks",
         mean_true,
         mean_core,
         100.0 * (mean_core - mean_true) / mean_true.abs().max(1e-9),
+        mean_core - mean_true,
         cruise.len()
     );
+    {
+        let g = lock(&shared);
+        let l = g.0.status().load;
+        let id = l.load.to_f64();
+        println!(
+            "load: identified {:.0} kg ({}, stated {:.0}…{:.0} kg, friction scale {:.3}{}), true {:.0} kg: {:+.1} kg ({:+.1} %)",
+            id,
+            if l.identified { "from the current" } else { "prior" },
+            l.load_lo.to_f64(),
+            l.load_hi.to_f64(),
+            l.scale.to_f64(),
+            if l.scale_known { "" } else { " assumed" },
+            a.load_kg,
+            id - a.load_kg,
+            100.0 * (id - a.load_kg) / a.load_kg.max(1e-9)
+        );
+    }
     println!(
         "{:.2} s simulated in {:.2} s wall",
         last.t,

@@ -9,6 +9,7 @@ use std::process::ExitCode;
 
 mod ballscrew;
 mod convergence;
+mod estimate;
 mod firmware;
 mod lift;
 mod paper;
@@ -53,6 +54,10 @@ enum Command {
     Stickslip(stickslip::Args),
     /// The simulated board in closed loop, its console on a loopback TCP port (for liftctl).
     Serve(serve::Args),
+    /// Score the core's load and friction identification against the plant: loads 0…1300 kg
+    /// × three lubricants × up/down × three start heights, and a thread 1.5×/2× drier than
+    /// configured; a table and a PNG.
+    Estimate(estimate::Args),
     /// Seed 001's ball-screw load distribution study (Figs 14–21): CSV, PNG plots and
     /// docs/ballscrew-reproduction.md; `--bench` times the solver.
     Ballscrew(ballscrew::Args),
@@ -157,6 +162,7 @@ pub fn main() -> ExitCode {
         Command::Stickslip(a) => stickslip::run(&a),
         Command::Serve(a) => serve::run(&a),
         Command::Ballscrew(a) => ballscrew::run(&a),
+        Command::Estimate(a) => estimate::run(&a),
     };
     match res {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,307 @@
+//! The controller's side of the load and friction identification (`crate::ident`): what a tick
+//! hands it, the overload trip on the identified load, and what a motion's end does with a
+//! lift/lowering pair (the law's scale, the lubrication warning, the store request).
+//!
+//! **Overload.** The trip compares the lowest load the measurements allow (the identified
+//! load's interval, `ident::LoadIdent::interval`) with `(1 + protect.overload_margin)` × the
+//! rated load, once a motion has identified its load (`ident::MIN_SAMPLES_MS` of steady ticks
+//! after `ident::SETTLE_MS`: ≈ 0.16 s after the start at the default 60 ms ramp), lifting and
+//! lowering alike. Its limit is a load, not a torque: it does not depend on the lubricant. A
+//! thread drier than configured raises the torque like a heavier car would; the interval's lower
+//! end takes the driest thread the board still considers possible, so a rated car on a thread up
+//! to `ident::DRY_MAX` times drier never trips (its lift/lowering pair then warns about
+//! lubrication).
+
+use super::config::ControlConfig;
+use super::derived::ARRIVED_COUNTS;
+use super::{Bridge, Controller, Event, FaultKind, State};
+use crate::estimator::Estimator;
+use crate::ident::{LoadIdent, MotionEnd, TickSample};
+use crate::units::{qmul, sat32, Kilograms, NewtonMetres, Ratio, Q};
+
+/// The controller's identification state: built with the configuration;
+/// [`Controller::reconfigure`] keeps what was identified when the model stays the same.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Identification {
+    /// The load and friction identification.
+    pub(super) ident: LoadIdent,
+    /// The identified load (or the prior): the load the status reports the model at.
+    pub(super) load: Kilograms,
+    /// The model's screw torque at `load` less its torque at the rated load (which the tick
+    /// runs, for the speed loop's feed-forward): (L − L_rated)·g at the last gain, Q16.
+    pub(super) offset: NewtonMetres,
+    /// The last tick was a motion.
+    moving: bool,
+    /// The screw position where the motion began, and that the screw has since moved 64
+    /// counts the commanded way (the identification's travel gate).
+    screw_start: i32,
+    travelled: bool,
+    /// The estimator's pose segment of the last tick, and the ticks since it changed: a
+    /// sample waits two ticks after the estimator entered a segment (those ticks compute the
+    /// segment's pose nodes, the tick's most expensive).
+    segment: i32,
+    calm: u8,
+    /// Stick-slip episodes at the end of the last motion.
+    episodes: u32,
+    /// The load limit of the overload trip.
+    overload: Kilograms,
+    /// A friction scale waiting to be stored.
+    pub(super) store: Option<Ratio>,
+}
+
+impl Identification {
+    /// For a (validated) configuration and its estimator, at rest at `position`.
+    pub(super) fn new(cfg: &ControlConfig, est: &Estimator, position: i32) -> Identification {
+        let ident = Controller::new_ident(cfg, est, None);
+        Identification {
+            load: ident.load(),
+            offset: NewtonMetres::ZERO,
+            ident,
+            moving: false,
+            screw_start: position,
+            travelled: false,
+            segment: 0,
+            calm: 0,
+            episodes: 0,
+            overload: Controller::overload_limit(cfg),
+            store: None,
+        }
+    }
+}
+
+impl Controller {
+    /// The identification for a (validated) controller: the rated load as the prior, the
+    /// drive's no-load torque at the screw from `ballscrew.no_load_current` (k_t·I₀·n·η), the
+    /// friction scale `stored` (from the store; `None`: the configured law), and the
+    /// interval's factors at the cruise speed's μ.
+    pub(super) fn new_ident(
+        cfg: &ControlConfig,
+        est: &Estimator,
+        stored: Option<Ratio>,
+    ) -> LoadIdent {
+        let m = &cfg.estimator.motor;
+        let t_motor: NewtonMetres = qmul(cfg.lube.no_load_current, m.torque_constant);
+        let n = i64::from(cfg.estimator.drive.gear_ratio.to_bits()); // Q16
+        let at_screw = NewtonMetres::from_raw(sat32((i64::from(t_motor.bits()) * n) >> 16));
+        let bias: NewtonMetres = qmul(at_screw, m.gear_efficiency);
+        let mut id = LoadIdent::new(cfg.rated_load, bias, stored, cfg.estimator.tick_us);
+        Self::ident_interval(cfg, est, &mut id);
+        id
+    }
+
+    /// The interval's factors for the law's μ at the cruise speed (scale 1).
+    fn ident_interval(cfg: &ControlConfig, est: &Estimator, id: &mut LoadIdent) {
+        // μ of the law in force at cruise, back to scale 1.
+        let mu_s = est.law().mu(cfg.motion.cruise_speed);
+        let scale = id.scale().bits().max(1);
+        let mu = Ratio::from_raw(sat32((i64::from(mu_s.bits()) << 28) / i64::from(scale)));
+        id.set_interval(est.screw(), mu);
+    }
+
+    /// The law the friction scale multiplies: the one the estimator was built with (the
+    /// configured law; on the ball-screw build, `ControlConfig::model_estimator`'s, which
+    /// converts a ball screw's law in τ).
+    fn scalable_law(cfg: &ControlConfig) -> Option<crate::model::friction::FrictionLaw> {
+        #[cfg(feature = "ball-screw")]
+        let law = cfg.model_estimator().ok().map(|e| e.law);
+        #[cfg(not(feature = "ball-screw"))]
+        let law = Some(cfg.estimator.law);
+        law
+    }
+
+    /// Run the estimator's law scaled by `scale`: false if refused (or not applied).
+    fn apply_friction_scale(&mut self, scale: Ratio) -> bool {
+        match Self::scalable_law(&self.derived.cfg) {
+            Some(law) => self.est.set_friction_scale(&law, scale).is_ok(),
+            None => false,
+        }
+    }
+
+    /// The friction scale a stored record gives (at boot, before the first tick; or the one
+    /// in force carried over a reconfiguration): the estimator runs the law scaled by it. A
+    /// scale the law cannot take is ignored.
+    pub fn restore_friction_scale(&mut self, scale: Ratio) {
+        if self.apply_friction_scale(scale) {
+            let id = &mut self.loadid;
+            id.ident = Self::new_ident(&self.derived.cfg, &self.est, Some(scale));
+            id.load = id.ident.load();
+        }
+    }
+
+    /// One tick of the identification: a sample while driving at a steady reference, the end
+    /// of a motion once at rest. After the protections, before the supervisor: the overload
+    /// trip latches like theirs.
+    #[inline]
+    pub(super) fn identify_load(&mut self, now: crate::units::Instant, moving: bool, dir: i8) {
+        if moving {
+            if !self.loadid.moving {
+                self.loadid.moving = true;
+                self.loadid.travelled = false;
+                self.loadid.screw_start = self.screw_position();
+            }
+            let driving = matches!(self.motion.last_bridge, Bridge::Drive(_));
+            let reference = self.motion.last_ref_rad;
+            let braking = self.motion.profile.near_target();
+            let segment = self.est.pose_segment_index();
+            let id = &mut self.loadid;
+            id.calm = if segment == id.segment {
+                id.calm.saturating_add(1)
+            } else {
+                0
+            };
+            id.segment = segment;
+            if id.ident.steady(driving, braking, reference) && id.calm >= 2 {
+                self.load_sample(now, dir);
+            }
+        } else if self.loadid.moving {
+            self.loadid.moving = false;
+            self.end_load_motion();
+        }
+    }
+
+    /// A steady tick's sample, and the overload trip on the identified load. Out of line:
+    /// the ticks before the settling do not pay for it.
+    #[inline(never)]
+    fn load_sample(&mut self, now: crate::units::Instant, dir: i8) {
+        // The screw must have moved (its twist-corrected position, `screw_position`, at least
+        // 64 counts the commanded way since the motion began): while the coupling winds up
+        // against a screw that does not move (a jam, the breakaway) the encoder turns at the
+        // reference speed and the torque rises, which is not sliding. (Ticks where the planner
+        // waits for the screw stay in: a dry thread's stick phases are half of its mean.)
+        if !self.loadid.travelled {
+            let travel = self
+                .screw_position()
+                .saturating_sub(self.loadid.screw_start)
+                .saturating_mul(i32::from(dir));
+            if travel < 64 {
+                return;
+            }
+            self.loadid.travelled = true;
+        }
+        let e = &self.live.latest.estimate;
+        let rated = self.derived.cfg.rated_load;
+        let sample = TickSample {
+            dir,
+            load: rated,
+            // The measured torque low-passed (1/8 a tick, the twist's filter): one tick in
+            // `ident::DECIMATE` is a sample, the filter averages the ticks between.
+            measured: self.motion.torque_lp,
+            model: e.model_screw_torque,
+            thread: e.thread_torque,
+            axial: e.axial,
+        };
+        let (est, position) = (&self.est, self.live.enc.position());
+        let id = &mut self.loadid;
+        if !id.ident.add(&sample, || est.g_per_kg(position, dir)) {
+            return;
+        }
+        id.load = id.ident.load();
+        id.offset = id.ident.torque_offset(rated);
+        if self.live.state != State::Fault {
+            if let Some(floor) = id.ident.load_floor() {
+                if floor > id.overload {
+                    self.latch(now, FaultKind::Overload);
+                }
+            }
+        }
+    }
+
+    /// The motion ended: a pair, the scaled law, the warning, the store request. Out of line
+    /// and cold: once per motion.
+    #[cold]
+    #[inline(never)]
+    fn end_load_motion(&mut self) {
+        let lower = self.derived.lower_counts;
+        let at_lower = self.live.enc.position() <= lower.saturating_add(ARRIVED_COUNTS);
+        // A motion a fault ended says nothing about the friction; one that stick-slipped
+        // (a detected episode) is marked: its pair may not conclude a wetter thread.
+        let episodes = self.motion.stick_slip.output().episodes;
+        let slipped = episodes != self.loadid.episodes || self.motion.stick_slip.output().active;
+        self.loadid.episodes = episodes;
+        let fault = self.live.state == State::Fault;
+        let end = self.loadid.ident.end_motion(
+            self.est.screw(),
+            self.est.law(),
+            at_lower,
+            fault,
+            slipped,
+        );
+        self.finish_identification(&end);
+        let id = &mut self.loadid;
+        id.load = id.ident.load();
+        id.offset = id.ident.torque_offset(self.derived.cfg.rated_load);
+    }
+
+    /// The model's friction torque T_r at the identified load: the tick's estimate runs the
+    /// model at the rated load, and at a pose and speed T_r is proportional to the axial
+    /// demand W = M·G_d + D, so T_r(L) = T_r(L_r)·(W + (L − L_r)·G_d)/W (one division, here:
+    /// the status, not the tick). At rest before any motion (no direction yet) lifting's G_d.
+    pub(super) fn friction_at_load(&self) -> NewtonMetres {
+        let e = &self.live.latest.estimate;
+        if self.live.state == State::Lifting && !self.loadid.ident.report().identified {
+            // No evidence yet (the settling after the start's ramp): the thread torque the
+            // current measures instead of the prior's, T_r = T_r(L_r)·T_measured/T_model
+            // (the same proportionality, on this tick's torques). Lifting only: lowering, the
+            // thread torque is small and of either sign, and the ratio is noise.
+            let thread = i64::from(e.thread_torque.bits());
+            let own = i64::from(e.model_screw_torque.bits()) - thread;
+            let measured = i64::from(e.measured_screw_torque.bits()) - own;
+            if thread.unsigned_abs() >= 1 << 12 && (measured >= 0) == (thread >= 0) {
+                let tr = i64::from(e.friction_torque.bits());
+                return NewtonMetres::from_raw(sat32(tr.saturating_mul(measured) / thread));
+            }
+        }
+        let w = i64::from(e.axial.bits());
+        let dl = i64::from(self.loadid.load.bits()) - i64::from(self.derived.cfg.rated_load.bits());
+        if dl == 0 || w.unsigned_abs() < 256 {
+            return e.friction_torque;
+        }
+        let dir = match self.live.state {
+            State::Lowering => -1,
+            State::Lifting => 1,
+            _ => self.loadid.ident.direction(),
+        };
+        let g = i64::from(self.est.g_per_kg(self.live.enc.position(), dir));
+        // W' = W + ΔL·G (Q8: Q12·Q23 → Q35).
+        let w2 = w + ((dl * g) >> 27);
+        let tr = i64::from(e.friction_torque.bits());
+        NewtonMetres::from_raw(sat32(tr.saturating_mul(w2) / w))
+    }
+
+    /// What a motion's end produced: the scaled law, the warning, the store request. Out of
+    /// line: once per motion.
+    #[inline(never)]
+    fn finish_identification(&mut self, end: &MotionEnd) {
+        if end.rescale && self.apply_friction_scale(self.loadid.ident.scale()) {
+            Self::ident_interval(&self.derived.cfg, &self.est, &mut self.loadid.ident);
+        }
+        let id = &mut self.loadid;
+        if end.store.is_some() {
+            id.store = end.store;
+        }
+        if end.lubrication && self.live.pending_event.is_none() {
+            self.live.pending_event = Some(Event::ThreadDry(id.ident.report()));
+        }
+    }
+
+    /// The friction scale to write to the store, once (the firmware's storage task takes it).
+    pub fn take_friction_store(&mut self) -> Option<Ratio> {
+        self.loadid.store.take()
+    }
+
+    /// The load limit: `(1 + protect.overload_margin)` × the rated load.
+    pub(super) fn overload_limit(cfg: &ControlConfig) -> Kilograms {
+        cfg.rated_load
+            .sat_add(qmul(cfg.rated_load, cfg.protection.overload_margin))
+    }
+
+    /// The profile's speed reference of the last tick, screw rad/s (signed).
+    pub fn reference(&self) -> crate::units::RadiansPerSecond {
+        self.reference_speed()
+    }
+
+    /// The identification's state (tests, host-sim).
+    pub fn load_ident(&self) -> &LoadIdent {
+        &self.loadid.ident
+    }
+}

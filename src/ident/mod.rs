@@ -1,0 +1,869 @@
+//! Online identification of the load on the head and of the thread's friction scale, from the
+//! motor current (docs/model.md "Load and friction identification", docs/control.md).
+//!
+//! **Load, in windows of steady ticks.** The estimator evaluates the screw-nut model at the load
+//! `L` the identification currently holds. The thread torque is linear in M on the loaded flank,
+//! with the sensitivity `g = ∂T_thread/∂M = r_m·ξ·G_d` (N·m per kg, [`load_gain_q24`]: r_m·ξ is
+//! the model's thread torque over its axial demand, G_d the pose's axial force per kilogram,
+//! `Estimator::g_per_kg`), so with the residual `e = T_measured − T_model(L)` each tick gives
+//! `y = e − b_d + L·g = M·g` (+ noise), b_d the drive's own no-load torque at the screw, which
+//! the current also pays. The identified load is the ratio of sums `M̂ = Σy/Σg` over the
+//! motion's steady samples (a least-squares fit of a constant through the origin weighted by
+//! g). The control tick pays sums only: g (and L·g) is evaluated at a window's first sample,
+//! the ratio ([`ratio_q12`], one 32-bit division through a normalised reciprocal) at its last
+//! ([`WINDOW`] samples; the first [`FIRST_WINDOWS`] windows of [`FIRST_WINDOW`]). The model is
+//! evaluated at `M̂` from the next tick on: T_r is the model at the identified load.
+//!
+//! **Samples.** Only while driving at a constant reference of at least [`MIN_SPEED`], from
+//! [`SETTLE_MS`] after it became constant (the coupling has wound up and the speed loop has
+//! settled; during the ramp the motor's rotor inertia, ≈ 0.2 kg·m² at the screw, takes torque
+//! the model does not know), with the model's axial demand on the loaded flank (W > 0).
+//! Stick-slip ticks are kept: the mean torque over stick and slip is the mean friction.
+//!
+//! **Prior and uncertainty.** Until a motion has [`MIN_SAMPLES`] samples the load is the prior
+//! (the rated load, or the last motion's identification: the car stays on the lift between
+//! motions, until it reaches the lower stop). The stated interval (`load_lo … load_hi`) is the
+//! friction scale's: one motion cannot tell a heavier car from a drier thread (T ∝ M·ρ_d(s·μ)),
+//! so the load is bracketed by the loads at the driest and wettest scales the board still
+//! considers possible (before any lift/lowering pair: the stored scale … [`DRY_MAX`] times it
+//! and 0.8 of it; after a pair: ±[`PAIR_BAND`]), widened by [`MODEL_BAND`] for the model's own
+//! accuracy. Before the first evidence the interval is 0 … 2× the prior.
+//!
+//! **Friction scale from a lift/lowering pair** ([`pair`]): each motion's means are kept per
+//! direction; when both exist, the scale s where both give the same load is solved at rest.
+//! The scale in force multiplies the configured law (the estimator's law is rebuilt with it at
+//! rest). A thread drier than `1 + LUBE_BAND` times the configured law raises a lubrication
+//! warning. The scale is kept in the store across power cycles, written only when it has moved
+//! by more than [`STORE_STEP`] from the stored value (flash wear: not every motion).
+
+pub mod pair;
+
+use crate::model::screw::ScrewModel;
+use crate::units::{qmul, Kilograms, NewtonMetres, Newtons, RadiansPerSecond, Ratio, Q};
+use pair::{MotionMeans, PairSolution};
+
+/// Samples start this long after the reference became constant: after a reversal the coupling
+/// unwinds from the last motion's torque to the new one's (≈ 35 N·m / 160 N·m/rad at 3 rad/s:
+/// 70 ms, part of it in the ramp), and the current says nothing about the load meanwhile.
+pub const SETTLE_MS: u32 = 60;
+/// The overload trip acts once a motion has sampled this long (steady time; one tick in
+/// [`DECIMATE`] is a sample).
+pub const MIN_SAMPLES_MS: u32 = 40;
+/// A motion is kept for a pair when it sampled this long.
+pub const PAIR_SAMPLES_MS: u32 = 300;
+/// One steady tick in this many is a sample (the control tick's budget: most ticks pay the
+/// steadiness check only).
+pub const DECIMATE: u32 = 4;
+/// Samples per window: the load gain is evaluated at a window's first sample, the load at its
+/// last (the per-sample work is sums only).
+pub const WINDOW: u32 = 8;
+/// The first windows of a motion are shorter, so that the load leaves the prior soon.
+pub const FIRST_WINDOW: u32 = 4;
+/// How many of them.
+pub const FIRST_WINDOWS: u32 = 2;
+/// Slowest constant reference that gives samples.
+pub const MIN_SPEED: RadiansPerSecond = RadiansPerSecond::lit("0.5");
+/// Before any pair the thread may run up to this many times drier than the scale in force.
+pub const DRY_MAX: Ratio = Ratio::lit("2");
+/// … and down to this fraction of it (better lubricated than configured).
+pub const WET_MIN: Ratio = Ratio::lit("0.8");
+/// After a pair the scale is known within this fraction.
+pub const PAIR_BAND: Ratio = Ratio::lit("0.05");
+/// The model's own relative accuracy at a known scale (pose, law, drive friction).
+pub const MODEL_BAND: Ratio = Ratio::lit("0.03");
+/// A pair's scale above `1 + LUBE_BAND` warns about lubrication.
+pub const LUBE_BAND: Ratio = Ratio::lit("0.25");
+/// The stored scale is rewritten only when the identified one moved by more than this.
+pub const STORE_STEP: Ratio = Ratio::lit("0.04");
+
+/// Sums of one motion's samples (i64: a motion of 2^20 samples at the envelope's torques
+/// stays far inside).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Sums {
+    n: u32,
+    /// Σ y, Q16 N·m.
+    y: i64,
+    /// Σ g, Q24 N·m/kg.
+    g: i64,
+    /// Σ measured thread torque, Q16 N·m.
+    t: i64,
+    /// Σ G_d, Q23 N/kg (each window's value at its start, once per sample).
+    gk: i64,
+    /// Σ D, Q8 N (the same way).
+    d: i64,
+    /// The flank the samples were on (W < 0: the other flank carries the load).
+    reversed: bool,
+    /// A sample was on the reversed flank: the motion's means are not a pair's (the pair's
+    /// model is the loaded flank's).
+    any_reversed: bool,
+}
+
+/// What the identification reads of a steady tick ([`LoadIdent::steady`]) in which the screw
+/// follows its reference (the controller checks that it has moved since the motion began and
+/// that the planner is not waiting for it; stick-slip stays in: the mean torque over stick and
+/// slip is the mean friction): the estimator's [`TickEstimate`].
+///
+/// [`TickEstimate`]: crate::estimator::TickEstimate
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TickSample {
+    /// +1 lifting, −1 lowering.
+    pub dir: i8,
+    /// Measured screw torque (the motor's current through k_t, n and η).
+    pub measured: NewtonMetres,
+    /// The model's screw torque at the tick's load.
+    pub model: NewtonMetres,
+    /// The model's thread torque r_m·W·ξ at the tick's load.
+    pub thread: NewtonMetres,
+    /// The model's axial demand W at the tick's load.
+    pub axial: Newtons,
+    /// The load the model ran with (the same every tick of a motion: the rated load).
+    pub load: Kilograms,
+}
+
+/// What the identification knows about the load, for `status`, the telemetry and the log.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LoadReport {
+    /// The load the model runs with: identified, or the prior.
+    pub load: Kilograms,
+    /// Lower end of the stated interval.
+    pub load_lo: Kilograms,
+    /// Upper end of the stated interval.
+    pub load_hi: Kilograms,
+    /// `load` comes from this motion's or an earlier motion's current, not the prior.
+    pub identified: bool,
+    /// Friction scale on the configured law in force.
+    pub scale: Ratio,
+    /// The scale has been measured (a pair, or the store); else it is assumed.
+    pub scale_known: bool,
+    /// Lift/lowering pairs solved since boot.
+    pub pairs: u16,
+}
+
+/// What the end of a motion produced.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MotionEnd {
+    /// A pair was solved: its solution.
+    pub pair: Option<PairSolution>,
+    /// The friction scale changed: the estimator's law must be rebuilt with it.
+    pub rescale: bool,
+    /// The pair found the thread drier than `1 + LUBE_BAND` times the configured law.
+    pub lubrication: bool,
+    /// Write this scale to the store (it moved by more than [`STORE_STEP`]).
+    pub store: Option<Ratio>,
+}
+
+/// The identification's state (one per controller).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LoadIdent {
+    prior: Kilograms,
+    load: Kilograms,
+    identified: bool,
+    run: Sums,
+    run_dir: i8,
+    up: Option<MotionMeans>,
+    down: Option<MotionMeans>,
+    steady: u32,
+    prev_reference: RadiansPerSecond,
+    /// Samples in the window under way, and the window's load gain g (Q24 N·m/kg), G_d (Q23)
+    /// and D (Q8) at its first sample.
+    win: u32,
+    /// The next sample tick evaluates the gain (after a window closed).
+    gain_due: bool,
+    win_g: i32,
+    win_lg: i64,
+    /// The last non-zero gain (kept across motions: the status's and the torque monitor's).
+    last_g: i32,
+    win_gk: i32,
+    win_d: i32,
+    /// The constant reference of the motion's samples (μ of the pair's means).
+    run_reference: RadiansPerSecond,
+    settle: u32,
+    min_samples: u32,
+    pair_samples: u32,
+    /// The drive's no-load torque at the screw (k_t·I₀·n·η): the current pays it too.
+    drive_bias: NewtonMetres,
+    scale: Ratio,
+    scale_known: bool,
+    stored: Option<Ratio>,
+    pairs: u16,
+    /// ρ_d(s·μ_c)/ρ_d(s'·μ_c) for the interval, at the cruise speed's μ: [dir up/down][lo, hi].
+    factors: [[Ratio; 2]; 2],
+    /// T_r(s')/T_r(s) at the same measured torque, at the driest and the wettest s'.
+    tr_factors: [[Ratio; 2]; 2],
+    /// The interval's lower end over the load (`factors[·][0]` less [`MODEL_BAND`]): the
+    /// overload trip's one product per window.
+    floor: [Ratio; 2],
+}
+
+impl LoadIdent {
+    /// A fresh identification: prior `prior` (the rated load), drive no-load torque at the
+    /// screw `drive_bias`, friction scale `stored` from the store (`None`: the configured law,
+    /// assumed), for a tick of `tick_us`.
+    pub fn new(
+        prior: Kilograms,
+        drive_bias: NewtonMetres,
+        stored: Option<Ratio>,
+        tick_us: u32,
+    ) -> LoadIdent {
+        let t = |ms: u32| (ms.saturating_mul(1000) / tick_us.max(1)).max(1);
+        LoadIdent {
+            prior,
+            load: prior,
+            identified: false,
+            run: Sums::default(),
+            run_dir: 0,
+            up: None,
+            down: None,
+            steady: 0,
+            prev_reference: RadiansPerSecond::ZERO,
+            win: 0,
+            gain_due: false,
+            win_g: 0,
+            win_lg: 0,
+            last_g: 0,
+            win_gk: 0,
+            win_d: 0,
+            run_reference: RadiansPerSecond::ZERO,
+            settle: t(SETTLE_MS),
+            min_samples: (t(MIN_SAMPLES_MS) / DECIMATE).max(1),
+            pair_samples: (t(PAIR_SAMPLES_MS) / DECIMATE).max(1),
+            drive_bias,
+            scale: stored.unwrap_or(Ratio::ONE),
+            scale_known: stored.is_some(),
+            stored,
+            pairs: 0,
+            factors: [[Ratio::ONE; 2]; 2],
+            tr_factors: [[Ratio::ONE; 2]; 2],
+            floor: [Ratio::ONE.sat_sub(MODEL_BAND); 2],
+        }
+    }
+
+    /// Compute the interval's factors for the law's coefficient at cruise `mu_cruise` (scale
+    /// 1): at configuration and whenever the scale changes (at rest: divisions).
+    pub fn set_interval(&mut self, screw: &ScrewModel, mu_cruise: Ratio) {
+        let (lo_s, hi_s) = self.scale_band();
+        for (i, dir) in [(0usize, 1i8), (1, -1)] {
+            // The loads at the driest scale are the lowest.
+            let f = |s: Ratio| pair::load_factor(screw, mu_cruise, dir, self.scale, s);
+            self.factors[i] = [
+                f(hi_s).unwrap_or(Ratio::ZERO),
+                f(lo_s).unwrap_or(const { Ratio::lit("4") }),
+            ];
+            self.floor[i] = self.factors[i][0].sat_sub(MODEL_BAND).max(Ratio::ZERO);
+            let g = |s: Ratio| pair::friction_factor(screw, mu_cruise, dir, self.scale, s);
+            self.tr_factors[i] = [g(hi_s).unwrap_or(Ratio::ONE), g(lo_s).unwrap_or(Ratio::ONE)];
+        }
+    }
+
+    /// The range of T_r the stated interval allows, for the model's T_r `tr` at the load and
+    /// scale in force: the same measured torque explained at the driest and the wettest scale
+    /// still possible (T_r/T = μ_s/(tan λ + μ_s)), widened by [`MODEL_BAND`]; before the
+    /// first evidence, 0 … 2× (the prior's load interval).
+    pub fn friction_range(&self, tr: NewtonMetres) -> (NewtonMetres, NewtonMetres) {
+        let (a, b) = if self.identified {
+            let i = usize::from(self.run_dir < 0);
+            let [f0, f1] = self.tr_factors[i];
+            (
+                qmul::<_, _, NewtonMetres>(tr, f0),
+                qmul::<_, _, NewtonMetres>(tr, f1),
+            )
+        } else {
+            (NewtonMetres::ZERO, tr.sat_add(tr))
+        };
+        let m: NewtonMetres = qmul(tr.sat_abs(), MODEL_BAND);
+        (a.min(b).sat_sub(m), a.max(b).sat_add(m))
+    }
+
+    /// The range of friction scales the board considers possible now.
+    fn scale_band(&self) -> (Ratio, Ratio) {
+        if self.scale_known {
+            let d = qmul::<_, _, Ratio>(self.scale, PAIR_BAND);
+            (self.scale.sat_sub(d), self.scale.sat_add(d))
+        } else {
+            (qmul(self.scale, WET_MIN), qmul(self.scale, DRY_MAX))
+        }
+    }
+
+    /// The load the model should run with this tick.
+    #[inline]
+    pub fn load(&self) -> Kilograms {
+        self.load
+    }
+
+    /// The friction scale in force.
+    pub fn scale(&self) -> Ratio {
+        self.scale
+    }
+
+    /// One control tick while moving: whether the motion is steady enough for a sample:
+    /// driving, not braking toward the target (`braking`), at a reference of at least
+    /// [`MIN_SPEED`] that has been constant for [`SETTLE_MS`] since the start's ramp. After
+    /// that a changing reference stays steady: the cruise limit (`limit_cruise`) lowers and
+    /// raises it on a dry thread's stick-slip, whose stick phases (the planner waits) and slip
+    /// phases alike make the mean torque. A window under way stays open (its gain holds a
+    /// little longer; the motion's end closes it): the braking tick pays nothing.
+    #[inline]
+    pub fn steady(&mut self, driving: bool, braking: bool, reference: RadiansPerSecond) -> bool {
+        let constant = reference == self.prev_reference;
+        self.prev_reference = reference;
+        if !driving || braking || reference.sat_abs() < MIN_SPEED {
+            self.steady = 0;
+            return false;
+        }
+        if constant || self.steady > self.settle {
+            self.steady = self.steady.saturating_add(1);
+        } else {
+            self.steady = 0;
+        }
+        // One steady tick in [`DECIMATE`] is a sample.
+        self.steady > self.settle && self.steady.is_multiple_of(DECIMATE)
+    }
+
+    /// Add a steady tick's sample (after [`Self::steady`]). Per sample only sums; the load
+    /// gain is evaluated at a window's first sample and the load (a ratio of sums) at its last
+    /// ([`WINDOW`] samples, the first [`FIRST_WINDOWS`] shorter), each out of line. True when
+    /// the load was updated.
+    #[inline]
+    pub fn add(&mut self, x: &TickSample, g_per_kg: impl FnOnce() -> i32) -> bool {
+        if self.run.n > 0 && self.run_dir != x.dir {
+            // A reversal without a rest between: start over.
+            self.run = Sums::default();
+            self.win = 0;
+            self.win_g = 0;
+        }
+        self.run_dir = x.dir;
+        if self.win >= self.window_len() {
+            // This tick closes the full window and adds no sample (the tick stays light).
+            self.close_window();
+            return true;
+        }
+        if self.gain_due || self.win_g == 0 {
+            // This tick evaluates the gain and adds no sample.
+            self.open_window(x, g_per_kg());
+            return false;
+        }
+        // e − b + L·g (Q16): L (Q12, ≤ 10 t)·g (Q24) → Q36.
+        let e = i64::from(x.measured.bits()) - i64::from(x.model.bits()) - self.bias(x.dir);
+        let s = &mut self.run;
+        s.n += 1;
+        s.y += e + self.win_lg;
+        s.g += i64::from(self.win_g);
+        s.t += e + i64::from(x.thread.bits());
+        self.win += 1;
+        false
+    }
+
+    /// Samples in the window under way when it is full.
+    #[inline]
+    fn window_len(&self) -> u32 {
+        if self.run.n <= FIRST_WINDOWS * FIRST_WINDOW {
+            FIRST_WINDOW
+        } else {
+            WINDOW
+        }
+    }
+
+    /// The drive's no-load torque in the direction of travel, Q16.
+    #[inline]
+    fn bias(&self, dir: i8) -> i64 {
+        let b = i64::from(self.drive_bias.bits());
+        if dir > 0 {
+            b
+        } else {
+            -b
+        }
+    }
+
+    /// The tick before a window's first sample: the load gain g = ∂T_thread/∂M = r_m·ξ·G_d at
+    /// the load in force, from the tick's model thread torque and axial demand (r_m·ξ =
+    /// T_thread/W, one 32-bit division through [`recip16`]), and L·g. Where the model's demand
+    /// is too small to give r_m·ξ the gain stays unknown (0: no samples). Out of line: once per
+    /// window.
+    #[inline(never)]
+    fn open_window(&mut self, x: &TickSample, g_per_kg: i32) {
+        self.gain_due = false;
+        let w = x.axial.bits();
+        let g = load_gain_q24(x.thread, x.axial, g_per_kg);
+        self.win_g = g;
+        if g == 0 {
+            return;
+        }
+        self.last_g = g;
+        // T is linear in M on one flank (gain r_m·ξ·G_d of that flank): when the model's flank
+        // changes (an empty lift lowering: the damping outweighs the load's push), the sums
+        // start over from the load reached, which then lies on the new flank's side.
+        let reversed = w < 0;
+        if self.run.n > 0 && reversed != self.run.reversed {
+            let any = self.run.any_reversed;
+            self.run = Sums::default();
+            self.run.any_reversed = any;
+        }
+        self.run.reversed = reversed;
+        self.run.any_reversed |= reversed;
+        let load = i64::from(x.load.bits());
+        self.run_reference = self.prev_reference;
+        // L·g (Q16) at the window's gain: L is the load the tick's model runs with (the
+        // rated one: the same every tick).
+        self.win_lg = (load * i64::from(g)) >> 20;
+        self.win_gk = g_per_kg;
+        // D = W − L·G (Q8): L (Q12)·G (Q23) → Q35.
+        self.win_d = crate::units::sat32(i64::from(w) - ((load * i64::from(g_per_kg)) >> 27));
+    }
+
+    /// A window's end: its G_d and D into the pair's sums, and the load M̂ = Σy/Σg, which the
+    /// model runs with from the next tick on (with L·g at the window's gain until the next
+    /// tick evaluates the gain again). Out of line: once per window.
+    #[inline(never)]
+    fn close_window(&mut self) {
+        if self.win == 0 {
+            return;
+        }
+        let n = i64::from(self.win);
+        self.win = 0;
+        self.gain_due = true;
+        let s = &mut self.run;
+        s.gk += n * i64::from(self.win_gk);
+        s.d += n * i64::from(self.win_d);
+        // A negative load before the motion has converged is a transient the settling did
+        // not cover: the load stays. Once converged it is an empty lift's noise: 0.
+        let converged = s.n >= self.min_samples;
+        if let Some(m) = ratio_q12(s.y, s.g).filter(|&m| m >= 0 || converged) {
+            let m = m.clamp(0, crate::estimator::LOAD_MAX.bits());
+            self.load = Kilograms::from_raw(m);
+            self.identified = true;
+        }
+    }
+
+    /// The model's thread torque at the identified load less its torque at `at` (the load the
+    /// tick's model runs with): (L − at)·g at the last gain evaluated (0 before the first).
+    pub fn torque_offset(&self, at: Kilograms) -> NewtonMetres {
+        let dl = i64::from(self.load.bits()) - i64::from(at.bits());
+        NewtonMetres::from_raw(crate::units::sat32((dl * i64::from(self.last_g)) >> 20))
+    }
+
+    /// The direction of the motion under way or of the last one (+1 before any).
+    pub fn direction(&self) -> i8 {
+        if self.run_dir < 0 {
+            -1
+        } else {
+            1
+        }
+    }
+
+    /// Samples in the motion under way.
+    pub fn samples(&self) -> u32 {
+        self.run.n
+    }
+
+    /// Whether this motion's identification has enough samples to act on (overload).
+    pub fn converged(&self) -> bool {
+        self.run.n >= self.min_samples
+    }
+
+    /// The report (`status`, telemetry, log).
+    pub fn report(&self) -> LoadReport {
+        let (lo, hi) = self.interval();
+        LoadReport {
+            load: self.load,
+            load_lo: lo,
+            load_hi: hi,
+            identified: self.identified,
+            scale: self.scale,
+            scale_known: self.scale_known,
+            pairs: self.pairs,
+        }
+    }
+
+    /// The stated interval of the load.
+    pub fn interval(&self) -> (Kilograms, Kilograms) {
+        if !self.identified {
+            return (Kilograms::ZERO, self.prior.sat_add(self.prior));
+        }
+        let i = usize::from(self.run_dir < 0);
+        let hi: Kilograms = qmul(self.load, self.factors[i][1]);
+        let m: Kilograms = qmul(self.load, MODEL_BAND);
+        (qmul(self.load, self.floor[i]), hi.sat_add(m))
+    }
+
+    /// The lowest load the measurements allow, for the overload trip: `Some` once this motion
+    /// has converged.
+    #[inline]
+    pub fn load_floor(&self) -> Option<Kilograms> {
+        if !self.converged() || !self.identified {
+            return None;
+        }
+        Some(qmul(self.load, self.floor[usize::from(self.run_dir < 0)]))
+    }
+
+    /// The lift came to rest (`fault`: a fault ended the motion, whose samples then say
+    /// nothing about the load or the friction). At the lower stop the car may be changed: the
+    /// load goes back to the prior and the kept motions are forgotten. Out of line: once per
+    /// motion.
+    #[inline(never)]
+    pub fn end_motion(
+        &mut self,
+        screw: &ScrewModel,
+        law: &crate::model::friction::CompiledLaw,
+        at_lower_stop: bool,
+        fault: bool,
+        slipped: bool,
+    ) -> MotionEnd {
+        self.close_window();
+        self.steady = 0;
+        self.prev_reference = RadiansPerSecond::ZERO;
+        let run = core::mem::take(&mut self.run);
+        self.win_g = 0;
+        self.gain_due = false;
+        let mut out = MotionEnd::default();
+        if !fault && run.n >= self.pair_samples && !run.any_reversed {
+            // μ of the law in force at the samples' reference speed, back to scale 1.
+            let mu_s = i64::from(law.mu(self.run_reference.sat_abs()).bits());
+            let scale = i64::from(self.scale.bits()).max(1);
+            let mu = Ratio::from_raw(crate::units::sat32((mu_s << 28) / scale));
+            let means = MotionMeans {
+                slipped,
+                ..self.means(&run, mu)
+            };
+            if self.run_dir > 0 {
+                self.up = Some(means);
+            } else {
+                self.down = Some(means);
+            }
+            if let (Some(up), Some(down)) = (self.up, self.down) {
+                out = self.solve_pair(screw, &up, &down);
+            }
+        }
+        if at_lower_stop {
+            self.up = None;
+            self.down = None;
+            self.load = self.prior;
+            self.identified = false;
+        }
+        out
+    }
+
+    fn means(&self, s: &Sums, mu: Ratio) -> MotionMeans {
+        let n = i64::from(s.n.max(1));
+        MotionMeans {
+            dir: self.run_dir,
+            torque: NewtonMetres::from_raw(crate::units::sat32(s.t / n)),
+            g_per_kg: crate::units::sat32(s.gk / n),
+            free: Newtons::from_raw(crate::units::sat32(s.d / n)),
+            mu,
+            n: s.n,
+            slipped: false,
+        }
+    }
+
+    fn solve_pair(
+        &mut self,
+        screw: &ScrewModel,
+        up: &MotionMeans,
+        down: &MotionMeans,
+    ) -> MotionEnd {
+        let Some(sol) = pair::solve(screw, up, down) else {
+            return MotionEnd::default();
+        };
+        // A stick-slipping thread's mean friction is below the law's sliding friction: a dry
+        // thread's pair read it as 0.6…0.9× the law, and the next lift then as a heavier car
+        // (an overload trip at the rated load). Such a pair is not used.
+        if (up.slipped || down.slipped) && sol.scale < Ratio::ONE {
+            return MotionEnd::default();
+        }
+        self.pairs = self.pairs.saturating_add(1);
+        // The first measurement replaces the assumption; later ones average with it (halves).
+        let scale = if self.scale_known {
+            Ratio::from_raw(
+                ((i64::from(self.scale.bits()) + i64::from(sol.scale.bits())) / 2) as i32,
+            )
+        } else {
+            sol.scale
+        };
+        let rescale = scale != self.scale;
+        self.scale = scale;
+        self.scale_known = true;
+        self.load = sol.load;
+        self.identified = true;
+        let lubrication = scale > Ratio::ONE.sat_add(LUBE_BAND);
+        let step = self.stored.map_or(Ratio::MAX, |s| {
+            qmul::<_, _, Ratio>(s, STORE_STEP).max(Ratio::from_raw(1))
+        });
+        let store = match self.stored {
+            Some(s) if scale.sat_sub(s).sat_abs() <= step => None,
+            _ => {
+                self.stored = Some(scale);
+                Some(scale)
+            }
+        };
+        MotionEnd {
+            pair: Some(sol),
+            rescale,
+            lubrication,
+            store,
+        }
+    }
+}
+
+/// `v >> sh` for any `sh` (a left shift when negative), saturating.
+#[inline]
+fn shift_right(v: i64, sh: i32) -> i64 {
+    if sh >= 0 {
+        v >> sh.min(63)
+    } else {
+        v.saturating_mul(1i64 << (-sh).min(62))
+    }
+}
+
+/// The load gain g = ∂T_thread/∂M = r_m·ξ·G_d in Q24 N·m/kg from the model's thread torque
+/// `thread` = r_m·ξ·W at the axial demand `axial` = W, and G_d (`g_per_kg`, Q23 N/kg):
+/// r_m·ξ = T/W in Q32 m by one 32-bit division ([`recip16`]), then one product. 0 where
+/// |W| < 1 N (no r_m·ξ to read).
+pub fn load_gain_q24(thread: NewtonMetres, axial: Newtons, g_per_kg: i32) -> i32 {
+    let w = axial.bits();
+    if w.unsigned_abs() < 256 {
+        return 0;
+    }
+    // r_m·ξ in Q32 m = T (Q16)·2^24/W (Q8): T·inv >> (8 + sh) (|T| < 2^31, inv ≤ 2^17).
+    let (inv, sh) = recip16(w.unsigned_abs());
+    let rho = shift_right(i64::from(thread.bits()) * i64::from(inv), 8 + sh);
+    let rho = i64::from(crate::units::sat32(if w < 0 { -rho } else { rho }));
+    // g = r_m·ξ (Q32, |·| < 2^31) · G_d (Q23) → Q24: the product stays within 2^62.
+    crate::units::sat32((rho * i64::from(g_per_kg)) >> 31)
+}
+
+/// 2^32/x₁₆ with x = x₁₆·2^sh and x₁₆ in [2^15, 2^16): one 32-bit division (17 significant
+/// bits, ≤ 2^-15 relative). `x` must not be 0.
+#[inline]
+pub fn recip16(x: u32) -> (u32, i32) {
+    let sh = 16 - x.leading_zeros() as i32;
+    let x16 = if sh >= 0 { x >> sh } else { x << -sh };
+    (u32::MAX / x16.max(1), sh)
+}
+
+/// Σy/Σg in Q12 kg (Σy in Q16 N·m, Σg in Q24 N·m/kg): Σg normalised to 16 significant bits,
+/// its reciprocal by one 32-bit division (17 significant bits, ≤ 2^-15 relative), then one
+/// product. Lowering a self-locking screw both are negative (the motor drives the screw
+/// down): the quotient is the same. `None` when Σg = 0 or the result leaves i32.
+#[inline]
+pub fn ratio_q12(sum_y: i64, sum_g: i64) -> Option<i32> {
+    let (sum_y, sum_g) = if sum_g < 0 {
+        (sum_y.checked_neg()?, sum_g.checked_neg()?)
+    } else {
+        (sum_y, sum_g)
+    };
+    if sum_g == 0 {
+        return None;
+    }
+    // sum_g = g16·2^sh with g16 in [2^15, 2^16) (sh < 0: exact left shift).
+    let bits = 64 - sum_g.leading_zeros() as i32;
+    let sh = bits - 16;
+    let g16 = if sh >= 0 {
+        (sum_g >> sh) as u32
+    } else {
+        (sum_g << -sh) as u32
+    };
+    let inv = u32::MAX / g16; // 2^32/g16, in (2^16, 2^17]
+                              // M (Q12) = Σy·2^20/Σg = Σy·inv·2^(20 − 32 − sh) = Σy·inv >> (12 + sh).
+    let p = sum_y.checked_mul(i64::from(inv))?;
+    let shift = 12 + sh;
+    let m = if shift >= 0 {
+        p >> shift.min(63)
+    } else {
+        p.checked_mul(1i64 << (-shift).min(62))?
+    };
+    i32::try_from(m).ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::geometry::DriveConfig;
+    use crate::model::screw::MechanicsConfig;
+
+    fn screw() -> ScrewModel {
+        ScrewModel::new(&DriveConfig::DEFAULT, &MechanicsConfig::DEFAULT).unwrap()
+    }
+
+    /// A law of constant μ = 0.21 (the test motions' μ).
+    fn law(sc: &ScrewModel) -> crate::model::friction::CompiledLaw {
+        let l = crate::model::friction::FrictionLaw {
+            base: Ratio::lit("0.21"),
+            amp: Ratio::ZERO,
+            ..crate::model::friction::FrictionLaw::DRY
+        };
+        let l = crate::model::friction::FrictionLaw {
+            slope: fixed::types::I32F32::ZERO,
+            ..l
+        };
+        l.compile(sc.pitch_radius(), sc.cos_lambda()).unwrap()
+    }
+
+    #[test]
+    fn ratio_matches_the_quotient() {
+        for (y, g) in [
+            (1i64 << 30, 1i64 << 24),
+            (123_456_789, 98_765_432),
+            (-5_000_000_000, 3_000_000_000),
+            (7, 1),
+            (1 << 40, 1 << 35),
+        ] {
+            let want = (y as f64) * 2f64.powi(20) / (g as f64);
+            let got = f64::from(ratio_q12(y, g).unwrap());
+            assert!(
+                (got - want).abs() <= want.abs() * 4e-5 + 1.0,
+                "{y}/{g}: {got} vs {want}"
+            );
+        }
+        assert_eq!(ratio_q12(1, 0), None);
+        assert_eq!(
+            ratio_q12(-(1 << 30), -(1 << 24)),
+            ratio_q12(1 << 30, 1 << 24)
+        );
+    }
+
+    /// The torque the thread takes at load `m` (kg) and true scale `s` for means at scale 1.
+    fn means(sc: &ScrewModel, dir: i8, m: f64, s: f64, g: f64, d: f64, mu: f64) -> MotionMeans {
+        let tan = sc.tan_lambda().to_f64();
+        let r = sc.pitch_radius().to_f64();
+        let mus = f64::from(dir) * mu * s;
+        let rho = r * (tan + mus) / (1.0 - mus * tan);
+        MotionMeans {
+            dir,
+            torque: NewtonMetres::from_f64(rho * (m * g + d)),
+            g_per_kg: (g * f64::from(1u32 << 23)) as i32,
+            free: Newtons::from_f64(d),
+            mu: Ratio::from_f64(mu),
+            n: 1000,
+            slipped: false,
+        }
+    }
+
+    #[test]
+    fn a_pair_recovers_scale_and_load() {
+        let sc = screw();
+        // 20°: G_up = g(cos + 0.6)/sin, G_down = g(cos − 0.6)/sin.
+        let a = 20f64.to_radians();
+        let gu = 9.80665 * (a.cos() + 0.6) / a.sin();
+        let gd = 9.80665 * (a.cos() - 0.6) / a.sin();
+        for mu in [0.2105, 0.0845, 0.1907] {
+            for s in [1.0, 1.5, 2.0, 0.8] {
+                for m in [100.0, 500.0, 1000.0, 1300.0] {
+                    let up = means(&sc, 1, m, s, gu, 24.0, mu);
+                    let dn = means(&sc, -1, m, s, gd, -24.0, mu);
+                    let sol = pair::solve(&sc, &up, &dn).unwrap_or_else(|| panic!("{mu} {s} {m}"));
+                    assert!(
+                        (sol.scale.to_f64() - s).abs() < 2e-3 * s,
+                        "{mu} {s} {m}: {sol:?}"
+                    );
+                    assert!(
+                        (sol.load.to_f64() - m).abs() < 2e-3 * m + 0.5,
+                        "{mu} {s} {m}: {sol:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn inconsistent_pairs_are_refused() {
+        let sc = screw();
+        let a = 20f64.to_radians();
+        let gu = 9.80665 * (a.cos() + 0.6) / a.sin();
+        let gd = 9.80665 * (a.cos() - 0.6) / a.sin();
+        // A light car up, a heavy one down at the same scale: no s makes them agree in range.
+        let up = means(&sc, 1, 100.0, 1.0, gu, 24.0, 0.21);
+        let dn = means(&sc, -1, 3000.0, 1.0, gd, -24.0, 0.21);
+        assert_eq!(pair::solve(&sc, &up, &dn), None);
+        // The pins take the whole push while lowering (G_down ≈ 0): not used.
+        let dn = means(&sc, -1, 1000.0, 1.0, gu / 10.0, -24.0, 0.21);
+        assert_eq!(pair::solve(&sc, &up, &dn), None);
+    }
+
+    /// Feed one steady motion whose measured torque is the model's at load `m` and scale `s`.
+    fn motion(id: &mut LoadIdent, sc: &ScrewModel, dir: i8, m: f64, s: f64, ticks: u32) {
+        let a = 20f64.to_radians();
+        let g = 9.80665 * (a.cos() + 0.6 * f64::from(dir)) / a.sin();
+        let (tan, r) = (sc.tan_lambda().to_f64(), sc.pitch_radius().to_f64());
+        let mu = 0.21;
+        let rho = |mu: f64| {
+            let mus = f64::from(dir) * mu;
+            r * (tan + mus) / (1.0 - mus * tan)
+        };
+        let d = 24.0 * f64::from(dir);
+        let cruise = RadiansPerSecond::from_f64(3.0 * f64::from(dir));
+        for k in 0..ticks {
+            let l = id.load().to_f64();
+            let mu_model = mu * id.scale().to_f64();
+            let model_thread = rho(mu_model) * (l * g + d);
+            let measured = rho(mu * s) * (m * g + d) + 0.5 * f64::from(dir);
+            let reference = if k < 60 {
+                RadiansPerSecond::from_f64(0.05 * f64::from(k) * f64::from(dir))
+            } else {
+                cruise
+            };
+            if !id.steady(true, false, reference) {
+                continue;
+            }
+            id.add(
+                &TickSample {
+                    dir,
+                    measured: NewtonMetres::from_f64(measured + 0.3),
+                    model: NewtonMetres::from_f64(model_thread + 0.3),
+                    thread: NewtonMetres::from_f64(model_thread),
+                    axial: Newtons::from_f64(l * g + d),
+                    load: id.load(),
+                },
+                || (g * f64::from(1u32 << 23)) as i32,
+            );
+        }
+    }
+
+    #[test]
+    fn a_motion_identifies_the_load_and_a_pair_the_scale() {
+        let sc = screw();
+        let bias = NewtonMetres::from_f64(0.5);
+        let mut id = LoadIdent::new(Kilograms::lit("1000"), bias, None, 1000);
+        id.set_interval(&sc, Ratio::from_f64(0.21));
+        assert_eq!(id.load(), Kilograms::lit("1000"));
+        assert!(!id.report().identified);
+        // Nominal thread, 600 kg: the load within 0.1 % once converged.
+        motion(&mut id, &sc, 1, 600.0, 1.0, 400);
+        assert!(id.converged());
+        assert!((id.load().to_f64() - 600.0).abs() < 0.6, "{:?}", id.load());
+        let (lo, hi) = id.interval();
+        assert!(lo.to_f64() < 600.0 && hi.to_f64() > 600.0);
+        let end = id.end_motion(&sc, &law(&sc), false, false, false);
+        assert_eq!(end.pair, None);
+        // A 2× drier thread: the lift alone reads it as a heavier car, within the interval.
+        let mut id = LoadIdent::new(Kilograms::lit("1000"), bias, None, 1000);
+        id.set_interval(&sc, Ratio::from_f64(0.21));
+        motion(&mut id, &sc, 1, 1000.0, 2.0, 800);
+        let (lo, hi) = id.interval();
+        assert!(id.load().to_f64() > 1500.0, "{:?}", id.load());
+        assert!(
+            lo.to_f64() <= 1000.0 && hi.to_f64() >= 1000.0,
+            "{lo:?} {hi:?}"
+        );
+        assert_eq!(
+            id.end_motion(&sc, &law(&sc), false, false, false).pair,
+            None
+        );
+        motion(&mut id, &sc, -1, 1000.0, 2.0, 800);
+        let end = id.end_motion(&sc, &law(&sc), false, false, false);
+        let sol = end.pair.expect("a pair");
+        assert!((sol.scale.to_f64() - 2.0).abs() < 0.02, "{sol:?}");
+        assert!((sol.load.to_f64() - 1000.0).abs() < 10.0, "{sol:?}");
+        assert!(end.rescale && end.lubrication && end.store.is_some());
+        // The next lift at the identified scale gives the load directly.
+        motion(&mut id, &sc, 1, 1000.0, 2.0, 400);
+        assert!(
+            (id.load().to_f64() - 1000.0).abs() < 10.0,
+            "{:?}",
+            id.load()
+        );
+        // At the lower stop the car may change: back to the prior.
+        id.end_motion(&sc, &law(&sc), true, false, false);
+        assert_eq!(id.load(), Kilograms::lit("1000"));
+    }
+}

@@ -143,7 +143,8 @@ impl PoseBudget {
         let amp = i64::from(given.amp.bits());
         let end = i64::from(law.mu_unfloored_call(BUDGET_SPEED << 16));
         let mu_hi = (amp.max(0) + i64::from(given.base.bits()).max(end + (-amp).max(0)))
-            .clamp(0, i64::from(screw.mu_max().bits())) as u64;
+            .min(i64::from(screw.mu_max().bits()))
+            .max(0) as u64; // not `clamp`: its min ≤ max check pulls a formatted panic
         let tan = screw.tan_lambda().bits() as u64;
         // K = r_m·num/den (Q24·Q28/Q28); μ_hi·tan λ ≤ 1/3 (`mu_max`): den ≥ ⅔·2^28.
         let num = tan + mu_hi;

@@ -179,7 +179,8 @@ impl Controller {
     /// A tick at rest with identification work left, from `ident::SETTLE_MS` on: one piece of
     /// it, so that no tick pays it all (`scripts/qemu-test` counts each piece): a step of the
     /// pair solve (one motion's load at one scale), then, when the pair changed the friction
-    /// scale, eight items of the scaled law's table, then the interval's four pieces. Out of
+    /// scale, the law's table rescaled in pieces (`Estimator::rescale_step`; the scaled law in
+    /// force with the last), then the interval's four pieces. Out of
     /// line and cold: at rest only.
     #[cold]
     #[inline(never)]
@@ -190,10 +191,7 @@ impl Controller {
         }
         if let Some(scale) = self.loadid.rescaling {
             if self.est.rescale_step() {
-                // The scaled law is in force: the identification runs with it from now on.
-                self.loadid.rescaling = None;
-                self.loadid.ident.scale_applied(scale);
-                self.loadid.interval_left = crate::ident::INTERVAL_PIECES;
+                self.rescaled(scale);
             }
             return;
         }
@@ -212,6 +210,25 @@ impl Controller {
             return;
         }
         self.loadid.rest_work = false;
+    }
+
+    /// The scaled law is in force: the identification runs with it from now on.
+    fn rescaled(&mut self, scale: Ratio) {
+        self.loadid.rescaling = None;
+        self.loadid.ident.scale_applied(scale);
+        self.loadid.interval_left = crate::ident::INTERVAL_PIECES;
+    }
+
+    /// Before a motion starts: a rescale under way completes now (its table must be one
+    /// law's: up to ≈ 5 000 instructions, once, on the tick or command that starts the
+    /// motion within ≈ 7 ms of a pair's end).
+    #[cold]
+    #[inline(never)]
+    pub(super) fn finish_rescale(&mut self) {
+        if let Some(scale) = self.loadid.rescaling {
+            self.est.finish_rescale();
+            self.rescaled(scale);
+        }
     }
 
     /// A steady tick's sample, and the overload trip on the identified load. Out of line:
@@ -319,8 +336,8 @@ impl Controller {
         NewtonMetres::from_raw(sat32(tr.saturating_mul(w2) / w))
     }
 
-    /// What a pair produced: the scaled law (compiled now, tabulated by the next ticks at
-    /// rest, then the interval's factors), the warning, the store request.
+    /// What a pair produced: the scaled law (its table rescaled by the next ticks at rest,
+    /// then the interval's factors), the warning, the store request.
     fn finish_identification(&mut self, end: &MotionEnd) {
         if end.rescale {
             let begun = Self::scalable_law(&self.derived.cfg)

@@ -861,10 +861,9 @@ fn count_rest_work(overhead: u32) {
     st.report();
     let mut st = Stats::new("ident.set_interval_piece (one a tick at rest)");
     for k in 0..8u8 {
+        let mu = black_box(Ratio::lit("0.0845"));
         st.push(
-            ticks(k % 4, |p| {
-                id.set_interval_piece(&screw, Ratio::lit("0.0845"), p)
-            }),
+            ticks(k % 4, |p| id.set_interval_piece(&screw, mu, p)),
             overhead,
         );
     }

@@ -190,7 +190,10 @@ impl Controller {
             return;
         }
         if let Some(scale) = self.loadid.rescaling {
-            if self.est.rescale_step() {
+            if !self.est.rescaling() {
+                // The first tick takes the law in force times the scales' ratio.
+                self.begin_rescale(scale);
+            } else if self.est.rescale_step() {
                 self.rescaled(scale);
             }
             return;
@@ -212,6 +215,17 @@ impl Controller {
         self.loadid.rest_work = false;
     }
 
+    /// Start putting `scale` in force (`Estimator::begin_friction_scale`); a scale the law
+    /// cannot take is dropped (the identification keeps the one in force).
+    fn begin_rescale(&mut self, scale: Ratio) {
+        let begun = Self::scalable_law(&self.derived.cfg)
+            .is_some_and(|law| self.est.begin_friction_scale(&law, scale).is_ok());
+        if !begun {
+            self.loadid.rescaling = None;
+            self.loadid.interval_left = crate::ident::INTERVAL_PIECES;
+        }
+    }
+
     /// The scaled law is in force: the identification runs with it from now on.
     fn rescaled(&mut self, scale: Ratio) {
         self.loadid.rescaling = None;
@@ -226,8 +240,13 @@ impl Controller {
     #[inline(never)]
     pub(super) fn finish_rescale(&mut self) {
         if let Some(scale) = self.loadid.rescaling {
-            self.est.finish_rescale();
-            self.rescaled(scale);
+            if !self.est.rescaling() {
+                self.begin_rescale(scale);
+            }
+            if self.loadid.rescaling.is_some() {
+                self.est.finish_rescale();
+                self.rescaled(scale);
+            }
         }
     }
 
@@ -336,17 +355,12 @@ impl Controller {
         NewtonMetres::from_raw(sat32(tr.saturating_mul(w2) / w))
     }
 
-    /// What a pair produced: the scaled law (its table rescaled by the next ticks at rest,
-    /// then the interval's factors), the warning, the store request.
+    /// What a pair produced: the scaled law (taken, then its table rescaled, by the next ticks
+    /// at rest, then the interval's factors), the warning, the store request.
     fn finish_identification(&mut self, end: &MotionEnd) {
         if end.rescale {
-            let begun = Self::scalable_law(&self.derived.cfg)
-                .is_some_and(|law| self.est.begin_friction_scale(&law, end.scale).is_ok());
-            if begun {
-                self.loadid.rescaling = Some(end.scale);
-            }
-        }
-        if self.loadid.rescaling.is_none() {
+            self.loadid.rescaling = Some(end.scale);
+        } else {
             // The scale's band narrowed (a measured scale): the interval follows.
             self.loadid.interval_left = crate::ident::INTERVAL_PIECES;
         }

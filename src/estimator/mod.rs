@@ -469,42 +469,19 @@ impl Estimator {
     }
 
     /// Run `configured` scaled by `scale` (base, amplitude and slope times s: the friction
-    /// scale a lift/lowering pair identified; the floor at 0 commutes) from now on, the law and
-    /// its table rebuilt (configuration time: ≈ 460 law evaluations). The pose's node spacing,
-    /// chosen for the configured law's μ, is kept. Refused (nothing changes) when the scaled
-    /// law leaves the law's validated ranges.
+    /// scale a lift/lowering pair identified, or the store's at boot; the floor at 0
+    /// commutes) from now on: [`Self::begin_friction_scale`] and every
+    /// [`Self::rescale_step`] at once. The pose's node spacing, chosen for the configured
+    /// law's μ, is kept. Refused (nothing changes) when the scaled law leaves the law's
+    /// validated ranges.
     pub fn set_friction_scale(
         &mut self,
         configured: &FrictionLaw,
         scale: Ratio,
     ) -> Result<(), ConfigError> {
-        let law = Self::scaled_law(&self.screw, configured, scale)?;
-        self.mu_table = MuTable::build(&law);
-        self.law = law;
-        self.scale = scale;
-        self.rescale = None;
+        self.begin_friction_scale(configured, scale)?;
+        self.finish_rescale();
         Ok(())
-    }
-
-    fn scaled_law(
-        screw: &ScrewModel,
-        configured: &FrictionLaw,
-        scale: Ratio,
-    ) -> Result<CompiledLaw, ConfigError> {
-        let c = *configured;
-        let s64 = i64::from(scale.bits());
-        let fx = |v: fixed::types::I32F32| {
-            fixed::types::I32F32::from_bits(
-                ((i128::from(v.to_bits()) * i128::from(s64)) >> 28) as i64,
-            )
-        };
-        let law = FrictionLaw {
-            base: qmul(c.base, scale),
-            amp: qmul(c.amp, scale),
-            slope: fx(c.slope),
-            ..c
-        };
-        law.compile(screw.pitch_radius(), screw.cos_lambda())
     }
 
     /// [`Self::set_friction_scale`] spread over the ticks at rest: this call takes the law
@@ -560,6 +537,11 @@ impl Estimator {
             self.scale = r.scale;
         }
         true
+    }
+
+    /// Whether a rescale is under way.
+    pub fn rescaling(&self) -> bool {
+        self.rescale.is_some()
     }
 
     /// Complete a rescale under way at once (before a motion: its table must be one law's).

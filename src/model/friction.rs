@@ -83,6 +83,7 @@ impl FrictionLaw {
     };
 
     /// The law's validated ranges (refusals name `keys`: base, amp, rate, slope, s_max).
+    #[inline(never)]
     fn check_ranges(&self, keys: &[&'static Key; 5]) -> Result<(), ConfigError> {
         let in_range = |v: I32F32, lo: I32F32, hi: I32F32| v >= lo && v <= hi;
         if !(self.base >= Ratio::ZERO && self.base <= Ratio::ONE) {

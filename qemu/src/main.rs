@@ -775,7 +775,6 @@ fn count_rest_work(overhead: u32) {
     let Ok(mut est) = Estimator::new(&EstimatorConfig::DEFAULT) else {
         return;
     };
-    let law = EstimatorConfig::DEFAULT.law;
     let screw = *est.screw();
     // A 1000 kg car lifted and lowered at 20° on a thread 1.5× drier than the PTFE law.
     let up = MotionMeans {
@@ -823,7 +822,7 @@ fn count_rest_work(overhead: u32) {
     for k in 0..8 {
         let s = Ratio::from_bits((1 << 28) + (k << 25));
         st.push(
-            ticks(s, |s| est.begin_friction_scale(&law, s).is_ok()),
+            ticks(s, |s| est.begin_friction_scale(s).is_ok()),
             overhead,
         );
         loop {
@@ -841,7 +840,7 @@ fn count_rest_work(overhead: u32) {
     st2.report();
     let mut st = Stats::new("estimator.set_friction_scale (at boot, for comparison)");
     st.push(
-        ticks(Ratio::lit("1.5"), |s| est.set_friction_scale(&law, s).is_ok()),
+        ticks(Ratio::lit("1.5"), |s| est.set_friction_scale(s).is_ok()),
         overhead,
     );
     st.report();

@@ -113,30 +113,11 @@ impl Controller {
         id.set_interval_piece(est.screw(), mu, piece);
     }
 
-    /// The law the friction scale multiplies: the one the estimator was built with (the
-    /// configured law; on the ball-screw build, `ControlConfig::model_estimator`'s, which
-    /// converts a ball screw's law in τ).
-    fn scalable_law(cfg: &ControlConfig) -> Option<crate::model::friction::FrictionLaw> {
-        #[cfg(feature = "ball-screw")]
-        let law = cfg.model_estimator().ok().map(|e| e.law);
-        #[cfg(not(feature = "ball-screw"))]
-        let law = Some(cfg.estimator.law);
-        law
-    }
-
-    /// Run the estimator's law scaled by `scale`: false if refused (or not applied).
-    fn apply_friction_scale(&mut self, scale: Ratio) -> bool {
-        match Self::scalable_law(&self.derived.cfg) {
-            Some(law) => self.est.set_friction_scale(&law, scale).is_ok(),
-            None => false,
-        }
-    }
-
     /// The friction scale a stored record gives (at boot, before the first tick; or the one
     /// in force carried over a reconfiguration): the estimator runs the law scaled by it. A
     /// scale the law cannot take is ignored.
     pub fn restore_friction_scale(&mut self, scale: Ratio) {
-        if self.apply_friction_scale(scale) {
+        if self.est.set_friction_scale(scale).is_ok() {
             let id = &mut self.loadid;
             id.ident = Self::new_ident(&self.derived.cfg, &self.est, Some(scale));
             id.load = id.ident.load();
@@ -218,9 +199,7 @@ impl Controller {
     /// Start putting `scale` in force (`Estimator::begin_friction_scale`); a scale the law
     /// cannot take is dropped (the identification keeps the one in force).
     fn begin_rescale(&mut self, scale: Ratio) {
-        let begun = Self::scalable_law(&self.derived.cfg)
-            .is_some_and(|law| self.est.begin_friction_scale(&law, scale).is_ok());
-        if !begun {
+        if self.est.begin_friction_scale(scale).is_err() {
             self.loadid.rescaling = None;
             self.loadid.interval_left = crate::ident::INTERVAL_PIECES;
         }

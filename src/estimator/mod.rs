@@ -468,47 +468,42 @@ impl Estimator {
         }
     }
 
-    /// Run `configured` scaled by `scale` (base, amplitude and slope times s: the friction
+    /// Run the law the estimator was built with scaled by `scale` (base, amplitude and slope
+    /// times s: the friction
     /// scale a lift/lowering pair identified, or the store's at boot; the floor at 0
     /// commutes) from now on: [`Self::begin_friction_scale`] and every
     /// [`Self::rescale_step`] at once. The pose's node spacing, chosen for the configured
     /// law's μ, is kept. Refused (nothing changes) when the scaled law leaves the law's
     /// validated ranges.
-    pub fn set_friction_scale(
-        &mut self,
-        configured: &FrictionLaw,
-        scale: Ratio,
-    ) -> Result<(), ConfigError> {
-        self.begin_friction_scale(configured, scale)?;
+    pub fn set_friction_scale(&mut self, scale: Ratio) -> Result<(), ConfigError> {
+        self.begin_friction_scale(scale)?;
         self.finish_rescale();
         Ok(())
     }
 
-    /// [`Self::set_friction_scale`] spread over the ticks at rest: this call takes the law
-    /// in force times the ratio of the scales ([`CompiledLaw::rescaled`]: no compile), each
+    /// [`Self::set_friction_scale`] spread over the ticks at rest (`scale` on the law the
+    /// estimator was built with): this call takes the law in force times the ratio of the
+    /// scales ([`CompiledLaw::rescaled`]: no compile), each
     /// [`Self::rescale_step`] scales [`RESCALE_NODES`] of its table's nodes
     /// ([`MuTable::rescale_nodes`]: the law is linear in its scale), and the last of them puts
     /// the law in force. Until then the table is part old, part new: [`Self::finish_rescale`]
     /// completes it before a motion. Refused (nothing changes) as [`Self::set_friction_scale`].
-    pub fn begin_friction_scale(
-        &mut self,
-        configured: &FrictionLaw,
-        scale: Ratio,
-    ) -> Result<(), ConfigError> {
+    pub fn begin_friction_scale(&mut self, scale: Ratio) -> Result<(), ConfigError> {
         self.finish_rescale();
-        let c = *configured;
-        let s64 = i64::from(scale.bits());
-        let slope = fixed::types::I32F32::from_bits(
-            ((i128::from(c.slope.to_bits()) * i128::from(s64)) >> 28) as i64,
-        );
+        let old = i64::from(self.scale.bits()).max(1);
+        let ratio = Ratio::from_raw(crate::units::sat32((i64::from(scale.bits()) << 28) / old));
+        // The law in force (the configured law at the scale in force) times the ratio.
+        let c = *self.law.law();
+        let slope = c.slope.to_bits();
+        // slope (Q32, |·| ≤ 1000·2^32 < 2^42) times the ratio (Q28, < 2^31), by halves.
+        let r = i64::from(ratio.bits());
+        let slope = (slope >> 28) * r + (((slope & ((1 << 28) - 1)) * r) >> 28);
         let law = FrictionLaw {
-            base: qmul(c.base, scale),
-            amp: qmul(c.amp, scale),
-            slope,
+            base: qmul(c.base, ratio),
+            amp: qmul(c.amp, ratio),
+            slope: fixed::types::I32F32::from_bits(slope),
             ..c
         };
-        let old = i64::from(self.scale.bits()).max(1);
-        let ratio = Ratio::from_raw(crate::units::sat32((s64 << 28) / old));
         let law = self.law.rescaled(&law, ratio)?;
         self.rescale = Some(Rescale {
             law,

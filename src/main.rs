@@ -177,38 +177,6 @@ fn boot(spawner: Spawner) {
     spawn_tasks(spawner, board, lift, console, greeting, boot, parked);
 }
 
-/// A HAL error for the defmt log. embassy-stm32 is built without its `defmt` feature (its
-/// assertions and unwraps panic like the core's, and panic-probe logs the message): the two
-/// HAL errors the firmware logs are named here instead of by the HAL's derive.
-struct HalError<E>(E);
-
-impl defmt::Format for HalError<usart::Error> {
-    fn format(&self, f: defmt::Formatter) {
-        match self.0 {
-            usart::Error::Framing => defmt::write!(f, "Framing"),
-            usart::Error::Noise => defmt::write!(f, "Noise"),
-            usart::Error::Overrun => defmt::write!(f, "Overrun"),
-            usart::Error::Parity => defmt::write!(f, "Parity"),
-            usart::Error::BufferTooLong => defmt::write!(f, "BufferTooLong"),
-            _ => defmt::write!(f, "unknown"),
-        }
-    }
-}
-
-impl defmt::Format for HalError<usart::ConfigError> {
-    fn format(&self, f: defmt::Formatter) {
-        match self.0 {
-            usart::ConfigError::BaudrateTooLow => defmt::write!(f, "BaudrateTooLow"),
-            usart::ConfigError::BaudrateTooHigh => defmt::write!(f, "BaudrateTooHigh"),
-            usart::ConfigError::RxOrTxNotEnabled => defmt::write!(f, "RxOrTxNotEnabled"),
-            usart::ConfigError::DataParityNotSupported => {
-                defmt::write!(f, "DataParityNotSupported")
-            }
-            _ => defmt::write!(f, "unknown"),
-        }
-    }
-}
-
 /// Clocks, the board's pins and peripherals (the bridge coasting; the board in [`BOARD`],
 /// where it stays), and whether the watchdog caused the last reset.
 #[inline(never)]
@@ -632,7 +600,7 @@ async fn console_task(
     ) {
         Ok(uart) => uart,
         Err(e) => {
-            warn!("console disabled: USART2 config rejected: {}", HalError(e));
+            warn!("console disabled: USART2 config rejected: {}", e);
             return;
         }
     };
@@ -702,7 +670,7 @@ async fn console_task(
         match select(uart.read(&mut chunk), NOTICES.receive()).await {
             Either::First(Ok(n)) => (next, read) = (0, n),
             // Framing/noise/overrun: drop the bytes and keep listening.
-            Either::First(Err(e)) => warn!("console read error: {}", HalError(e)),
+            Either::First(Err(e)) => warn!("console read error: {}", e),
             Either::Second(event) => {
                 let _ = write_notice(reply, &event);
             }

@@ -316,7 +316,7 @@ pub trait Q: Copy {
 ///
 /// Written as "does the low word sign-extend to the whole value": one compare of the high word
 /// with the low word's sign on a Cortex-M4 (≈ 3 instructions instead of two 64-bit compares).
-#[inline]
+#[inline(always)]
 pub fn sat32(v: i64) -> i32 {
     let lo = v as i32;
     if i64::from(lo) == v {
@@ -337,7 +337,7 @@ pub fn narrow(v: i64) -> i32 {
 }
 
 /// Shift right by `s` bits if positive, left (saturating) if negative.
-#[inline]
+#[inline(always)]
 fn shift_to(v: i64, s: i32) -> i64 {
     if s >= 0 {
         v >> s
@@ -351,7 +351,7 @@ fn shift_to(v: i64, s: i32) -> i64 {
 /// Mixed-format product `a·b` in the output's Q format, saturating; rounds toward −∞.
 ///
 /// One 32×32→64 multiply and a shift: `SMULL` + shifts on a Cortex-M4.
-#[inline]
+#[inline(always)]
 pub fn qmul<A: Q, B: Q, O: Q>(a: A, b: B) -> O {
     let p = i64::from(a.bits()) * i64::from(b.bits());
     O::from_raw(sat32(shift_to(

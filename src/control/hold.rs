@@ -150,6 +150,7 @@ impl Controller {
     /// Whether this motion is still waiting for the brake (taking the load up or releasing):
     /// the profile has not started, so a STOP ends the motion at once instead of letting the
     /// brake release first.
+    #[inline(always)]
     pub(super) fn awaiting_brake(&self) -> bool {
         let b = &self.motion.brake;
         b.present && !(b.release && b.ticks >= b.delay)

@@ -13,6 +13,7 @@
 //! the speed curve), no acceleration step, twice the trapezoid's peak acceleration.
 
 use super::config::RampShape;
+use crate::math::div_pow2_i64;
 
 /// Length of the S-curve's moving-average window, entries (each spans one or more ticks).
 const SMOOTH_LEN: usize = 64;
@@ -289,7 +290,7 @@ impl Profile {
         } else {
             (self.v - self.accel).max(v_goal)
         };
-        let step = (self.v + v_new) / 2;
+        let step = div_pow2_i64(self.v + v_new, 1);
         let p_new = if near {
             self.p + step
         } else {
@@ -511,7 +512,7 @@ mod tests {
         } else {
             (s.v - s.accel).max(v_goal)
         };
-        let step = (s.v + v_new) / 2;
+        let step = div_pow2_i64(s.v + v_new, 1);
         let p_new = s.p.saturating_add(step);
         let remaining = s.target.saturating_sub(p_new);
         if remaining == 0

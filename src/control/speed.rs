@@ -135,6 +135,7 @@ impl SpeedLoop {
 /// reciprocal, ≈ 30 instructions more on every driving tick): |v|·2^11 over the
 /// supply rounded to Q12, the quotient rounded. Error ≤ ½ LSB + 2^15·2^−13/supply\[V\]
 /// (the supply's rounding: ≤ 0.8 LSB at 9 V), proptest below.
+#[inline(always)]
 pub fn duty_q15(v: Volts, supply: Volts) -> i16 {
     if supply < const { Volts::lit("1") } {
         return 0;

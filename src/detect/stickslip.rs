@@ -38,6 +38,7 @@
 //! twins and the property tests that hold this to them are in this module's tests.
 
 use crate::keys::{self, check_bounds, Bound, ConfigError};
+use crate::math::div_pow2_i64;
 use crate::model::friction::CompiledLaw;
 use crate::units::{NewtonMetres, RadiansPerSecond, Ratio, Q};
 
@@ -140,6 +141,9 @@ pub const EVENT_MS: u32 = 8;
 pub const MIN_HOLD_MS: u32 = 250;
 /// Length of the torque mean, ticks (a power of two).
 const MEAN_LEN: usize = 4;
+/// log2 of [`MEAN_LEN`]: the mean divides by a shift ([`div_pow2_i64`], the same as `/`).
+const MEAN_SHIFT: u32 = MEAN_LEN.trailing_zeros();
+const _: () = assert!(MEAN_LEN.is_power_of_two() && MEAN_SHIFT >= 1);
 
 /// What the detector needs each tick.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -559,7 +563,7 @@ impl StickSlipDetector {
         }
         self.last = [p, self.last[0]];
         self.filled = (self.filled + 1).min(MEAN_LEN);
-        let mean = (self.sum / MEAN_LEN as i64) as i32; // |sum| ≤ 4·2^31: exact in i32 after /4
+        let mean = div_pow2_i64(self.sum, MEAN_SHIFT) as i32; // |sum| ≤ 4·2^31: exact in i32 after /4
         self.since_slip = self.since_slip.saturating_add(1);
         self.since_fall = self.since_fall.saturating_add(1);
 
@@ -683,7 +687,7 @@ impl StickSlipDetector {
     }
 
     fn ring_mean(&self) -> i32 {
-        (self.sum / MEAN_LEN as i64) as i32
+        div_pow2_i64(self.sum, MEAN_SHIFT) as i32
     }
 }
 

@@ -688,16 +688,17 @@ impl Estimator {
         } else {
             qmul(motor_torque, self.n_over_eta)
         };
-        // On a saturation bound (MAX or MIN): v ^ (v >> 31) is MAX for both. Non-short-circuit
-        // `|` keeps the sweep branch-free.
-        let on_bound = |v: i32| (v ^ (v >> 31)) == i32::MAX;
-        if clamped
-            | on_bound(core.friction_torque.bits())
+        // On a saturation bound (MAX or MIN): v ^ (v >> 31) is MAX for both, and as it is never
+        // negative, it plus 1 has the sign bit set for exactly those two. One OR of the five
+        // sums and one test of its sign: branch-free, and three instructions a value where a
+        // compare and a conditional move for each were four (opt-level "z", docs/qemu.md).
+        let on_bound = |v: i32| (v ^ (v >> 31)).wrapping_add(1);
+        let bounds = on_bound(core.friction_torque.bits())
             | on_bound(core.thread_torque.bits())
             | on_bound(model_screw_torque.bits())
             | on_bound(model_motor_torque.bits())
-            | on_bound(measured_screw_torque.bits())
-        {
+            | on_bound(measured_screw_torque.bits());
+        if clamped | (bounds < 0) {
             flags |= EstimateFlags::SATURATED;
         }
         Model {

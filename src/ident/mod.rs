@@ -654,7 +654,7 @@ impl LoadIdent {
 }
 
 /// `v >> sh` for any `sh` (a left shift when negative), saturating.
-#[inline]
+#[inline(always)]
 pub(crate) fn shift_right(v: i64, sh: i32) -> i64 {
     if sh >= 0 {
         v >> sh.min(63)
@@ -682,7 +682,7 @@ pub fn load_gain_q24(thread: NewtonMetres, axial: Newtons, g_per_kg: i32) -> i32
 
 /// 2^32/x₁₆ with x = x₁₆·2^sh and x₁₆ in [2^15, 2^16): one 32-bit division (17 significant
 /// bits, ≤ 2^-15 relative). `x` must not be 0.
-#[inline]
+#[inline(always)]
 pub fn recip16(x: u32) -> (u32, i32) {
     let sh = 16 - x.leading_zeros() as i32;
     let x16 = if sh >= 0 { x >> sh } else { x << -sh };

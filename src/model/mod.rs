@@ -80,7 +80,7 @@ impl Scale {
     }
 
     /// `v·constant` for a 32-bit input, in `i64` (one `SMULL` and a shift; cannot overflow).
-    #[inline]
+    #[inline(always)]
     pub fn apply(self, v: i32) -> i64 {
         (i64::from(v) * i64::from(self.mant)) >> self.shift
     }
@@ -90,7 +90,7 @@ impl Scale {
     /// Constants below ½ (shift ≥ 32, the usual case) take the high word of the product
     /// (`SMULL`) and an `i32` shift: floor(floor(p/2^32)/2^(s−32)) = floor(p/2^s), and
     /// |p/2^32| < 2^30 cannot overflow. Larger constants shift the `i64` and saturate.
-    #[inline]
+    #[inline(always)]
     pub fn apply32(self, v: i32) -> i32 {
         let p = i64::from(v) * i64::from(self.mant);
         let hi = (p >> 32) as i32;
@@ -115,7 +115,7 @@ impl Scale {
 
     /// `v·constant` for `v ≥ 0` and a non-negative constant, saturated to `u32` (a negative
     /// product, impossible under that contract, gives 0).
-    #[inline]
+    #[inline(always)]
     pub fn apply_u32(self, v: i32) -> u32 {
         let p = i64::from(v) * i64::from(self.mant);
         let hi = (p >> 32) as i32;

@@ -808,7 +808,7 @@ fn count_rest_work(overhead: u32) {
         for _ in 0..N {
             let mut done = false;
             let t = ticks(&mut search, |s| {
-                done = matches!(s.step(&screw), pair::SearchStep::Done(_));
+                done = matches!(s.step(&screw, &up, &down), pair::SearchStep::Done(_));
             });
             st.push(t, overhead);
             if done {

@@ -577,7 +577,11 @@ impl LoadIdent {
     /// `Some` when it finished with a pair the board takes.
     #[inline]
     pub fn rest_step(&mut self, screw: &ScrewModel) -> Option<MotionEnd> {
-        let step = self.search.as_mut()?.step(screw);
+        let (Some(up), Some(down)) = (&self.up, &self.down) else {
+            self.search = None;
+            return None;
+        };
+        let step = self.search.as_mut()?.step(screw, up, down);
         let SearchStep::Done(sol) = step else {
             return None;
         };

@@ -145,8 +145,6 @@ pub struct LoadReport {
 /// What a pair the board took produced ([`LoadIdent::rest_step`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MotionEnd {
-    /// The pair's solution.
-    pub pair: Option<PairSolution>,
     /// The friction scale changed: the estimator's law must be rebuilt with [`Self::scale`]
     /// (then [`LoadIdent::scale_applied`]).
     pub rescale: bool,
@@ -648,7 +646,6 @@ impl LoadIdent {
             }
         };
         Some(MotionEnd {
-            pair: Some(sol),
             rescale,
             scale,
             lubrication,
@@ -916,9 +913,8 @@ mod tests {
         id.end_motion(&sc, &law(&sc), false, false, false);
         assert!(id.solving());
         let end = rest(&mut id, &sc).expect("a pair");
-        let sol = end.pair.expect("a pair");
-        assert!((sol.scale.to_f64() - 2.0).abs() < 0.02, "{sol:?}");
-        assert!((sol.load.to_f64() - 1000.0).abs() < 10.0, "{sol:?}");
+        assert!((end.scale.to_f64() - 2.0).abs() < 0.02, "{end:?}");
+        assert!((id.load().to_f64() - 1000.0).abs() < 10.0, "{:?}", id.load());
         assert!(end.rescale && end.lubrication && end.store.is_some());
         // The controller rebuilds the law with the new scale, then says so.
         id.scale_applied(end.scale);

@@ -587,6 +587,15 @@ impl LoadIdent {
         self.take_pair(sol?)
     }
 
+    /// Keep `up` and `down` as a lift's and a lowering's means and start their pair solve (the
+    /// QEMU harness counts the ticks that run it).
+    #[cfg(feature = "bench-hooks")]
+    pub fn bench_pair(&mut self, screw: &ScrewModel, up: MotionMeans, down: MotionMeans) {
+        self.up = Some(up);
+        self.down = Some(down);
+        self.search = PairSearch::new(screw, &up, &down);
+    }
+
     /// [`SETTLE_MS`] in ticks.
     pub fn settle_ticks(&self) -> u32 {
         self.settle
@@ -914,7 +923,11 @@ mod tests {
         assert!(id.solving());
         let end = rest(&mut id, &sc).expect("a pair");
         assert!((end.scale.to_f64() - 2.0).abs() < 0.02, "{end:?}");
-        assert!((id.load().to_f64() - 1000.0).abs() < 10.0, "{:?}", id.load());
+        assert!(
+            (id.load().to_f64() - 1000.0).abs() < 10.0,
+            "{:?}",
+            id.load()
+        );
         assert!(end.rescale && end.lubrication && end.store.is_some());
         // The controller rebuilds the law with the new scale, then says so.
         id.scale_applied(end.scale);

@@ -440,7 +440,7 @@ async fn control(board: &'static mut Board, lift: &'static SharedController, mut
         // the reactions `warn` and `speed` as a warning); faults, homing and those stick-slip
         // warnings also to the console.
         if let Some(e) = outputs.event {
-            report_event(e);
+            report_event(e, &status.load);
         }
         // A change of the bridge's mode (coast, brake, drive up or down) is logged, not every
         // new duty: a motion would log a frame every tick (14 000 in a 15 s lift, measured
@@ -466,11 +466,11 @@ fn bridge_mode(b: Bridge) -> u8 {
     }
 }
 
-/// An event of the tick to the defmt log and, for faults, homing and the stick-slip and
-/// lubrication warnings, to the console. Out of line: a tick rarely has an event, and the
+/// An event of the tick to the defmt log (a motion's end with the load it identified) and,
+/// for faults, homing and the stick-slip and lubrication warnings, to the console. Out of line: a tick rarely has an event, and the
 /// logging calls would otherwise be inlined into the control task's poll.
 #[inline(never)]
-fn report_event(e: Event) {
+fn report_event(e: Event, load: &liftfw::ident::LoadReport) {
     // Stick-slip with the reactions `warn` and `speed`, and the lubrication warning: warnings.
     let warning = match e {
         Event::StickSlip { reaction, .. } => reaction != Reaction::Log,
@@ -482,6 +482,11 @@ fn report_event(e: Event) {
     };
     match e {
         Event::Fault(f) => error!("FAULT {}", f),
+        // The end of a motion: what it identified.
+        Event::State {
+            from: State::Lifting | State::Lowering,
+            ..
+        } => info!("{} {}", e, load),
         _ if warning => warn!("{}", e),
         _ => info!("{}", e),
     }

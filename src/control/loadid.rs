@@ -233,22 +233,34 @@ impl Controller {
     }
 
     /// The model's friction torque T_r at the identified load: the tick's estimate runs the
-    /// model at the rated load, and at a pose and speed T_r is proportional to the axial
-    /// demand W = M·G_d + D, so T_r(L) = T_r(L_r)·(W + (L − L_r)·G_d)/W (one division, here:
-    /// the status, not the tick). At rest before any motion (no direction yet) lifting's G_d.
+    /// model at the rated load, and at a pose and speed |T_r| is proportional to the axial
+    /// demand |W| = |M·G_d + D| (friction opposes the motion on either flank), so
+    /// T_r(L) = T_r(L_r)·|W + (L − L_r)·G_d|/|W| (one division, here: the status, not the tick).
+    /// At rest before any motion (no direction yet) lifting's G_d.
     pub(super) fn friction_at_load(&self) -> NewtonMetres {
         let e = &self.live.latest.estimate;
-        if self.live.state == State::Lifting && !self.loadid.ident.report().identified {
-            // No evidence yet (the settling after the start's ramp): the thread torque the
-            // current measures instead of the prior's, T_r = T_r(L_r)·T_measured/T_model
-            // (the same proportionality, on this tick's torques). Lifting only: lowering, the
-            // thread torque is small and of either sign, and the ratio is noise.
+        let dir: i8 = match self.live.state {
+            State::Lowering => -1,
+            State::Lifting => 1,
+            _ => 0,
+        };
+        if dir != 0 && !self.loadid.ident.report().identified {
+            // No evidence yet (the settling after the start's ramp, the first windows): the
+            // thread torque the current measures (low-passed, less the model's own screw
+            // torque and the drive's no-load torque) instead of the prior's,
+            // T_r = T_r(L_r)·T_measured/T_model (the same proportionality, on this tick's
+            // torques), both directions. Lowering, the thread torque is small and the ratio
+            // noisy, but unbiased: the prior (the rated load) is not. Bounded by the prior's
+            // stated range, ±2·T_r(L_r).
             let thread = i64::from(e.thread_torque.bits());
             let own = i64::from(e.model_screw_torque.bits()) - thread;
-            let measured = i64::from(e.measured_screw_torque.bits()) - own;
-            if thread.unsigned_abs() >= 1 << 12 && (measured >= 0) == (thread >= 0) {
+            let measured =
+                i64::from(self.motion.torque_lp.bits()) - own - self.loadid.ident.drive_bias(dir);
+            if thread.unsigned_abs() >= 1 << 12 {
                 let tr = i64::from(e.friction_torque.bits());
-                return NewtonMetres::from_raw(sat32(tr.saturating_mul(measured) / thread));
+                let lim = tr.unsigned_abs().saturating_mul(2) as i64;
+                let t = tr.saturating_mul(measured) / thread;
+                return NewtonMetres::from_raw(sat32(t.clamp(-lim, lim)));
             }
         }
         let w = i64::from(e.axial.bits());
@@ -256,16 +268,18 @@ impl Controller {
         if dl == 0 || w.unsigned_abs() < 256 {
             return e.friction_torque;
         }
-        let dir = match self.live.state {
-            State::Lowering => -1,
-            State::Lifting => 1,
-            _ => self.loadid.ident.direction(),
+        let dir = if dir == 0 {
+            self.loadid.ident.direction()
+        } else {
+            dir
         };
         let g = i64::from(self.est.g_per_kg(self.live.enc.position(), dir));
         // W' = W + ΔL·G (Q8: Q12·Q23 → Q35).
         let w2 = w + ((dl * g) >> 27);
         let tr = i64::from(e.friction_torque.bits());
-        NewtonMetres::from_raw(sat32(tr.saturating_mul(w2) / w))
+        NewtonMetres::from_raw(sat32(
+            tr.saturating_mul(w2.saturating_abs()) / w.saturating_abs(),
+        ))
     }
 
     /// What a motion's end produced: the scaled law, the warning, the store request. Out of

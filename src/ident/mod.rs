@@ -364,6 +364,12 @@ impl LoadIdent {
         }
     }
 
+    /// The drive's no-load torque in the direction of travel `dir` (±1), Q16 N·m.
+    #[inline]
+    pub fn drive_bias(&self, dir: i8) -> i64 {
+        self.bias(dir)
+    }
+
     /// The drive's no-load torque in the direction of travel, Q16.
     #[inline]
     fn bias(&self, dir: i8) -> i64 {

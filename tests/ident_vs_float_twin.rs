@@ -117,6 +117,20 @@ proptest! {
         }
     }
 
+    /// `v·2^k/x` by the normalised reciprocal within 2^-15 relative (+1 LSB) of the float
+    /// quotient, over the magnitudes the pair solve and the interval divide: numerators up to
+    /// 2^44, divisors of 1…32 bits of either sign, scalings 16…32.
+    #[test]
+    fn the_scaled_division_follows_the_quotient(v in -(1i64 << 44)..(1i64 << 44), x0 in 1i64..(1i64 << 32), neg in any::<bool>(), k in 16i32..=32) {
+        let x = if neg { -x0 } else { x0 };
+        let want = (v as f64) * 2f64.powi(k) / (x as f64);
+        match pair::div_scaled(v, x, k) {
+            Some(got) => prop_assert!((got as f64 - want).abs() <= want.abs() * 3.1e-5 + 1.0,
+                "{} vs {}", got, want),
+            None => prop_assert!((v as f64).abs() * 2f64.powi(17) > 2f64.powi(63), "refused {}", want),
+        }
+    }
+
     /// The load gain r_m·ξ·G_d read from the model's thread torque and axial demand at a
     /// window's first sample (T/W·G_d): within 2^-13 relative (+2 LSB) of the twin's
     /// ρ_d(μ)·G_d, over the envelope's arm angles, both directions, loads and laws.

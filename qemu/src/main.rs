@@ -531,6 +531,7 @@ fn count_instructions() {
         );
     }
     count_control(overhead);
+    count_rest_work(overhead);
 }
 
 /// Encoder counter, current and supply codes of a lift at the default drive following the
@@ -764,6 +765,64 @@ fn count_control(overhead: u32) {
         st.name_prefix("console.parse ");
         st.report();
     }
+}
+
+/// The identification's work at rest after a lift/lowering pair (src/ident): each piece the
+/// ticks at rest run, one a tick.
+fn count_rest_work(overhead: u32) {
+    use liftfw::ident::pair::{self, MotionMeans};
+    use liftfw::units::{NewtonMetres, Newtons};
+    let Ok(mut est) = Estimator::new(&EstimatorConfig::DEFAULT) else {
+        return;
+    };
+    let law = EstimatorConfig::DEFAULT.law;
+    let screw = *est.screw();
+    // A 1000 kg car lifted and lowered at 20° on a thread 1.5× drier than the PTFE law.
+    let up = MotionMeans {
+        dir: 1,
+        torque: NewtonMetres::lit("16.9"),
+        g_per_kg: 1_920_000_000 / 5,
+        free: Newtons::lit("24"),
+        mu: Ratio::lit("0.0845"),
+        n: 300,
+        slipped: false,
+    };
+    let down = MotionMeans {
+        dir: -1,
+        torque: NewtonMetres::lit("-4.1"),
+        g_per_kg: 1_920_000_000 / 20,
+        free: Newtons::lit("-24"),
+        ..up
+    };
+    let mut st = Stats::new("ident.pair.load_at_scale (one half of a search step)");
+    for k in 0..64 {
+        let s = Ratio::from_bits((1 << 28) + (k << 22));
+        st.push(ticks(&up, |m| pair::load_at_scale(&screw, m, s)), overhead);
+    }
+    st.report();
+    let mut st = Stats::new("ident.pair.solve (whole, for comparison)");
+    st.push(ticks((&up, &down), |(u, d)| pair::solve(&screw, u, d)), overhead);
+    st.report();
+    let mut st = Stats::new("estimator.set_friction_scale (law rebuild)");
+    for k in 0..8 {
+        let s = Ratio::from_bits((1 << 28) + (k << 25));
+        st.push(ticks(s, |s| est.set_friction_scale(&law, s)), overhead);
+    }
+    st.report();
+    let mut id = liftfw::ident::LoadIdent::new(
+        Kilograms::lit("1000"),
+        NewtonMetres::lit("0.5"),
+        None,
+        1000,
+    );
+    let mut st = Stats::new("ident.set_interval");
+    for _ in 0..8 {
+        st.push(
+            ticks(Ratio::lit("0.0845"), |mu| id.set_interval(&screw, mu)),
+            overhead,
+        );
+    }
+    st.report();
 }
 
 /// Typical console lines (docs/console.md).

@@ -47,6 +47,12 @@ pub(super) struct Identification {
     overload: Kilograms,
     /// A friction scale waiting to be stored.
     pub(super) store: Option<Ratio>,
+    /// Work left for the ticks at rest ([`Controller::rest_identification`]).
+    rest_work: bool,
+    /// A friction scale whose law the estimator is tabulating.
+    rescaling: Option<Ratio>,
+    /// Pieces of the interval's factors left to compute.
+    interval_left: u8,
 }
 
 impl Identification {
@@ -65,6 +71,9 @@ impl Identification {
             episodes: 0,
             overload: Controller::overload_limit(cfg),
             store: None,
+            rest_work: false,
+            rescaling: None,
+            interval_left: 0,
         }
     }
 }
@@ -85,17 +94,23 @@ impl Controller {
         let at_screw = NewtonMetres::from_raw(sat32((i64::from(t_motor.bits()) * n) >> 16));
         let bias: NewtonMetres = qmul(at_screw, m.gear_efficiency);
         let mut id = LoadIdent::new(cfg.rated_load, bias, stored, cfg.estimator.tick_us);
-        Self::ident_interval(cfg, est, &mut id);
+        let mu = Self::cruise_mu(cfg, est, &id);
+        id.set_interval(est.screw(), mu);
         id
     }
 
-    /// The interval's factors for the law's μ at the cruise speed (scale 1).
-    fn ident_interval(cfg: &ControlConfig, est: &Estimator, id: &mut LoadIdent) {
+    /// The law's μ at the cruise speed, at scale 1 (the interval's factors take it).
+    fn cruise_mu(cfg: &ControlConfig, est: &Estimator, id: &LoadIdent) -> Ratio {
         // μ of the law in force at cruise, back to scale 1.
         let mu_s = est.law().mu(cfg.motion.cruise_speed);
         let scale = id.scale().bits().max(1);
-        let mu = Ratio::from_raw(sat32((i64::from(mu_s.bits()) << 28) / i64::from(scale)));
-        id.set_interval(est.screw(), mu);
+        Ratio::from_raw(sat32((i64::from(mu_s.bits()) << 28) / i64::from(scale)))
+    }
+
+    /// One piece of the interval's factors (`LoadIdent::set_interval_piece`).
+    fn ident_interval(cfg: &ControlConfig, est: &Estimator, id: &mut LoadIdent, piece: u8) {
+        let mu = Self::cruise_mu(cfg, est, id);
+        id.set_interval_piece(est.screw(), mu, piece);
     }
 
     /// The law the friction scale multiplies: the one the estimator was built with (the
@@ -156,7 +171,47 @@ impl Controller {
         } else if self.loadid.moving {
             self.loadid.moving = false;
             self.end_load_motion();
+        } else if self.loadid.rest_work {
+            self.rest_identification();
         }
+    }
+
+    /// A tick at rest with identification work left, from `ident::SETTLE_MS` on: one piece of
+    /// it, so that no tick pays it all (`scripts/qemu-test` counts each piece): a step of the
+    /// pair solve (one motion's load at one scale), then, when the pair changed the friction
+    /// scale, eight items of the scaled law's table, then the interval's four pieces. Out of
+    /// line and cold: at rest only.
+    #[cold]
+    #[inline(never)]
+    fn rest_identification(&mut self) {
+        // The first ticks at rest stop the rotor and unwind the coupling (and cost more).
+        if self.live.rest_ticks <= self.loadid.ident.settle_ticks() {
+            return;
+        }
+        if let Some(scale) = self.loadid.rescaling {
+            if self.est.rescale_step() {
+                // The scaled law is in force: the identification runs with it from now on.
+                self.loadid.rescaling = None;
+                self.loadid.ident.scale_applied(scale);
+                self.loadid.interval_left = crate::ident::INTERVAL_PIECES;
+            }
+            return;
+        }
+        if let Some(piece) = self.loadid.interval_left.checked_sub(1) {
+            self.loadid.interval_left = piece;
+            Self::ident_interval(&self.derived.cfg, &self.est, &mut self.loadid.ident, piece);
+            return;
+        }
+        if self.loadid.ident.solving() {
+            if let Some(end) = self.loadid.ident.rest_step(self.est.screw()) {
+                self.finish_identification(&end);
+                let id = &mut self.loadid;
+                id.load = id.ident.load();
+                id.offset = id.ident.torque_offset(self.derived.cfg.rated_load);
+            }
+            return;
+        }
+        self.loadid.rest_work = false;
     }
 
     /// A steady tick's sample, and the overload trip on the identified load. Out of line:
@@ -206,8 +261,8 @@ impl Controller {
         }
     }
 
-    /// The motion ended: a pair, the scaled law, the warning, the store request. Out of line
-    /// and cold: once per motion.
+    /// The motion ended: its means kept, a pair solve started (the ticks at rest run it). Out
+    /// of line and cold: once per motion.
     #[cold]
     #[inline(never)]
     fn end_load_motion(&mut self) {
@@ -219,15 +274,11 @@ impl Controller {
         let slipped = episodes != self.loadid.episodes || self.motion.stick_slip.output().active;
         self.loadid.episodes = episodes;
         let fault = self.live.state == State::Fault;
-        let end = self.loadid.ident.end_motion(
-            self.est.screw(),
-            self.est.law(),
-            at_lower,
-            fault,
-            slipped,
-        );
-        self.finish_identification(&end);
+        self.loadid
+            .ident
+            .end_motion(self.est.screw(), self.est.law(), at_lower, fault, slipped);
         let id = &mut self.loadid;
+        id.rest_work |= id.ident.solving();
         id.load = id.ident.load();
         id.offset = id.ident.torque_offset(self.derived.cfg.rated_load);
     }
@@ -282,12 +333,19 @@ impl Controller {
         ))
     }
 
-    /// What a motion's end produced: the scaled law, the warning, the store request. Out of
-    /// line: once per motion.
-    #[inline(never)]
+    /// What a pair produced: the scaled law (compiled now, tabulated by the next ticks at
+    /// rest, then the interval's factors), the warning, the store request.
     fn finish_identification(&mut self, end: &MotionEnd) {
-        if end.rescale && self.apply_friction_scale(self.loadid.ident.scale()) {
-            Self::ident_interval(&self.derived.cfg, &self.est, &mut self.loadid.ident);
+        if end.rescale {
+            let begun = Self::scalable_law(&self.derived.cfg)
+                .is_some_and(|law| self.est.begin_friction_scale(&law, end.scale).is_ok());
+            if begun {
+                self.loadid.rescaling = Some(end.scale);
+            }
+        }
+        if self.loadid.rescaling.is_none() {
+            // The scale's band narrowed (a measured scale): the interval follows.
+            self.loadid.interval_left = crate::ident::INTERVAL_PIECES;
         }
         let id = &mut self.loadid;
         if end.store.is_some() {

@@ -190,6 +190,18 @@ pub struct TickEstimate {
     pub flags: EstimateFlags,
 }
 
+/// A friction scale being applied: the scaled law and its table, built a few items a call.
+#[derive(Clone, Debug)]
+struct Rescale {
+    law: CompiledLaw,
+    table: MuTable,
+    next: u16,
+}
+
+/// Table items per [`Estimator::rescale_step`]: eight law evaluations (≈ 100 instructions
+/// each), so that a tick at rest stays within its budget.
+const RESCALE_ITEMS: u16 = 8;
+
 /// The estimator's configuration and state.
 #[derive(Clone, Debug)]
 pub struct Estimator {
@@ -199,6 +211,8 @@ pub struct Estimator {
     /// The law tabulated over |θ̇|, interpolated in the segments where that is exact enough
     /// and the exact law, out of line, in the others ([`MuTable::build`]).
     mu_table: MuTable,
+    /// A rescaled law being tabulated at rest ([`Self::begin_friction_scale`]).
+    rescale: Option<Rescale>,
     kt: Ratio,
     /// n·η, n/η as factors; η/n, 1/(n·η) as ratios.
     n_eta: Factor,
@@ -345,6 +359,7 @@ impl Estimator {
             screw,
             law,
             mu_table,
+            rescale: None,
             kt: m.torque_constant,
             n_eta,
             n_over_eta,
@@ -447,13 +462,26 @@ impl Estimator {
         }
     }
 
-    /// Run the model with the configured law `configured` (the one the estimator was built
-    /// with) scaled by `scale` (μ = scale·μ_law: base,
-    /// amplitude and slope scaled, the floor at 0 commutes), the friction identification's
-    /// result (`crate::ident`). Recompiles the law and its table (≈ 150 exact law evaluations):
-    /// call at rest. The pose's node spacing, chosen for the configured law's μ, is kept.
-    /// Refused (and nothing changed) when the scaled law leaves the law's validated ranges.
+    /// Run `configured` scaled by `scale` (base, amplitude and slope times s: the friction
+    /// scale a lift/lowering pair identified; the floor at 0 commutes) from now on:
+    /// [`Self::begin_friction_scale`] and every [`Self::rescale_step`] at once (configuration
+    /// time: ≈ 460 law evaluations). The pose's node spacing, chosen for the configured law's
+    /// μ, is kept.
     pub fn set_friction_scale(
+        &mut self,
+        configured: &FrictionLaw,
+        scale: Ratio,
+    ) -> Result<(), ConfigError> {
+        self.begin_friction_scale(configured, scale)?;
+        while !self.rescale_step() {}
+        Ok(())
+    }
+
+    /// Start running `configured` scaled by `scale`: the scaled law is compiled now, its table
+    /// built by the following [`Self::rescale_step`]s (at rest, a few items a tick), and the
+    /// estimator keeps the law in force until the last of them. Refused (nothing changes)
+    /// when the scaled law is out of its ranges.
+    pub fn begin_friction_scale(
         &mut self,
         configured: &FrictionLaw,
         scale: Ratio,
@@ -471,10 +499,32 @@ impl Estimator {
             slope: fx(c.slope),
             ..c
         };
-        let compiled = law.compile(self.screw.pitch_radius(), self.screw.cos_lambda())?;
-        self.mu_table = MuTable::build(&compiled);
-        self.law = compiled;
+        let law = law.compile(self.screw.pitch_radius(), self.screw.cos_lambda())?;
+        self.rescale = Some(Rescale {
+            law,
+            table: MuTable::EMPTY,
+            next: 0,
+        });
         Ok(())
+    }
+
+    /// One piece of a rescale under way ([`RESCALE_ITEMS`] items of its table); true when
+    /// none is under way (any more): the scaled law and its table are then in force.
+    pub fn rescale_step(&mut self) -> bool {
+        let Some(r) = self.rescale.as_mut() else {
+            return true;
+        };
+        let to = r.next.saturating_add(RESCALE_ITEMS);
+        r.table.build_items(&r.law, r.next, to);
+        r.next = to;
+        if to < crate::model::friction::MU_BUILD_ITEMS {
+            return false;
+        }
+        if let Some(r) = self.rescale.take() {
+            self.law = r.law;
+            self.mu_table = r.table;
+        }
+        true
     }
 
     /// The whole estimate of a tick that [`Self::step`] returned `tick` for, with `m` its

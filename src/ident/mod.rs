@@ -40,7 +40,7 @@ pub mod pair;
 
 use crate::model::screw::ScrewModel;
 use crate::units::{qmul, Kilograms, NewtonMetres, Newtons, RadiansPerSecond, Ratio, Q};
-use pair::{MotionMeans, PairSolution};
+use pair::{MotionMeans, PairSearch, PairSolution, SearchStep};
 
 /// Samples start this long after the reference became constant: after a reversal the coupling
 /// unwinds from the last motion's torque to the new one's (≈ 35 N·m / 160 N·m/rad at 3 rad/s:
@@ -73,6 +73,8 @@ pub const PAIR_BAND: Ratio = Ratio::lit("0.05");
 pub const MODEL_BAND: Ratio = Ratio::lit("0.03");
 /// A pair's scale above `1 + LUBE_BAND` warns about lubrication.
 pub const LUBE_BAND: Ratio = Ratio::lit("0.25");
+/// Pieces of [`LoadIdent::set_interval`] (one a tick at rest).
+pub const INTERVAL_PIECES: u8 = 4;
 /// The stored scale is rewritten only when the identified one moved by more than this.
 pub const STORE_STEP: Ratio = Ratio::lit("0.04");
 
@@ -140,13 +142,16 @@ pub struct LoadReport {
     pub pairs: u16,
 }
 
-/// What the end of a motion produced.
+/// What a pair the board took produced ([`LoadIdent::rest_step`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MotionEnd {
-    /// A pair was solved: its solution.
+    /// The pair's solution.
     pub pair: Option<PairSolution>,
-    /// The friction scale changed: the estimator's law must be rebuilt with it.
+    /// The friction scale changed: the estimator's law must be rebuilt with [`Self::scale`]
+    /// (then [`LoadIdent::scale_applied`]).
     pub rescale: bool,
+    /// The friction scale the pair leads to.
+    pub scale: Ratio,
     /// The pair found the thread drier than `1 + LUBE_BAND` times the configured law.
     pub lubrication: bool,
     /// Write this scale to the store (it moved by more than [`STORE_STEP`]).
@@ -187,6 +192,8 @@ pub struct LoadIdent {
     scale_known: bool,
     stored: Option<Ratio>,
     pairs: u16,
+    /// The pair solve under way (at rest, one step a tick: [`Self::rest_step`]).
+    search: Option<PairSearch>,
     /// ρ_d(s·μ_c)/ρ_d(s'·μ_c) for the interval, at the cruise speed's μ: [dir up/down][lo, hi].
     factors: [[Ratio; 2]; 2],
     /// T_r(s')/T_r(s) at the same measured torque, at the driest and the wettest s'.
@@ -233,6 +240,7 @@ impl LoadIdent {
             scale_known: stored.is_some(),
             stored,
             pairs: 0,
+            search: None,
             factors: [[Ratio::ONE; 2]; 2],
             tr_factors: [[Ratio::ONE; 2]; 2],
             floor: [Ratio::ONE.sat_sub(MODEL_BAND); 2],
@@ -242,18 +250,37 @@ impl LoadIdent {
     /// Compute the interval's factors for the law's coefficient at cruise `mu_cruise` (scale
     /// 1): at configuration and whenever the scale changes (at rest: divisions).
     pub fn set_interval(&mut self, screw: &ScrewModel, mu_cruise: Ratio) {
+        for piece in 0..INTERVAL_PIECES {
+            self.set_interval_piece(screw, mu_cruise, piece);
+        }
+    }
+
+    /// One of [`INTERVAL_PIECES`] pieces of [`Self::set_interval`] (a tick at rest computes
+    /// one): piece `2·i + j` is direction i's (lifting, lowering) load factors (j = 0) or T_r
+    /// factors (j = 1).
+    pub fn set_interval_piece(&mut self, screw: &ScrewModel, mu_cruise: Ratio, piece: u8) {
         let (lo_s, hi_s) = self.scale_band();
-        for (i, dir) in [(0usize, 1i8), (1, -1)] {
+        let i = usize::from(piece >> 1 & 1);
+        let dir = if i == 0 { 1 } else { -1 };
+        let scale = self.scale;
+        if piece & 1 == 0 {
             // The loads at the driest scale are the lowest.
-            let f = |s: Ratio| pair::load_factor(screw, mu_cruise, dir, self.scale, s);
+            let f = |s: Ratio| pair::load_factor(screw, mu_cruise, dir, scale, s);
             self.factors[i] = [
                 f(hi_s).unwrap_or(Ratio::ZERO),
                 f(lo_s).unwrap_or(const { Ratio::lit("4") }),
             ];
             self.floor[i] = self.factors[i][0].sat_sub(MODEL_BAND).max(Ratio::ZERO);
-            let g = |s: Ratio| pair::friction_factor(screw, mu_cruise, dir, self.scale, s);
+        } else {
+            let g = |s: Ratio| pair::friction_factor(screw, mu_cruise, dir, scale, s);
             self.tr_factors[i] = [g(hi_s).unwrap_or(Ratio::ONE), g(lo_s).unwrap_or(Ratio::ONE)];
         }
+    }
+
+    /// The friction scale the estimator now runs (a pair's, once the controller has rebuilt
+    /// the law with it: [`MotionEnd::rescale`]).
+    pub fn scale_applied(&mut self, scale: Ratio) {
+        self.scale = scale;
     }
 
     /// The range of T_r the stated interval allows, for the model's T_r `tr` at the load and
@@ -503,9 +530,10 @@ impl LoadIdent {
     }
 
     /// The lift came to rest (`fault`: a fault ended the motion, whose samples then say
-    /// nothing about the load or the friction). At the lower stop the car may be changed: the
-    /// load goes back to the prior and the kept motions are forgotten. Out of line: once per
-    /// motion.
+    /// nothing about the load or the friction). The motion's means are kept for a pair; with
+    /// both directions kept, a pair solve starts, which the ticks at rest run
+    /// ([`Self::rest_step`]). At the lower stop the car may be changed: the load goes back to
+    /// the prior and the kept motions are forgotten. Out of line: once per motion.
     #[inline(never)]
     pub fn end_motion(
         &mut self,
@@ -514,14 +542,13 @@ impl LoadIdent {
         at_lower_stop: bool,
         fault: bool,
         slipped: bool,
-    ) -> MotionEnd {
+    ) {
         self.close_window();
         self.steady = 0;
         self.prev_reference = RadiansPerSecond::ZERO;
         let run = core::mem::take(&mut self.run);
         self.win_g = 0;
         self.gain_due = false;
-        let mut out = MotionEnd::default();
         if !fault && run.n >= self.pair_samples && !run.any_reversed {
             // μ of the law in force at the samples' reference speed, back to scale 1.
             let mu_s = i64::from(law.mu(self.run_reference.sat_abs()).bits());
@@ -537,16 +564,38 @@ impl LoadIdent {
                 self.down = Some(means);
             }
             if let (Some(up), Some(down)) = (self.up, self.down) {
-                out = self.solve_pair(screw, &up, &down);
+                self.search = PairSearch::new(screw, &up, &down);
             }
         }
         if at_lower_stop {
             self.up = None;
             self.down = None;
+            self.search = None;
             self.load = self.prior;
             self.identified = false;
         }
-        out
+    }
+
+    /// One tick at rest: one step of the pair solve under way, if any (a motion pauses it).
+    /// `Some` when it finished with a pair the board takes.
+    #[inline]
+    pub fn rest_step(&mut self, screw: &ScrewModel) -> Option<MotionEnd> {
+        let step = self.search.as_mut()?.step(screw);
+        let SearchStep::Done(sol) = step else {
+            return None;
+        };
+        self.search = None;
+        self.take_pair(sol?)
+    }
+
+    /// [`SETTLE_MS`] in ticks.
+    pub fn settle_ticks(&self) -> u32 {
+        self.settle
+    }
+
+    /// Whether a pair solve is under way.
+    pub fn solving(&self) -> bool {
+        self.search.is_some()
     }
 
     fn means(&self, s: &Sums, mu: Ratio) -> MotionMeans {
@@ -562,20 +611,16 @@ impl LoadIdent {
         }
     }
 
-    fn solve_pair(
-        &mut self,
-        screw: &ScrewModel,
-        up: &MotionMeans,
-        down: &MotionMeans,
-    ) -> MotionEnd {
-        let Some(sol) = pair::solve(screw, up, down) else {
-            return MotionEnd::default();
-        };
+    /// A solved pair: the scale in force, the load, the warning, the store request. Out of
+    /// line: once per pair.
+    #[inline(never)]
+    fn take_pair(&mut self, sol: PairSolution) -> Option<MotionEnd> {
+        let slipped = self.up.is_some_and(|m| m.slipped) || self.down.is_some_and(|m| m.slipped);
         // A stick-slipping thread's mean friction is below the law's sliding friction: a dry
         // thread's pair read it as 0.6…0.9× the law, and the next lift then as a heavier car
         // (an overload trip at the rated load). Such a pair is not used.
-        if (up.slipped || down.slipped) && sol.scale < Ratio::ONE {
-            return MotionEnd::default();
+        if slipped && sol.scale < Ratio::ONE {
+            return None;
         }
         self.pairs = self.pairs.saturating_add(1);
         // The first measurement replaces the assumption; later ones average with it (halves).
@@ -587,7 +632,6 @@ impl LoadIdent {
             sol.scale
         };
         let rescale = scale != self.scale;
-        self.scale = scale;
         self.scale_known = true;
         self.load = sol.load;
         self.identified = true;
@@ -602,18 +646,19 @@ impl LoadIdent {
                 Some(scale)
             }
         };
-        MotionEnd {
+        Some(MotionEnd {
             pair: Some(sol),
             rescale,
+            scale,
             lubrication,
             store,
-        }
+        })
     }
 }
 
 /// `v >> sh` for any `sh` (a left shift when negative), saturating.
 #[inline]
-fn shift_right(v: i64, sh: i32) -> i64 {
+pub(crate) fn shift_right(v: i64, sh: i32) -> i64 {
     if sh >= 0 {
         v >> sh.min(63)
     } else {
@@ -825,6 +870,19 @@ mod tests {
         }
     }
 
+    /// The ticks at rest until the pair solve under way ends (at most 200: it takes ≈ 100).
+    fn rest(id: &mut LoadIdent, sc: &ScrewModel) -> Option<MotionEnd> {
+        for _ in 0..200 {
+            if !id.solving() {
+                return None;
+            }
+            if let Some(end) = id.rest_step(sc) {
+                return Some(end);
+            }
+        }
+        panic!("the pair solve did not end in 200 ticks");
+    }
+
     #[test]
     fn a_motion_identifies_the_load_and_a_pair_the_scale() {
         let sc = screw();
@@ -839,8 +897,8 @@ mod tests {
         assert!((id.load().to_f64() - 600.0).abs() < 0.6, "{:?}", id.load());
         let (lo, hi) = id.interval();
         assert!(lo.to_f64() < 600.0 && hi.to_f64() > 600.0);
-        let end = id.end_motion(&sc, &law(&sc), false, false, false);
-        assert_eq!(end.pair, None);
+        id.end_motion(&sc, &law(&sc), false, false, false);
+        assert_eq!(rest(&mut id, &sc), None);
         // A 2× drier thread: the lift alone reads it as a heavier car, within the interval.
         let mut id = LoadIdent::new(Kilograms::lit("1000"), bias, None, 1000);
         id.set_interval(&sc, Ratio::from_f64(0.21));
@@ -851,16 +909,18 @@ mod tests {
             lo.to_f64() <= 1000.0 && hi.to_f64() >= 1000.0,
             "{lo:?} {hi:?}"
         );
-        assert_eq!(
-            id.end_motion(&sc, &law(&sc), false, false, false).pair,
-            None
-        );
+        id.end_motion(&sc, &law(&sc), false, false, false);
+        assert_eq!(rest(&mut id, &sc), None);
         motion(&mut id, &sc, -1, 1000.0, 2.0, 800);
-        let end = id.end_motion(&sc, &law(&sc), false, false, false);
+        id.end_motion(&sc, &law(&sc), false, false, false);
+        assert!(id.solving());
+        let end = rest(&mut id, &sc).expect("a pair");
         let sol = end.pair.expect("a pair");
         assert!((sol.scale.to_f64() - 2.0).abs() < 0.02, "{sol:?}");
         assert!((sol.load.to_f64() - 1000.0).abs() < 10.0, "{sol:?}");
         assert!(end.rescale && end.lubrication && end.store.is_some());
+        // The controller rebuilds the law with the new scale, then says so.
+        id.scale_applied(end.scale);
         // The next lift at the identified scale gives the load directly.
         motion(&mut id, &sc, 1, 1000.0, 2.0, 400);
         assert!(

@@ -41,9 +41,19 @@ pub struct MotionMeans {
     pub slipped: bool,
 }
 
+/// `v·2^k/x` through x's normalised reciprocal ([`super::recip16`]: 17 significant bits,
+/// ≤ 2^-15 relative) and one product: a 32-bit division instead of a 64-bit one. `None` when x
+/// is 0 or beyond 32 bits, or the product overflows.
+#[inline(never)]
+pub fn div_scaled(v: i64, x: i64, k: i32) -> Option<i64> {
+    let ax = u32::try_from(x.unsigned_abs()).ok().filter(|&a| a != 0)?;
+    let (inv, sh) = super::recip16(ax);
+    let q = super::shift_right(v.checked_mul(i64::from(inv))?, 32 + sh - k);
+    Some(if x < 0 { -q } else { q })
+}
+
 /// r_m·ξ_d(μ) for direction `dir` on the loaded flank, Q32 metres (ρ ≤ 0.05 m·4.4·1.5 <
 /// 0.33 m: fits i64 with room). `None` when 1 − d·μ·tan λ is not positive (μ beyond 1/tan λ).
-#[inline(never)]
 pub fn rho_q32(screw: &ScrewModel, mu: Ratio, dir: i8) -> Option<i64> {
     let tan = i64::from(screw.tan_lambda().bits());
     let mu_s = i64::from(mu.bits()) * i64::from(dir.signum());
@@ -53,27 +63,22 @@ pub fn rho_q32(screw: &ScrewModel, mu: Ratio, dir: i8) -> Option<i64> {
         return None;
     }
     let r = i64::from(screw.pitch_radius().bits()); // Q24
-                                                    // r·num: ≤ 2^31·2^31 → Q52; over den (Q28) → Q24; then Q32: shift left 8 first.
-    (r.checked_mul(num)?).checked_shl(8)?.checked_div(den)
+                                                    // r·num (Q52) over den (Q28) → Q24; Q32 is 8 bits more (r·num pre-shifted by 16).
+    div_scaled(r.checked_mul(num)? >> 16, den, 24)
 }
 
 /// The load one motion's means give at friction scale `scale` (on the configured law):
 /// `M = (T/ρ_d(s·μ) − D)/G_d`. `None` where it is not defined (ρ or G zero, overflow).
-/// Not clamped: a pair solve needs the sign and the slope.
+/// Not clamped: a pair solve needs the sign and the slope. Three 32-bit divisions.
 #[inline(never)]
 pub fn load_at_scale(screw: &ScrewModel, m: &MotionMeans, scale: Ratio) -> Option<i64> {
     let mu = scaled_mu(m.mu, scale)?;
     let rho = rho_q32(screw, mu, m.dir)?;
-    if rho == 0 || m.g_per_kg == 0 {
-        return None;
-    }
-    // T/ρ in Q16 N: T (Q16 N·m)·2^32/ρ(Q32 m). |T| < 2^31 → 2^63 overflows: split.
-    let t = i64::from(m.torque.bits());
-    let axial_q16 =
-        (t << 16).checked_div(rho)?.checked_mul(1 << 16)? + ((t << 16) % rho << 16) / rho;
-    let net = axial_q16.checked_sub(i64::from(m.free.bits()) << 8)?; // Q16 N
-                                                                     // kg Q12 = N (Q16)·2^19 / G (Q23).
-    net.checked_mul(1 << 19)?.checked_div(i64::from(m.g_per_kg))
+    // T/ρ in Q16 N: T (Q16 N·m)·2^32/ρ (Q32 m).
+    let axial = div_scaled(i64::from(m.torque.bits()), rho, 32)?;
+    let net = axial.checked_sub(i64::from(m.free.bits()) << 8)?; // Q16 N
+                                                                 // kg Q12 = N (Q16)·2^19 / G (Q23).
+    div_scaled(net, i64::from(m.g_per_kg), 19)
 }
 
 /// s·μ in Q28, `None` beyond ±8.
@@ -99,76 +104,159 @@ pub const SCALE_MAX: Ratio = Ratio::lit("4");
 /// Largest friction coefficient a pair may explain its torques with.
 pub const MU_PAIR_MAX: Ratio = Ratio::lit("0.6");
 
-/// Solve a lift and a lowering of the same car for the friction scale and the load: the s in
-/// [`SCALE_MIN`]…[`SCALE_MAX`] where `M_up(s) = M_down(s)`, by bisection to 2^-20 of s.
+/// Grid points of a search's first pass (then bisection).
+const GRID: u8 = 32;
+/// A search's step index during the bisection, and at its final evaluation.
+const BISECT: u8 = GRID + 1;
+const FINAL: u8 = GRID + 2;
+
+/// A lift/lowering pair solved for the friction scale and the load, spread over the ticks at
+/// rest: each [`PairSearch::step`] evaluates one motion's load at one scale
+/// ([`load_at_scale`], a few 64-bit divisions), so no tick pays the whole solve (≈ 100
+/// steps). [`solve`] runs it to the end at once.
 ///
-/// `M_down` falls faster with s than `M_up` (lowering weighs friction against the lead:
-/// ρ_down ∝ tan(φ − λ)), so `M_up − M_down` rises through zero, once where the load's push
-/// dominates the load-free demand D. A light load whose D rivals M·G_down can cross twice: the
-/// pair is then ambiguous and refused (the board keeps its scale). `None` also when the means do
-/// not bracket a solution (no s in range explains both, e.g. a different car, an obstruction),
-/// when the lowering is not self-locking over the whole range (its torque then carries no
-/// friction sign), or when the lowering's load sensitivity is under 1/8 of the lift's (at high
-/// arm angles the pins take nearly the whole push of the load while lowering:
-/// G_down = g·(cos α − 2μ_b)/sin α → 0, and the lowering's torque no longer weighs the load).
+/// It looks for the s in [`SCALE_MIN`]…[`SCALE_MAX`] where `M_up(s) = M_down(s)`, to 2^-20
+/// of s. `M_down` falls faster with s than `M_up` (lowering weighs friction against the lead:
+/// ρ_down ∝ tan(φ − λ)), so `h = M_up − M_down` rises through zero, once where the load's push
+/// dominates the load-free demand D: h → −∞ just above the self-locking point, where the
+/// search starts. A light load whose D rivals M·G_down can cross twice: the pair is then
+/// ambiguous and refused (the board keeps its scale). So the first crossing from below is
+/// found on a grid of [`GRID`] steps, then bisected; a second crossing refuses the pair.
+/// Refused also: means that do not bracket a solution (no s in range explains both, e.g. a
+/// different car, an obstruction), a lowering that is not self-locking over the whole range
+/// (its torque then carries no friction sign), and a lowering whose load sensitivity is under
+/// 1/8 of the lift's (at high arm angles the pins take nearly the whole push of the load while
+/// lowering: G_down = g·(cos α − 2μ_b)/sin α → 0, and the lowering's torque no longer weighs
+/// the load).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PairSearch {
+    up: MotionMeans,
+    down: MotionMeans,
+    /// The grid's ends, then the bisection's bracket (Q28 scale).
+    lo: i64,
+    hi: i64,
+    /// Grid spacing.
+    grid: i64,
+    /// 0: the start point; 1…[`GRID`]: the grid; then [`BISECT`], [`FINAL`].
+    k: u8,
+    /// The grid's first bracket of the crossing.
+    bracket: Option<(i64, i64)>,
+    /// `M_up` at the point under evaluation (the first half of a step).
+    m_up: Option<i64>,
+}
+
+/// What a [`PairSearch::step`] did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SearchStep {
+    /// More steps to go.
+    Pending,
+    /// Finished: the solution, or `None` (refused, see [`PairSearch`]).
+    Done(Option<PairSolution>),
+}
+
+impl PairSearch {
+    /// A search for a lift `up` and a lowering `down` of the same car; `None` when the pair
+    /// cannot have a solution (directions, load sensitivities, an empty scale range).
+    pub fn new(screw: &ScrewModel, up: &MotionMeans, down: &MotionMeans) -> Option<PairSearch> {
+        if up.dir <= 0 || down.dir >= 0 || up.g_per_kg <= 0 || down.g_per_kg < up.g_per_kg >> 3 {
+            return None;
+        }
+        // Lowering is self-locking (ρ_down < 0) only above s·μ = tan λ: start just above it.
+        let tan = i64::from(screw.tan_lambda().bits());
+        let mu_dn = i64::from(down.mu.bits()).max(1);
+        let s_lock = ((tan << 28) / mu_dn) * 1025 / 1024;
+        let lo = s_lock.max(i64::from(SCALE_MIN.bits()));
+        // A thread's μ beyond MU_PAIR_MAX (a seized, galling thread) is not a lubrication
+        // state a pair should explain: the search stops there (and at the model's μ_max).
+        let mu_top = i64::from(screw.mu_max().min(MU_PAIR_MAX).bits());
+        let mu_big = i64::from(up.mu.bits()).max(mu_dn).max(1);
+        let hi = i64::from(SCALE_MAX.bits()).min((mu_top << 28) / mu_big);
+        (lo < hi).then_some(PairSearch {
+            up: *up,
+            down: *down,
+            lo,
+            hi,
+            grid: (hi - lo) / i64::from(GRID),
+            k: 0,
+            bracket: None,
+            m_up: None,
+        })
+    }
+
+    /// The scale the step under way evaluates.
+    fn point(&self) -> i64 {
+        match self.k {
+            GRID => self.hi,
+            BISECT => self.lo + (self.hi - self.lo) / 2,
+            FINAL => self.lo,
+            k => self.lo + self.grid * i64::from(k),
+        }
+    }
+
+    /// One load evaluation.
+    pub fn step(&mut self, screw: &ScrewModel) -> SearchStep {
+        self.advance(screw).unwrap_or(SearchStep::Done(None))
+    }
+
+    fn advance(&mut self, screw: &ScrewModel) -> Option<SearchStep> {
+        let s = self.point();
+        let scale = Ratio::from_raw(i32::try_from(s).ok()?);
+        let Some(m_up) = self.m_up.take() else {
+            self.m_up = Some(load_at_scale(screw, &self.up, scale)?);
+            return Some(SearchStep::Pending);
+        };
+        let m_down = load_at_scale(screw, &self.down, scale)?;
+        let h = m_up - m_down;
+        match self.k {
+            0 if h >= 0 => return None,
+            0 => {}
+            FINAL => {
+                let load = ((m_up + m_down) / 2)
+                    .max(0)
+                    .min(i64::from(crate::estimator::LOAD_MAX.bits()));
+                return Some(SearchStep::Done(Some(PairSolution {
+                    scale,
+                    load: Kilograms::from_raw(load as i32),
+                })));
+            }
+            BISECT => {
+                if h < 0 {
+                    self.lo = s;
+                } else {
+                    self.hi = s;
+                }
+            }
+            k => match self.bracket {
+                None if h > 0 => self.bracket = Some((self.lo + self.grid * i64::from(k - 1), s)),
+                // A second crossing: ambiguous.
+                Some(_) if h < 0 => return None,
+                _ => {}
+            },
+        }
+        self.k = match self.k {
+            GRID => {
+                (self.lo, self.hi) = self.bracket?;
+                BISECT
+            }
+            BISECT => BISECT,
+            k => k + 1,
+        };
+        if self.k == BISECT && self.hi - self.lo <= 1 << 8 {
+            self.k = FINAL;
+        }
+        Some(SearchStep::Pending)
+    }
+}
+
+/// [`PairSearch`] run to its end at once (tests and host tools; the board spreads it over the
+/// ticks at rest).
 pub fn solve(screw: &ScrewModel, up: &MotionMeans, down: &MotionMeans) -> Option<PairSolution> {
-    if up.dir <= 0 || down.dir >= 0 || up.g_per_kg <= 0 || down.g_per_kg < up.g_per_kg >> 3 {
-        return None;
-    }
-    // Lowering is self-locking (ρ_down < 0) only above s·μ = tan λ: start just above it.
-    let tan = i64::from(screw.tan_lambda().bits());
-    let mu_dn = i64::from(down.mu.bits()).max(1);
-    let s_lock = ((tan << 28) / mu_dn) * 1025 / 1024;
-    let mut lo = s_lock.max(i64::from(SCALE_MIN.bits()));
-    // A thread's μ beyond MU_PAIR_MAX (a seized, galling thread) is not a lubrication state
-    // a pair should explain: the search stops there (and at the model's μ_max).
-    let mu_top = i64::from(screw.mu_max().min(MU_PAIR_MAX).bits());
-    let mu_big = i64::from(up.mu.bits()).max(mu_dn).max(1);
-    let mut hi = i64::from(SCALE_MAX.bits()).min((mu_top << 28) / mu_big);
-    if lo >= hi {
-        return None;
-    }
-    let h = |s: i64| -> Option<i64> {
-        let s = Ratio::from_raw(i32::try_from(s).ok()?);
-        Some(load_at_scale(screw, up, s)? - load_at_scale(screw, down, s)?)
-    };
-    // h → −∞ just above the self-locking point. With a large load-free demand against a light
-    // load (D against M·G_down) h can turn down again at large s: the solution is the first
-    // crossing from below, found on a grid of 32 steps, then bisected.
-    if h(lo)? >= 0 {
-        return None;
-    }
-    // A second crossing (h negative again after it) makes the pair ambiguous: refused.
-    let step = (hi - lo) / 32;
-    let mut bracket = None;
-    let mut a = lo;
-    for k in 1..=32 {
-        let b = if k == 32 { hi } else { lo + step * k };
-        let v = h(b)?;
-        match bracket {
-            None if v > 0 => bracket = Some((a, b)),
-            Some(_) if v < 0 => return None,
-            _ => {}
-        }
-        a = b;
-    }
-    (lo, hi) = bracket?;
-    while hi - lo > 1 << 8 {
-        let mid = lo + (hi - lo) / 2;
-        if h(mid)? < 0 {
-            lo = mid;
-        } else {
-            hi = mid;
+    let mut search = PairSearch::new(screw, up, down)?;
+    loop {
+        if let SearchStep::Done(sol) = search.step(screw) {
+            return sol;
         }
     }
-    let scale = Ratio::from_raw(i32::try_from(lo).ok()?);
-    let mu = load_at_scale(screw, up, scale)?;
-    let md = load_at_scale(screw, down, scale)?;
-    let load = ((mu + md) / 2).clamp(0, i64::from(crate::estimator::LOAD_MAX.bits()));
-    Some(PairSolution {
-        scale,
-        load: Kilograms::from_raw(load as i32),
-    })
 }
 
 /// ρ_d(s₀·μ)/ρ_d(s·μ) in Q28: the factor that takes a load identified at friction scale s₀
@@ -177,11 +265,9 @@ pub fn solve(screw: &ScrewModel, up: &MotionMeans, down: &MotionMeans) -> Option
 pub fn load_factor(screw: &ScrewModel, mu: Ratio, dir: i8, s0: Ratio, s: Ratio) -> Option<Ratio> {
     let a = rho_q32(screw, scaled_mu(mu, s0)?, dir)?;
     let b = rho_q32(screw, scaled_mu(mu, s)?, dir)?;
-    if b == 0 {
-        return None;
-    }
-    let q = a.checked_mul(1 << 28)? / b;
-    i32::try_from(q).ok().map(Ratio::from_raw)
+    i32::try_from(div_scaled(a, b, 28)?)
+        .ok()
+        .map(Ratio::from_raw)
 }
 
 /// T_r(s)/T_r(s₀) at the same thread torque, Q28: T_r/T = μ_s/(tan λ + μ_s), μ_s = d·s·μ.
@@ -200,13 +286,7 @@ pub fn friction_factor(
     };
     let (m0, d0) = part(s0)?;
     let (m1, d1) = part(s)?;
-    // (m1/d1)/(m0/d0) = m1·d0/(d1·m0), each factor < 2^33.
-    let num = m1.checked_mul(d0)?;
-    // Q56 over Q28 (den ≈ 2^52 at the presets: 24 significant bits left).
-    let den = d1.checked_mul(m0)? >> 28;
-    if den == 0 {
-        return None;
-    }
-    let q = num.checked_div(den)?;
+    // (m1/m0)·(d0/d1), each in Q28.
+    let q = (div_scaled(m1, m0, 28)? * div_scaled(d0, d1, 28)?) >> 28;
     i32::try_from(q).ok().map(Ratio::from_raw)
 }

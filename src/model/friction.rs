@@ -251,6 +251,9 @@ pub const MU_TABLE_LEN: usize = 2 + (((MU_TOP - MU_OCT0) << 3) as usize);
 /// Segments of [`MuTable`]: node `i` to node `i + 1` (inputs from 2^27 on clamp into the last).
 const MU_SEGMENTS: usize = MU_TABLE_LEN - 1;
 
+/// The work items of a [`MuTable`] build ([`MuTable::build_items`]): a law evaluation each.
+pub const MU_BUILD_ITEMS: u16 = (MU_TABLE_LEN + MU_SEGMENTS + 1) as u16;
+
 /// A friction law tabulated once over its input (|θ̇| in Q16 for the lead-screw laws) from the
 /// exact fixed-point law ([`CompiledLaw::mu_raw`]) and interpolated linearly in the input between
 /// log-spaced nodes (8 per octave): one leading-zero count, two loads and one product per tick
@@ -275,6 +278,12 @@ pub struct MuTable {
 }
 
 impl MuTable {
+    /// A table before its build: [`Self::build_items`] fills it.
+    pub const EMPTY: MuTable = MuTable {
+        nodes: [0; MU_TABLE_LEN],
+        exact: [0; MU_SEGMENTS.div_ceil(32)],
+    };
+
     /// The input (law bits) of node `i`.
     fn node_input(i: usize) -> u32 {
         if i == 0 {
@@ -291,31 +300,39 @@ impl MuTable {
     /// one copy of the law's code.
     #[inline(never)]
     pub fn build(law: &CompiledLaw) -> MuTable {
-        let mut t = MuTable {
-            nodes: [0; MU_TABLE_LEN],
-            exact: [0; MU_SEGMENTS.div_ceil(32)],
-        };
+        let mut t = MuTable::EMPTY;
+        t.build_items(law, 0, MU_BUILD_ITEMS);
+        t
+    }
+
+    /// Items `from..to` of [`Self::build`] on a table that holds items `0..from` (a build
+    /// spread over several calls, [`MU_BUILD_ITEMS`] in all, in order: the nodes, each
+    /// segment's check, the kink's check; a check reads its segment's nodes). One law
+    /// evaluation per item: the same table as one [`Self::build`], bit for bit.
+    pub fn build_items(&mut self, law: &CompiledLaw, from: u16, to: u16) {
         // Nodes within −2…4.25 (Q28; μ_max ≤ 4): any two differ by less than 2^31. A node
         // beyond that is clamped there and both its segments keep the exact law.
         const LO: i32 = -(1 << 29);
         const HI: i32 = (1 << 30) + (1 << 28);
-        for i in 0..MU_TABLE_LEN {
-            let n = law.mu_unfloored_call(Self::node_input(i));
-            t.nodes[i] = n.clamp(LO, HI);
-            if n != t.nodes[i] {
-                t.mark(i.saturating_sub(1));
-                t.mark(i.min(MU_SEGMENTS - 1));
+        for k in usize::from(from)..usize::from(to.min(MU_BUILD_ITEMS)) {
+            if k < MU_TABLE_LEN {
+                let i = k;
+                let n = law.mu_unfloored_call(Self::node_input(i));
+                self.nodes[i] = n.max(LO).min(HI);
+                if n != self.nodes[i] {
+                    self.mark(i.saturating_sub(1));
+                    self.mark(i.min(MU_SEGMENTS - 1));
+                }
+            } else if k < MU_TABLE_LEN + MU_SEGMENTS {
+                let i = k - MU_TABLE_LEN;
+                // The nodes are the law (floored at 0 by the lookup as the law floors itself);
+                // checked: each segment's midpoint and the viscous term's kink where it is in
+                // range.
+                self.check(law, Self::node_input(i) / 2 + Self::node_input(i + 1) / 2);
+            } else if law.in_max < 1 << MU_TOP {
+                self.check(law, law.in_max);
             }
         }
-        // The nodes are the law (floored at 0 by the lookup as the law floors itself); checked:
-        // each segment's midpoint and the viscous term's kink where it is in range.
-        for i in 0..MU_SEGMENTS {
-            t.check(law, Self::node_input(i) / 2 + Self::node_input(i + 1) / 2);
-        }
-        if law.in_max < 1 << MU_TOP {
-            t.check(law, law.in_max);
-        }
-        t
     }
 
     /// Marks the segment holding input `x` exact unless its interpolation is within |μ|/8192 at

@@ -309,9 +309,10 @@ impl Controller {
                 i64::from(self.motion.torque_lp.bits()) - own - self.loadid.ident.drive_bias(dir);
             if thread.unsigned_abs() >= 1 << 12 {
                 let tr = i64::from(e.friction_torque.bits());
-                let lim = tr.unsigned_abs().saturating_mul(2) as i64;
+                // |tr| < 2^31: 2·|tr| fits (no `clamp`: its panic path costs flash).
                 let t = tr.saturating_mul(measured) / thread;
-                return NewtonMetres::from_raw(sat32(t.clamp(-lim, lim)));
+                let t = t.signum() * t.saturating_abs().min(2 * tr.saturating_abs());
+                return NewtonMetres::from_raw(sat32(t));
             }
         }
         let w = i64::from(e.axial.bits());

@@ -5,7 +5,7 @@
 //! **Overload.** The trip compares the lowest load the measurements allow (the identified
 //! load's interval, `ident::LoadIdent::interval`) with `(1 + protect.overload_margin)` × the
 //! rated load, once a motion has identified its load (`ident::MIN_SAMPLES_MS` of steady ticks
-//! after `ident::SETTLE_MS`: ≈ 0.16 s after the start at the default 60 ms ramp), lifting and
+//! after `ident::SETTLE_MS`: ≈ 0.2 s after the start at the default 60 ms ramp), lifting and
 //! lowering alike. Its limit is a load, not a torque: it does not depend on the lubricant. A
 //! thread drier than configured raises the torque like a heavier car would; the interval's lower
 //! end takes the driest thread the board still considers possible, so a rated car on a thread up

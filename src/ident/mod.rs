@@ -44,8 +44,12 @@ use pair::{MotionMeans, PairSearch, PairSolution, SearchStep};
 
 /// Samples start this long after the reference became constant: after a reversal the coupling
 /// unwinds from the last motion's torque to the new one's (≈ 35 N·m / 160 N·m/rad at 3 rad/s:
-/// 70 ms, part of it in the ramp), and the current says nothing about the load meanwhile.
-pub const SETTLE_MS: u32 = 60;
+/// 70 ms, part of it in the ramp), and the rotor's overshoot at the ramp's end dies out with
+/// the speed loop's time constant, 1/(2π·5 Hz) ≈ 32 ms (its crossover, `control::speed`):
+/// the rotor slowing back to the reference returns its kinetic energy through the current
+/// (host-sim, PTFE lowering: the measured torque 0.2–0.6 N·m off for ≈ 80 ms, worth a few
+/// hundred kg at the lowering's load gain). Three time constants: 100 ms.
+pub const SETTLE_MS: u32 = 100;
 /// The overload trip acts once a motion has sampled this long (steady time; one tick in
 /// [`DECIMATE`] is a sample).
 pub const MIN_SAMPLES_MS: u32 = 40;

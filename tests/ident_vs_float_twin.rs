@@ -226,3 +226,66 @@ proptest! {
         }
     }
 }
+
+/// The law scaled by `s` (base, amplitude, slope), as a friction scale scales it.
+fn scaled(
+    l: &liftfw::model::friction::FrictionLaw,
+    s: f64,
+) -> liftfw::model::friction::FrictionLaw {
+    liftfw::model::friction::FrictionLaw {
+        base: Ratio::from_f64(l.base.to_f64() * s),
+        amp: Ratio::from_f64(l.amp.to_f64() * s),
+        slope: fixed::types::I32F32::from_num(l.slope.to_num::<f64>() * s),
+        ..*l
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 500, ..ProptestConfig::default() })]
+
+    /// A friction scale put in force at rest (`CompiledLaw::rescaled` and
+    /// `MuTable::rescale_nodes`, no compile and no law evaluations) against the float twin
+    /// s'/s·μ(θ̇) of the law in force, and against the law compiled at the new scale and
+    /// tabulated from scratch (what `Estimator::set_friction_scale` does at boot): within
+    /// 2^-12 relative (+4 LSB of Q28), over the lead-screw presets, scales 0.5…3 in force and
+    /// targets 0.5…3, speeds 0…2000 rad/s.
+    #[test]
+    fn a_rescaled_law_and_table_follow_the_twin(
+        preset in 0usize..3,
+        s0 in 0.5f64..3.0,
+        s1 in 0.5f64..3.0,
+        speeds in proptest::collection::vec(0.0f64..2000.0, 16),
+    ) {
+        use liftfw::model::friction::{FrictionLaw, MuTable};
+        let law = [FrictionLaw::DRY, FrictionLaw::PTFE, FrictionLaw::LITHIUM][preset];
+        let sc = screw();
+        let compile = |l: &FrictionLaw| l.compile(sc.pitch_radius(), sc.cos_lambda());
+        let (Ok(c0), Ok(c1)) = (compile(&scaled(&law, s0)), compile(&scaled(&law, s1))) else {
+            return Ok(()); // A scale that takes the law out of its ranges is refused alike.
+        };
+        let ratio = Ratio::from_f64(s1 / s0);
+        let fresh = MuTable::build(&c1);
+        let Ok(r) = c0.rescaled(&scaled(&law, s1), ratio) else {
+            return Ok(());
+        };
+        let mut table = MuTable::build(&c0);
+        // In pieces, as the ticks at rest run it.
+        for from in (0..200).step_by(24) {
+            table.rescale_nodes(ratio.to_bits(), from, from + 24);
+        }
+        for v in speeds {
+            let x = (v * 65536.0) as u32;
+            let twin = f64::from(c0.mu_unfloored_call(x)) * (s1 / s0);
+            let tol = |want: f64| want.abs() / 4096.0 + 4.0;
+            let got = f64::from(r.mu_unfloored_call(x));
+            prop_assert!((got - twin).abs() <= tol(twin), "law at {v}: {got} vs {twin}");
+            // Each table is within its own bound of its law (`MuTable::build`: |μ|/8192, or
+            // the law's own step |amp|·2^-16 + 2 LSB near μ = 0): the two within twice that.
+            let want = f64::from(fresh.lookup(&c1, x));
+            let step = (law.amp.to_f64() * s1).abs() * 2f64.powi(28 - 16) + 2.0;
+            let bound = 2.0 * (want.abs() / 8192.0).max(step) + tol(want);
+            let got = f64::from(table.lookup(&r, x));
+            prop_assert!((got - want).abs() <= bound, "table at {v}: {got} vs {want}");
+        }
+    }
+}

@@ -775,7 +775,6 @@ fn count_rest_work(overhead: u32) {
     let Ok(mut est) = Estimator::new(&EstimatorConfig::DEFAULT) else {
         return;
     };
-    let law = EstimatorConfig::DEFAULT.law;
     let screw = *est.screw();
     // A 1000 kg car lifted and lowered at 20° on a thread 1.5× drier than the PTFE law.
     let up = MotionMeans {
@@ -803,11 +802,47 @@ fn count_rest_work(overhead: u32) {
     let mut st = Stats::new("ident.pair.solve (whole, for comparison)");
     st.push(ticks((&up, &down), |(u, d)| pair::solve(&screw, u, d)), overhead);
     st.report();
-    let mut st = Stats::new("estimator.set_friction_scale (law rebuild)");
+    // The same solve as the ticks at rest run it: one step a tick.
+    if let Some(mut search) = pair::PairSearch::new(&screw, &up, &down) {
+        let mut st = Stats::new("ident.pair.PairSearch::step (one a tick at rest)");
+        for _ in 0..N {
+            let mut done = false;
+            let t = ticks(&mut search, |s| {
+                done = matches!(s.step(&screw), pair::SearchStep::Done(_));
+            });
+            st.push(t, overhead);
+            if done {
+                break;
+            }
+        }
+        st.report();
+    }
+    let mut st = Stats::new("estimator.begin_friction_scale (at rest)");
+    let mut st2 = Stats::new("estimator.rescale_step (24 table nodes a tick at rest)");
     for k in 0..8 {
         let s = Ratio::from_bits((1 << 28) + (k << 25));
-        st.push(ticks(s, |s| est.set_friction_scale(&law, s)), overhead);
+        st.push(
+            ticks(s, |s| est.begin_friction_scale(s).is_ok()),
+            overhead,
+        );
+        loop {
+            let mut done = false;
+            st2.push(
+                ticks(&mut est, |e| done = e.rescale_step()),
+                overhead,
+            );
+            if done {
+                break;
+            }
+        }
     }
+    st.report();
+    st2.report();
+    let mut st = Stats::new("estimator.set_friction_scale (at boot, for comparison)");
+    st.push(
+        ticks(Ratio::lit("1.5"), |s| est.set_friction_scale(s).is_ok()),
+        overhead,
+    );
     st.report();
     let mut id = liftfw::ident::LoadIdent::new(
         Kilograms::lit("1000"),
@@ -815,10 +850,19 @@ fn count_rest_work(overhead: u32) {
         None,
         1000,
     );
-    let mut st = Stats::new("ident.set_interval");
-    for _ in 0..8 {
+    let mut st = Stats::new("ident.set_interval (whole, at configuration)");
+    for _ in 0..4 {
         st.push(
             ticks(Ratio::lit("0.0845"), |mu| id.set_interval(&screw, mu)),
+            overhead,
+        );
+    }
+    st.report();
+    let mut st = Stats::new("ident.set_interval_piece (one a tick at rest)");
+    for k in 0..8u8 {
+        let mu = black_box(Ratio::lit("0.0845"));
+        st.push(
+            ticks(k % 4, |p| id.set_interval_piece(&screw, mu, p)),
             overhead,
         );
     }

@@ -113,30 +113,11 @@ impl Controller {
         id.set_interval_piece(est.screw(), mu, piece);
     }
 
-    /// The law the friction scale multiplies: the one the estimator was built with (the
-    /// configured law; on the ball-screw build, `ControlConfig::model_estimator`'s, which
-    /// converts a ball screw's law in τ).
-    fn scalable_law(cfg: &ControlConfig) -> Option<crate::model::friction::FrictionLaw> {
-        #[cfg(feature = "ball-screw")]
-        let law = cfg.model_estimator().ok().map(|e| e.law);
-        #[cfg(not(feature = "ball-screw"))]
-        let law = Some(cfg.estimator.law);
-        law
-    }
-
-    /// Run the estimator's law scaled by `scale`: false if refused (or not applied).
-    fn apply_friction_scale(&mut self, scale: Ratio) -> bool {
-        match Self::scalable_law(&self.derived.cfg) {
-            Some(law) => self.est.set_friction_scale(&law, scale).is_ok(),
-            None => false,
-        }
-    }
-
     /// The friction scale a stored record gives (at boot, before the first tick; or the one
     /// in force carried over a reconfiguration): the estimator runs the law scaled by it. A
     /// scale the law cannot take is ignored.
     pub fn restore_friction_scale(&mut self, scale: Ratio) {
-        if self.apply_friction_scale(scale) {
+        if self.est.set_friction_scale(scale).is_ok() {
             let id = &mut self.loadid;
             id.ident = Self::new_ident(&self.derived.cfg, &self.est, Some(scale));
             id.load = id.ident.load();
@@ -179,7 +160,8 @@ impl Controller {
     /// A tick at rest with identification work left, from `ident::SETTLE_MS` on: one piece of
     /// it, so that no tick pays it all (`scripts/qemu-test` counts each piece): a step of the
     /// pair solve (one motion's load at one scale), then, when the pair changed the friction
-    /// scale, eight items of the scaled law's table, then the interval's four pieces. Out of
+    /// scale, the law's table rescaled in pieces (`Estimator::rescale_step`; the scaled law in
+    /// force with the last), then the interval's four pieces. Out of
     /// line and cold: at rest only.
     #[cold]
     #[inline(never)]
@@ -189,11 +171,11 @@ impl Controller {
             return;
         }
         if let Some(scale) = self.loadid.rescaling {
-            if self.est.rescale_step() {
-                // The scaled law is in force: the identification runs with it from now on.
-                self.loadid.rescaling = None;
-                self.loadid.ident.scale_applied(scale);
-                self.loadid.interval_left = crate::ident::INTERVAL_PIECES;
+            if !self.est.rescaling() {
+                // The first tick takes the law in force times the scales' ratio.
+                self.begin_rescale(scale);
+            } else if self.est.rescale_step() {
+                self.rescaled(scale);
             }
             return;
         }
@@ -212,6 +194,39 @@ impl Controller {
             return;
         }
         self.loadid.rest_work = false;
+    }
+
+    /// Start putting `scale` in force (`Estimator::begin_friction_scale`); a scale the law
+    /// cannot take is dropped (the identification keeps the one in force).
+    fn begin_rescale(&mut self, scale: Ratio) {
+        if self.est.begin_friction_scale(scale).is_err() {
+            self.loadid.rescaling = None;
+            self.loadid.interval_left = crate::ident::INTERVAL_PIECES;
+        }
+    }
+
+    /// The scaled law is in force: the identification runs with it from now on.
+    fn rescaled(&mut self, scale: Ratio) {
+        self.loadid.rescaling = None;
+        self.loadid.ident.scale_applied(scale);
+        self.loadid.interval_left = crate::ident::INTERVAL_PIECES;
+    }
+
+    /// Before a motion starts: a rescale under way completes now (its table must be one
+    /// law's: up to ≈ 5 000 instructions, once, on the tick or command that starts the
+    /// motion within ≈ 7 ms of a pair's end).
+    #[cold]
+    #[inline(never)]
+    pub(super) fn finish_rescale(&mut self) {
+        if let Some(scale) = self.loadid.rescaling {
+            if !self.est.rescaling() {
+                self.begin_rescale(scale);
+            }
+            if self.loadid.rescaling.is_some() {
+                self.est.finish_rescale();
+                self.rescaled(scale);
+            }
+        }
     }
 
     /// A steady tick's sample, and the overload trip on the identified load. Out of line:
@@ -334,17 +349,12 @@ impl Controller {
         ))
     }
 
-    /// What a pair produced: the scaled law (compiled now, tabulated by the next ticks at
-    /// rest, then the interval's factors), the warning, the store request.
+    /// What a pair produced: the scaled law (taken, then its table rescaled, by the next ticks
+    /// at rest, then the interval's factors), the warning, the store request.
     fn finish_identification(&mut self, end: &MotionEnd) {
         if end.rescale {
-            let begun = Self::scalable_law(&self.derived.cfg)
-                .is_some_and(|law| self.est.begin_friction_scale(&law, end.scale).is_ok());
-            if begun {
-                self.loadid.rescaling = Some(end.scale);
-            }
-        }
-        if self.loadid.rescaling.is_none() {
+            self.loadid.rescaling = Some(end.scale);
+        } else {
             // The scale's band narrowed (a measured scale): the interval follows.
             self.loadid.interval_left = crate::ident::INTERVAL_PIECES;
         }

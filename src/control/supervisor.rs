@@ -371,6 +371,7 @@ impl Controller {
             return Err(Refusal::AtLimit);
         }
         if !moving {
+            self.finish_rescale();
             self.motion.profile.reset(here);
             self.motion.last_ref_counts = here;
             self.motion.profile.set_cruise(self.derived.cruise_q32);

@@ -190,17 +190,20 @@ pub struct TickEstimate {
     pub flags: EstimateFlags,
 }
 
-/// A friction scale being applied: the scaled law and its table, built a few items a call.
-#[derive(Clone, Debug)]
+/// A friction scale being put in force at rest ([`Estimator::begin_friction_scale`]).
+#[derive(Clone, Copy, Debug)]
 struct Rescale {
+    /// The scaled law, in force once the table is.
     law: CompiledLaw,
-    table: MuTable,
-    next: u16,
+    scale: Ratio,
+    /// The new scale over the one in force (Q28).
+    ratio: Ratio,
+    /// The next table node to scale.
+    next: u8,
 }
 
-/// Table items per [`Estimator::rescale_step`]: eight law evaluations (≈ 100 instructions
-/// each), so that a tick at rest stays within its budget.
-const RESCALE_ITEMS: u16 = 8;
+/// Table nodes a [`Estimator::rescale_step`] scales (≈ 30 instructions each).
+const RESCALE_NODES: u8 = 24;
 
 /// The estimator's configuration and state.
 #[derive(Clone, Debug)]
@@ -211,7 +214,9 @@ pub struct Estimator {
     /// The law tabulated over |θ̇|, interpolated in the segments where that is exact enough
     /// and the exact law, out of line, in the others ([`MuTable::build`]).
     mu_table: MuTable,
-    /// A rescaled law being tabulated at rest ([`Self::begin_friction_scale`]).
+    /// The friction scale in force on the configured law (1 unless identified).
+    scale: Ratio,
+    /// A rescale under way at rest ([`Self::begin_friction_scale`]).
     rescale: Option<Rescale>,
     kt: Ratio,
     /// n·η, n/η as factors; η/n, 1/(n·η) as ratios.
@@ -359,6 +364,7 @@ impl Estimator {
             screw,
             law,
             mu_table,
+            scale: Ratio::ONE,
             rescale: None,
             kt: m.torque_constant,
             n_eta,
@@ -462,69 +468,80 @@ impl Estimator {
         }
     }
 
-    /// Run `configured` scaled by `scale` (base, amplitude and slope times s: the friction
-    /// scale a lift/lowering pair identified; the floor at 0 commutes) from now on:
-    /// [`Self::begin_friction_scale`] and every [`Self::rescale_step`] at once (configuration
-    /// time: ≈ 460 law evaluations). The pose's node spacing, chosen for the configured law's
-    /// μ, is kept.
-    pub fn set_friction_scale(
-        &mut self,
-        configured: &FrictionLaw,
-        scale: Ratio,
-    ) -> Result<(), ConfigError> {
-        self.begin_friction_scale(configured, scale)?;
-        while !self.rescale_step() {}
+    /// Run the law the estimator was built with scaled by `scale` (base, amplitude and slope
+    /// times s: the friction
+    /// scale a lift/lowering pair identified, or the store's at boot; the floor at 0
+    /// commutes) from now on: [`Self::begin_friction_scale`] and every
+    /// [`Self::rescale_step`] at once. The pose's node spacing, chosen for the configured
+    /// law's μ, is kept. Refused (nothing changes) when the scaled law leaves the law's
+    /// validated ranges.
+    pub fn set_friction_scale(&mut self, scale: Ratio) -> Result<(), ConfigError> {
+        self.begin_friction_scale(scale)?;
+        self.finish_rescale();
         Ok(())
     }
 
-    /// Start running `configured` scaled by `scale`: the scaled law is compiled now, its table
-    /// built by the following [`Self::rescale_step`]s (at rest, a few items a tick), and the
-    /// estimator keeps the law in force until the last of them. Refused (nothing changes)
-    /// when the scaled law is out of its ranges.
-    pub fn begin_friction_scale(
-        &mut self,
-        configured: &FrictionLaw,
-        scale: Ratio,
-    ) -> Result<(), ConfigError> {
-        let c = *configured;
-        let s64 = i64::from(scale.bits());
-        let fx = |v: fixed::types::I32F32| {
-            fixed::types::I32F32::from_bits(
-                ((i128::from(v.to_bits()) * i128::from(s64)) >> 28) as i64,
-            )
-        };
+    /// [`Self::set_friction_scale`] spread over the ticks at rest (`scale` on the law the
+    /// estimator was built with): this call takes the law in force times the ratio of the
+    /// scales ([`CompiledLaw::rescaled`]: no compile), each
+    /// [`Self::rescale_step`] scales [`RESCALE_NODES`] of its table's nodes
+    /// ([`MuTable::rescale_nodes`]: the law is linear in its scale), and the last of them puts
+    /// the law in force. Until then the table is part old, part new: [`Self::finish_rescale`]
+    /// completes it before a motion. Refused (nothing changes) as [`Self::set_friction_scale`].
+    pub fn begin_friction_scale(&mut self, scale: Ratio) -> Result<(), ConfigError> {
+        self.finish_rescale();
+        let old = i64::from(self.scale.bits()).max(1);
+        let ratio = Ratio::from_raw(crate::units::sat32((i64::from(scale.bits()) << 28) / old));
+        // The law in force (the configured law at the scale in force) times the ratio.
+        let c = *self.law.law();
+        let slope = c.slope.to_bits();
+        // slope (Q32, |·| ≤ 1000·2^32 < 2^42) times the ratio (Q28, < 2^31), by halves.
+        let r = i64::from(ratio.bits());
+        let slope = (slope >> 28) * r + (((slope & ((1 << 28) - 1)) * r) >> 28);
         let law = FrictionLaw {
-            base: qmul(c.base, scale),
-            amp: qmul(c.amp, scale),
-            slope: fx(c.slope),
+            base: qmul(c.base, ratio),
+            amp: qmul(c.amp, ratio),
+            slope: fixed::types::I32F32::from_bits(slope),
             ..c
         };
-        let law = law.compile(self.screw.pitch_radius(), self.screw.cos_lambda())?;
+        let law = self.law.rescaled(&law, ratio)?;
         self.rescale = Some(Rescale {
             law,
-            table: MuTable::EMPTY,
+            scale,
+            ratio,
             next: 0,
         });
         Ok(())
     }
 
-    /// One piece of a rescale under way ([`RESCALE_ITEMS`] items of its table); true when
-    /// none is under way (any more): the scaled law and its table are then in force.
+    /// One piece of a rescale under way: [`RESCALE_NODES`] nodes of the table; the last piece
+    /// puts the scaled law in force. True when none is under way (any more).
     pub fn rescale_step(&mut self) -> bool {
         let Some(r) = self.rescale.as_mut() else {
             return true;
         };
-        let to = r.next.saturating_add(RESCALE_ITEMS);
-        r.table.build_items(&r.law, r.next, to);
+        let to = r.next.saturating_add(RESCALE_NODES);
+        self.mu_table
+            .rescale_nodes(r.ratio.bits(), usize::from(r.next), usize::from(to));
         r.next = to;
-        if to < crate::model::friction::MU_BUILD_ITEMS {
+        if usize::from(to) < crate::model::friction::MU_TABLE_LEN {
             return false;
         }
         if let Some(r) = self.rescale.take() {
             self.law = r.law;
-            self.mu_table = r.table;
+            self.scale = r.scale;
         }
         true
+    }
+
+    /// Whether a rescale is under way.
+    pub fn rescaling(&self) -> bool {
+        self.rescale.is_some()
+    }
+
+    /// Complete a rescale under way at once (before a motion: its table must be one law's).
+    pub fn finish_rescale(&mut self) {
+        while !self.rescale_step() {}
     }
 
     /// The whole estimate of a tick that [`Self::step`] returned `tick` for, with `m` its

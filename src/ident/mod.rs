@@ -200,8 +200,6 @@ pub struct LoadIdent {
     search: Option<PairSearch>,
     /// ρ_d(s·μ_c)/ρ_d(s'·μ_c) for the interval, at the cruise speed's μ: [dir up/down][lo, hi].
     factors: [[Ratio; 2]; 2],
-    /// T_r(s')/T_r(s) at the same measured torque, at the driest and the wettest s'.
-    tr_factors: [[Ratio; 2]; 2],
     /// The interval's lower end over the load (`factors[·][0]` less [`MODEL_BAND`]): the
     /// overload trip's one product per window.
     floor: [Ratio; 2],
@@ -246,7 +244,6 @@ impl LoadIdent {
             pairs: 0,
             search: None,
             factors: [[Ratio::ONE; 2]; 2],
-            tr_factors: [[Ratio::ONE; 2]; 2],
             floor: [Ratio::ONE.sat_sub(MODEL_BAND); 2],
         }
     }
@@ -260,24 +257,20 @@ impl LoadIdent {
     }
 
     /// One of [`INTERVAL_PIECES`] pieces of [`Self::set_interval`] (a tick at rest computes
-    /// one): piece `2·i + j` is direction i's (lifting, lowering) load factors (j = 0) or T_r
-    /// factors (j = 1).
+    /// one): piece `2·i + j` is direction i's (lifting, lowering) load factor at the driest
+    /// (j = 0) or the wettest (j = 1) scale still possible.
     pub fn set_interval_piece(&mut self, screw: &ScrewModel, mu_cruise: Ratio, piece: u8) {
         let (lo_s, hi_s) = self.scale_band();
         let i = usize::from(piece >> 1 & 1);
         let dir = if i == 0 { 1 } else { -1 };
         let scale = self.scale;
+        // The loads at the driest scale are the lowest.
+        let f = |s: Ratio| pair::load_factor(screw, mu_cruise, dir, scale, s);
         if piece & 1 == 0 {
-            // The loads at the driest scale are the lowest.
-            let f = |s: Ratio| pair::load_factor(screw, mu_cruise, dir, scale, s);
-            self.factors[i] = [
-                f(hi_s).unwrap_or(Ratio::ZERO),
-                f(lo_s).unwrap_or(const { Ratio::lit("4") }),
-            ];
+            self.factors[i][0] = f(hi_s).unwrap_or(Ratio::ZERO);
             self.floor[i] = self.factors[i][0].sat_sub(MODEL_BAND).max(Ratio::ZERO);
         } else {
-            let g = |s: Ratio| pair::friction_factor(screw, mu_cruise, dir, scale, s);
-            self.tr_factors[i] = [g(hi_s).unwrap_or(Ratio::ONE), g(lo_s).unwrap_or(Ratio::ONE)];
+            self.factors[i][1] = f(lo_s).unwrap_or(const { Ratio::lit("4") });
         }
     }
 
@@ -293,11 +286,16 @@ impl LoadIdent {
     /// first evidence, 0 … 2× (the prior's load interval).
     pub fn friction_range(&self, tr: NewtonMetres) -> (NewtonMetres, NewtonMetres) {
         let (a, b) = if self.identified {
+            // At the same thread torque T_r(s')/T_r(s) = (s'/s)·(tan λ + μ_s)/(tan λ + μ_s'),
+            // which is the load's factor ρ(μ_s)/ρ(μ_s') times s'/s up to
+            // (1 − μ_s'·tan λ)/(1 − μ_s·tan λ): within 1.5 % at the presets (μ_s' ≤ 0.45,
+            // tan λ ≈ 0.058), which MODEL_BAND's widening covers.
             let i = usize::from(self.run_dir < 0);
-            let [f0, f1] = self.tr_factors[i];
+            let [f0, f1] = self.factors[i];
+            let (lo, hi) = self.scale_band_factors();
             (
-                qmul::<_, _, NewtonMetres>(tr, f0),
-                qmul::<_, _, NewtonMetres>(tr, f1),
+                qmul::<_, _, NewtonMetres>(qmul::<_, _, NewtonMetres>(tr, f0), hi),
+                qmul::<_, _, NewtonMetres>(qmul::<_, _, NewtonMetres>(tr, f1), lo),
             )
         } else {
             (NewtonMetres::ZERO, tr.sat_add(tr))
@@ -308,11 +306,16 @@ impl LoadIdent {
 
     /// The range of friction scales the board considers possible now.
     fn scale_band(&self) -> (Ratio, Ratio) {
+        let (lo, hi) = self.scale_band_factors();
+        (qmul(self.scale, lo), qmul(self.scale, hi))
+    }
+
+    /// [`Self::scale_band`] over the scale in force.
+    fn scale_band_factors(&self) -> (Ratio, Ratio) {
         if self.scale_known {
-            let d = qmul::<_, _, Ratio>(self.scale, PAIR_BAND);
-            (self.scale.sat_sub(d), self.scale.sat_add(d))
+            (Ratio::ONE.sat_sub(PAIR_BAND), Ratio::ONE.sat_add(PAIR_BAND))
         } else {
-            (qmul(self.scale, WET_MIN), qmul(self.scale, DRY_MAX))
+            (WET_MIN, DRY_MAX)
         }
     }
 

@@ -269,24 +269,3 @@ pub fn load_factor(screw: &ScrewModel, mu: Ratio, dir: i8, s0: Ratio, s: Ratio) 
         .ok()
         .map(Ratio::from_raw)
 }
-
-/// T_r(s)/T_r(s₀) at the same thread torque, Q28: T_r/T = μ_s/(tan λ + μ_s), μ_s = d·s·μ.
-/// `None` if undefined.
-pub fn friction_factor(
-    screw: &ScrewModel,
-    mu: Ratio,
-    dir: i8,
-    s0: Ratio,
-    s: Ratio,
-) -> Option<Ratio> {
-    let tan = i64::from(screw.tan_lambda().bits());
-    let part = |sc: Ratio| -> Option<(i64, i64)> {
-        let m = i64::from(scaled_mu(mu, sc)?.bits()) * i64::from(dir.signum());
-        Some((m, tan + m))
-    };
-    let (m0, d0) = part(s0)?;
-    let (m1, d1) = part(s)?;
-    // (m1/m0)·(d0/d1), each in Q28.
-    let q = (div_scaled(m1, m0, 28)? * div_scaled(d0, d1, 28)?) >> 28;
-    i32::try_from(q).ok().map(Ratio::from_raw)
-}

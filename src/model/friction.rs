@@ -82,22 +82,9 @@ impl FrictionLaw {
         variable: LawVariable::Lubrication,
     };
 
-    /// Validate and compile for a screw of pitch radius `r_m` and lead angle cosine `cos_lambda`.
-    /// Refusals name the `friction.*` keys.
-    pub fn compile(&self, r_m: Metres, cos_lambda: Ratio) -> Result<CompiledLaw, ConfigError> {
-        self.compile_keyed(r_m, cos_lambda, &FRICTION_KEYS)
-    }
-
-    /// [`FrictionLaw::compile`] with the refusals naming `keys` (base, amp, rate, slope,
-    /// s_max): the ball screw's law is the same shape under its `ballscrew.f_*` keys (a key
-    /// table instead of renaming the refusal by string compares afterwards).
+    /// The law's validated ranges (refusals name `keys`: base, amp, rate, slope, s_max).
     #[inline(never)]
-    pub(crate) fn compile_keyed(
-        &self,
-        r_m: Metres,
-        cos_lambda: Ratio,
-        keys: &[&'static Key; 5],
-    ) -> Result<CompiledLaw, ConfigError> {
+    fn check_ranges(&self, keys: &[&'static Key; 5]) -> Result<(), ConfigError> {
         let in_range = |v: I32F32, lo: I32F32, hi: I32F32| v >= lo && v <= hi;
         if !(self.base >= Ratio::ZERO && self.base <= Ratio::ONE) {
             return Err(keys[0].out_of_range());
@@ -122,6 +109,26 @@ impl FrictionLaw {
         {
             return Err(keys[4].out_of_range());
         }
+        Ok(())
+    }
+
+    /// Validate and compile for a screw of pitch radius `r_m` and lead angle cosine `cos_lambda`.
+    /// Refusals name the `friction.*` keys.
+    pub fn compile(&self, r_m: Metres, cos_lambda: Ratio) -> Result<CompiledLaw, ConfigError> {
+        self.compile_keyed(r_m, cos_lambda, &FRICTION_KEYS)
+    }
+
+    /// [`FrictionLaw::compile`] with the refusals naming `keys` (base, amp, rate, slope,
+    /// s_max): the ball screw's law is the same shape under its `ballscrew.f_*` keys (a key
+    /// table instead of renaming the refusal by string compares afterwards).
+    #[inline(never)]
+    pub(crate) fn compile_keyed(
+        &self,
+        r_m: Metres,
+        cos_lambda: Ratio,
+        keys: &[&'static Key; 5],
+    ) -> Result<CompiledLaw, ConfigError> {
+        self.check_ranges(keys)?;
         // The law's input bits: |θ̇| in Q16 for speed laws, τ in Q28 for the lubrication law.
         // k = s per unit of input (as num/den), in_frac = fractional bits of the input.
         let (k_num, k_den, in_frac): (i128, i128, u32) = match self.variable {
@@ -186,6 +193,23 @@ pub struct CompiledLaw {
 }
 
 impl CompiledLaw {
+    /// This law times `ratio` (Q28: the friction scale's change, μ' = ratio·μ), as the law
+    /// `law` (this one's law with base, amplitude and slope scaled) compiles, without
+    /// compiling: base and amplitude are `law`'s, the slope's scale this one's times `ratio`
+    /// (a product and a renormalisation instead of the compile's 128-bit divisions), the
+    /// exponential's scale and s_max unchanged. Refused when `law` leaves the validated ranges.
+    pub fn rescaled(&self, law: &FrictionLaw, ratio: Ratio) -> Result<CompiledLaw, ConfigError> {
+        law.check_ranges(&FRICTION_KEYS)?;
+        Ok(CompiledLaw {
+            law: *law,
+            base: law.base,
+            amp: law.amp,
+            exp_scale: self.exp_scale,
+            lin_scale: self.lin_scale.times_ratio(ratio.bits()),
+            in_max: self.in_max,
+        })
+    }
+
     /// The law as given.
     pub fn law(&self) -> &FrictionLaw {
         &self.law
@@ -251,8 +275,11 @@ pub const MU_TABLE_LEN: usize = 2 + (((MU_TOP - MU_OCT0) << 3) as usize);
 /// Segments of [`MuTable`]: node `i` to node `i + 1` (inputs from 2^27 on clamp into the last).
 const MU_SEGMENTS: usize = MU_TABLE_LEN - 1;
 
-/// The work items of a [`MuTable`] build ([`MuTable::build_items`]): a law evaluation each.
-pub const MU_BUILD_ITEMS: u16 = (MU_TABLE_LEN + MU_SEGMENTS + 1) as u16;
+/// [`MuTable`]'s nodes lie within −2…4.25 (Q28; μ_max ≤ 4): any two differ by less than 2^31.
+/// A node beyond that is clamped there and both its segments keep the exact law.
+const NODE_LO: i32 = -(1 << 29);
+/// See [`NODE_LO`].
+const NODE_HI: i32 = (1 << 30) + (1 << 28);
 
 /// A friction law tabulated once over its input (|θ̇| in Q16 for the lead-screw laws) from the
 /// exact fixed-point law ([`CompiledLaw::mu_raw`]) and interpolated linearly in the input between
@@ -278,12 +305,6 @@ pub struct MuTable {
 }
 
 impl MuTable {
-    /// A table before its build: [`Self::build_items`] fills it.
-    pub const EMPTY: MuTable = MuTable {
-        nodes: [0; MU_TABLE_LEN],
-        exact: [0; MU_SEGMENTS.div_ceil(32)],
-    };
-
     /// The input (law bits) of node `i`.
     fn node_input(i: usize) -> u32 {
         if i == 0 {
@@ -300,37 +321,48 @@ impl MuTable {
     /// one copy of the law's code.
     #[inline(never)]
     pub fn build(law: &CompiledLaw) -> MuTable {
-        let mut t = MuTable::EMPTY;
-        t.build_items(law, 0, MU_BUILD_ITEMS);
+        let mut t = MuTable {
+            nodes: [0; MU_TABLE_LEN],
+            exact: [0; MU_SEGMENTS.div_ceil(32)],
+        };
+        for i in 0..MU_TABLE_LEN {
+            let n = law.mu_unfloored_call(Self::node_input(i));
+            t.nodes[i] = n.max(NODE_LO).min(NODE_HI);
+            if n != t.nodes[i] {
+                t.mark(i.saturating_sub(1));
+                t.mark(i.min(MU_SEGMENTS - 1));
+            }
+        }
+        // The nodes are the law (floored at 0 by the lookup as the law floors itself); checked:
+        // each segment's midpoint and the viscous term's kink where it is in range.
+        for i in 0..MU_SEGMENTS {
+            t.check(law, Self::node_input(i) / 2 + Self::node_input(i + 1) / 2);
+        }
+        if law.in_max < 1 << MU_TOP {
+            t.check(law, law.in_max);
+        }
         t
     }
 
-    /// Items `from..to` of [`Self::build`] on a table that holds items `0..from` (a build
-    /// spread over several calls, [`MU_BUILD_ITEMS`] in all, in order: the nodes, each
-    /// segment's check, the kink's check; a check reads its segment's nodes). One law
-    /// evaluation per item: the same table as one [`Self::build`], bit for bit.
-    pub fn build_items(&mut self, law: &CompiledLaw, from: u16, to: u16) {
-        // Nodes within −2…4.25 (Q28; μ_max ≤ 4): any two differ by less than 2^31. A node
-        // beyond that is clamped there and both its segments keep the exact law.
-        const LO: i32 = -(1 << 29);
-        const HI: i32 = (1 << 30) + (1 << 28);
-        for k in usize::from(from)..usize::from(to.min(MU_BUILD_ITEMS)) {
-            if k < MU_TABLE_LEN {
-                let i = k;
-                let n = law.mu_unfloored_call(Self::node_input(i));
-                self.nodes[i] = n.max(LO).min(HI);
-                if n != self.nodes[i] {
-                    self.mark(i.saturating_sub(1));
-                    self.mark(i.min(MU_SEGMENTS - 1));
-                }
-            } else if k < MU_TABLE_LEN + MU_SEGMENTS {
-                let i = k - MU_TABLE_LEN;
-                // The nodes are the law (floored at 0 by the lookup as the law floors itself);
-                // checked: each segment's midpoint and the viscous term's kink where it is in
-                // range.
-                self.check(law, Self::node_input(i) / 2 + Self::node_input(i + 1) / 2);
-            } else if law.in_max < 1 << MU_TOP {
-                self.check(law, law.in_max);
+    /// The table of the law times `ratio` (Q28), from this one: the nodes scaled (a node
+    /// beyond the clamp clamped, its segments then exact, as [`Self::build`] does); the exact
+    /// marks kept, since the interpolation's error and its bound (|μ|/8192, the law's own
+    /// step |amp|·2^-16) scale alike. One product per node instead of a law evaluation per
+    /// node and check: what a friction scale identified at rest does to the table.
+    pub fn rescale(&mut self, ratio: i32) {
+        self.rescale_nodes(ratio, 0, MU_TABLE_LEN);
+    }
+
+    /// [`Self::rescale`] of nodes `from..to` only (a rescale spread over several ticks; the
+    /// table is the old law's in some segments and the new one's in others meanwhile).
+    pub fn rescale_nodes(&mut self, ratio: i32, from: usize, to: usize) {
+        for i in from..to.min(MU_TABLE_LEN) {
+            let n = (i64::from(self.nodes[i]) * i64::from(ratio)) >> 28;
+            let c = n.max(i64::from(NODE_LO)).min(i64::from(NODE_HI)) as i32;
+            self.nodes[i] = c;
+            if i64::from(c) != n {
+                self.mark(i.saturating_sub(1));
+                self.mark(i.min(MU_SEGMENTS - 1));
             }
         }
     }

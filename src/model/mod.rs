@@ -57,6 +57,28 @@ impl Scale {
         }
     }
 
+    /// This constant times `ratio` (Q28, positive), renormalised to 31 significant bits
+    /// (saturated as [`Self::from_ratio`] saturates).
+    pub fn times_ratio(self, ratio: i32) -> Scale {
+        let mut m = (i64::from(self.mant) * i64::from(ratio)) >> 28;
+        let mut shift = self.shift;
+        while m.unsigned_abs() >= 1 << 31 && shift > 0 {
+            m >>= 1;
+            shift -= 1;
+        }
+        while m != 0 && m.unsigned_abs() < 1 << 30 && shift < 62 {
+            m <<= 1;
+            shift += 1;
+        }
+        match i32::try_from(m) {
+            Ok(mant) => Scale { mant, shift },
+            Err(_) => Scale {
+                mant: if m < 0 { -i32::MAX } else { i32::MAX },
+                shift: 0,
+            },
+        }
+    }
+
     /// `v·constant` for a 32-bit input, in `i64` (one `SMULL` and a shift; cannot overflow).
     #[inline]
     pub fn apply(self, v: i32) -> i64 {

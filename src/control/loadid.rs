@@ -53,6 +53,8 @@ pub(super) struct Identification {
     rescaling: Option<Ratio>,
     /// Pieces of the interval's factors left to compute.
     interval_left: u8,
+    /// The stick-slip detector's breakaway sums (Σ peak, count) when the motion began.
+    breakaways: (i64, u32),
 }
 
 impl Identification {
@@ -74,6 +76,7 @@ impl Identification {
             rest_work: false,
             rescaling: None,
             interval_left: 0,
+            breakaways: (0, 0),
         }
     }
 }
@@ -134,6 +137,7 @@ impl Controller {
                 self.loadid.moving = true;
                 self.loadid.travelled = false;
                 self.loadid.screw_start = self.screw_position();
+                self.loadid.breakaways = self.motion.stick_slip.breakaways();
             }
             let driving = matches!(self.motion.last_bridge, Bridge::Drive(_));
             let reference = self.motion.last_ref_rad;
@@ -296,6 +300,64 @@ impl Controller {
         id.rest_work |= id.ident.solving();
         id.load = id.ident.load();
         id.offset = id.ident.torque_offset(self.derived.cfg.rated_load);
+    }
+
+    /// A stick-slipping lift (a stick-slip episode under way, two breakaways or more in this
+    /// motion, samples): its load and mean T_r from the breakaways (`ident::stick::lift`, the
+    /// law in force at rest for μ(0)). `None` otherwise. At the status, not in the tick.
+    #[inline(never)]
+    pub(super) fn stick_slip_lift(&self) -> Option<(Kilograms, NewtonMetres)> {
+        if self.live.state != State::Lifting || !self.motion.stick_slip.output().active {
+            return None;
+        }
+        let (sum, n) = self.motion.stick_slip.breakaways();
+        let n = n.wrapping_sub(self.loadid.breakaways.1);
+        let (t, k) = self.loadid.ident.thread_sum();
+        if n < 2 || k == 0 {
+            return None;
+        }
+        // A stick from rest lasts the coupling's wind-up by the slip's fall at the reference
+        // speed, drop/(k_c·ω) (within 2×: the speed loop lets the motor run faster than the
+        // reference right after a slip): ripples and noise fall far more often than that. And
+        // it is slow stick-slip, periods beyond `LAG_MAX` ticks, whose peaks the current
+        // resolves: faster cycles reach it through the motor's electromechanical lag as a
+        // ripple (`detect::stickslip`).
+        let det = &self.motion.stick_slip;
+        if det.slip_interval() < crate::detect::stickslip::LAG_MAX as u32 {
+            return None;
+        }
+        let drop = i64::from(det.output().amplitude.bits());
+        let kc = i64::from(
+            self.derived
+                .cfg
+                .estimator
+                .mechanics
+                .coupling_stiffness
+                .bits(),
+        );
+        let w = i64::from(self.reference_speed().bits()).abs();
+        let tick = i64::from(self.derived.cfg.estimator.tick_us);
+        let wind = drop
+            .saturating_mul(1_000_000 << 16)
+            .checked_div(kc.saturating_mul(w).saturating_mul(tick))?;
+        if i64::from(det.slip_interval()) > wind.saturating_mul(2) {
+            return None;
+        }
+        let e = &self.live.latest.estimate;
+        // The peaks are the measured screw torque (4-tick means): less the model's own screw
+        // torque and the drive's no-load torque, as the samples.
+        let own = i64::from(e.model_screw_torque.bits()) - i64::from(e.thread_torque.bits());
+        let peak = sum.saturating_sub(self.loadid.breakaways.0) / i64::from(n)
+            - own
+            - self.loadid.ident.drive_bias(1);
+        let pos = self.live.enc.position();
+        let g_up = i64::from(self.est.g_per_kg(pos, 1));
+        let g_r = (g_up + i64::from(self.est.g_per_kg(pos, -1))) / 2;
+        let screw = self.est.screw();
+        let mu0 = self.est.law().mu(crate::units::RadiansPerSecond::ZERO);
+        let rho1 = crate::ident::pair::rho_q32(screw, mu0, 1)?;
+        let rho0 = crate::ident::pair::rho_q32(screw, Ratio::ZERO, 1)?;
+        crate::ident::stick::lift(peak, t / i64::from(k), drop, rho1, rho0, g_up, g_r)
     }
 
     /// The model's friction torque T_r at the identified load: the tick's estimate runs the

@@ -37,6 +37,7 @@
 //! by more than [`STORE_STEP`] from the stored value (flash wear: not every motion).
 
 pub mod pair;
+pub mod stick;
 
 use crate::model::screw::ScrewModel;
 use crate::units::{qmul, Kilograms, NewtonMetres, Newtons, RadiansPerSecond, Ratio, Q};
@@ -489,6 +490,11 @@ impl LoadIdent {
         } else {
             1
         }
+    }
+
+    /// Σ of the measured thread torque over the motion's samples (Q16 N·m) and their count.
+    pub fn thread_sum(&self) -> (i64, u32) {
+        (self.run.t, self.run.n)
     }
 
     /// Samples in the motion under way.

@@ -305,3 +305,56 @@ fn a_fresh_board_lowering_a_light_car_reports_t_r_from_the_current_before_eviden
     assert!(prior.abs() > 1.5, "the prior's error {prior}");
     assert!(err.abs() < prior.abs() / 2.0, "{err} (prior {prior})");
 }
+
+/// A dry thread stick-slipping under a rated car (1000 kg from ≈ 200 mm): the mean torque reads
+/// a lighter car (≈ 0.7 of it) and a lower friction; from the breakaways (`ident::stick`) the
+/// status gives the load within 3 % once the stick-slip is established, and the mean T_r over
+/// those ticks within 3 % of the plant's.
+#[test]
+fn a_stick_slipping_lift_reports_its_load_and_mean_t_r_from_the_breakaways() {
+    let mut s = Scenario::new(Lubricant::Dry, 1000.0, 25.9, 2.0);
+    s.wide_stops();
+    let cruise = s.control.motion.cruise_speed.to_f64();
+    s.control.lube.no_load_current =
+        liftfw::units::Amperes::from_f64(host_sim::studies::estimate::no_load_current(cruise));
+    let g = host_sim::physics::Geometry::paper();
+    let h = g.height(25.9f64.to_radians()) + 6.0e-3;
+    let log = std::sync::Arc::new(std::sync::Mutex::new(Vec::<(f64, f64, f64)>::new()));
+    let inner = std::sync::Arc::clone(&log);
+    let r = run(
+        &s,
+        Box::new(move |k: &mut Tick<'_>| {
+            if (k.t - 0.02).abs() < 5e-4 {
+                k.controller
+                    .command(Command::GoTo(Metres::from_f64(h)))
+                    .unwrap();
+            }
+            let c = &k.controller;
+            if (c.reference().to_f64() - 3.0).abs() < 1e-3 && k.t > 0.6 {
+                let st = c.status();
+                inner.lock().unwrap().push((
+                    k.t,
+                    st.load.load.to_f64(),
+                    st.friction_torque.to_f64(),
+                ));
+            }
+        }),
+    );
+    assert!(faults(&r).is_empty(), "{:?}", faults(&r));
+    let log = log.lock().unwrap();
+    assert!(log.len() > 500, "{} ticks", log.len());
+    let plant = |t: f64| {
+        let i = r.trace.records.partition_point(|x| x.t < t);
+        r.trace.records[i.min(r.trace.records.len() - 1)].friction_torque
+    };
+    for &(t, load, _) in log.iter() {
+        assert!((load - 1000.0).abs() <= 30.0, "{load} kg at {t:.3} s");
+    }
+    let n = log.len() as f64;
+    let core: f64 = log.iter().map(|x| x.2).sum::<f64>() / n;
+    let truth: f64 = log.iter().map(|x| plant(x.0)).sum::<f64>() / n;
+    assert!(
+        (core - truth).abs() <= 0.03 * truth,
+        "T_r {core} vs {truth}"
+    );
+}

@@ -316,17 +316,28 @@ impl Controller {
         if n < 2 || k == 0 {
             return None;
         }
+        let e = &self.live.latest.estimate;
+        // The peaks are the measured screw torque (4-tick means): less the model's own screw
+        // torque and the drive's no-load torque, as the samples.
+        let own = i64::from(e.model_screw_torque.bits()) - i64::from(e.thread_torque.bits());
+        let peak = sum.saturating_sub(self.loadid.breakaways.0) / i64::from(n)
+            - own
+            - self.loadid.ident.drive_bias(1);
+        let mean = t / i64::from(k);
+        // Over the motion (not the last slip alone, whose outliers made the estimate come and
+        // go): a linear wind-up from the trough to the breakaway has its mean half-way, so the
+        // slips fall by 2·(P − T̄); they come every DECIMATE·samples/slips ticks.
+        let drop = peak.saturating_sub(mean).saturating_mul(2);
+        let interval = i64::from(crate::ident::DECIMATE) * i64::from(k) / i64::from(n);
         // A stick from rest lasts the coupling's wind-up by the slip's fall at the reference
         // speed, drop/(k_c·ω) (within 2×: the speed loop lets the motor run faster than the
-        // reference right after a slip): ripples and noise fall far more often than that. And
+        // reference right after a slip): ripples and noise fall far more rarely than that. And
         // it is slow stick-slip, periods beyond `LAG_MAX` ticks, whose peaks the current
         // resolves: faster cycles reach it through the motor's electromechanical lag as a
         // ripple (`detect::stickslip`).
-        let det = &self.motion.stick_slip;
-        if det.slip_interval() < crate::detect::stickslip::LAG_MAX as u32 {
+        if interval < crate::detect::stickslip::LAG_MAX as i64 {
             return None;
         }
-        let drop = i64::from(det.output().amplitude.bits());
         let kc = i64::from(
             self.derived
                 .cfg
@@ -340,16 +351,9 @@ impl Controller {
         let wind = drop
             .saturating_mul(1_000_000 << 16)
             .checked_div(kc.saturating_mul(w).saturating_mul(tick))?;
-        if i64::from(det.slip_interval()) > wind.saturating_mul(2) {
+        if interval > wind.saturating_mul(2) {
             return None;
         }
-        let e = &self.live.latest.estimate;
-        // The peaks are the measured screw torque (4-tick means): less the model's own screw
-        // torque and the drive's no-load torque, as the samples.
-        let own = i64::from(e.model_screw_torque.bits()) - i64::from(e.thread_torque.bits());
-        let peak = sum.saturating_sub(self.loadid.breakaways.0) / i64::from(n)
-            - own
-            - self.loadid.ident.drive_bias(1);
         let pos = self.live.enc.position();
         let g_up = i64::from(self.est.g_per_kg(pos, 1));
         let g_r = (g_up + i64::from(self.est.g_per_kg(pos, -1))) / 2;
@@ -357,7 +361,7 @@ impl Controller {
         let mu0 = self.est.law().mu(crate::units::RadiansPerSecond::ZERO);
         let rho1 = crate::ident::pair::rho_q32(screw, mu0, 1)?;
         let rho0 = crate::ident::pair::rho_q32(screw, Ratio::ZERO, 1)?;
-        crate::ident::stick::lift(peak, t / i64::from(k), drop, rho1, rho0, g_up, g_r)
+        crate::ident::stick::lift(peak, mean, drop, rho1, rho0, g_up, g_r)
     }
 
     /// The model's friction torque T_r at the identified load: the tick's estimate runs the

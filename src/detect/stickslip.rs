@@ -511,11 +511,6 @@ impl StickSlipDetector {
         (self.breakaway_sum, self.breakaways)
     }
 
-    /// Ticks between the last two slips of the chain under way (0: none yet).
-    pub fn slip_interval(&self) -> u32 {
-        self.interval
-    }
-
     /// Forget the motion (keeps the episode counter and the last amplitude).
     fn idle(&mut self) {
         self.ring = [0; MEAN_LEN];

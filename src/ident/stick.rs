@@ -19,7 +19,7 @@ use crate::units::{sat32, Kilograms, NewtonMetres, Q};
 /// The load and the mean T_r of a stick-slipping lift, from the mean breakaway thread torque
 /// `peak` P and the mean thread torque `mean` T̄ (Q16 N·m), ρ₁ = ρ_up(μ(0)) and ρ₀ = r_m·tan λ
 /// (`rho1`, `rho0`, Q32 m, from `pair::rho_q32`), G_up and G_R (`g_d`, `g_r`, Q23 N/kg).
-/// `drop` is the last slip's fall of the torque (the stick-slip detector's amplitude): a stick
+/// `drop` is the slips' fall of the torque (over the motion: 2·(P − T̄)): a stick
 /// from rest unwinds the coupling from the breakaway P to about the lead's T₀ (the slip is
 /// nearly free); a fall under half the span P − T₀ is a ripple of a thread that keeps sliding
 /// (micro stick-slip, noise), whose peaks are no breakaways: `None`. `None` as well where it

@@ -177,38 +177,6 @@ fn boot(spawner: Spawner) {
     spawn_tasks(spawner, board, lift, console, greeting, boot, parked);
 }
 
-/// A HAL error for the defmt log. embassy-stm32 is built without its `defmt` feature (its
-/// assertions and unwraps panic like the core's, and panic-probe logs the message): the two
-/// HAL errors the firmware logs are named here instead of by the HAL's derive.
-struct HalError<E>(E);
-
-impl defmt::Format for HalError<usart::Error> {
-    fn format(&self, f: defmt::Formatter) {
-        match self.0 {
-            usart::Error::Framing => defmt::write!(f, "Framing"),
-            usart::Error::Noise => defmt::write!(f, "Noise"),
-            usart::Error::Overrun => defmt::write!(f, "Overrun"),
-            usart::Error::Parity => defmt::write!(f, "Parity"),
-            usart::Error::BufferTooLong => defmt::write!(f, "BufferTooLong"),
-            _ => defmt::write!(f, "unknown"),
-        }
-    }
-}
-
-impl defmt::Format for HalError<usart::ConfigError> {
-    fn format(&self, f: defmt::Formatter) {
-        match self.0 {
-            usart::ConfigError::BaudrateTooLow => defmt::write!(f, "BaudrateTooLow"),
-            usart::ConfigError::BaudrateTooHigh => defmt::write!(f, "BaudrateTooHigh"),
-            usart::ConfigError::RxOrTxNotEnabled => defmt::write!(f, "RxOrTxNotEnabled"),
-            usart::ConfigError::DataParityNotSupported => {
-                defmt::write!(f, "DataParityNotSupported")
-            }
-            _ => defmt::write!(f, "unknown"),
-        }
-    }
-}
-
 /// Clocks, the board's pins and peripherals (the bridge coasting; the board in [`BOARD`],
 /// where it stays), and whether the watchdog caused the last reset.
 #[inline(never)]
@@ -472,7 +440,7 @@ async fn control(board: &'static mut Board, lift: &'static SharedController, mut
         // the reactions `warn` and `speed` as a warning); faults, homing and those stick-slip
         // warnings also to the console.
         if let Some(e) = outputs.event {
-            report_event(e);
+            report_event(e, &status.load);
         }
         // A change of the bridge's mode (coast, brake, drive up or down) is logged, not every
         // new duty: a motion would log a frame every tick (14 000 in a 15 s lift, measured
@@ -498,11 +466,11 @@ fn bridge_mode(b: Bridge) -> u8 {
     }
 }
 
-/// An event of the tick to the defmt log and, for faults, homing and the stick-slip and
-/// lubrication warnings, to the console. Out of line: a tick rarely has an event, and the
+/// An event of the tick to the defmt log (a motion's end with the load it identified) and,
+/// for faults, homing and the stick-slip and lubrication warnings, to the console. Out of line: a tick rarely has an event, and the
 /// logging calls would otherwise be inlined into the control task's poll.
 #[inline(never)]
-fn report_event(e: Event) {
+fn report_event(e: Event, load: &liftfw::ident::LoadReport) {
     // Stick-slip with the reactions `warn` and `speed`, and the lubrication warning: warnings.
     let warning = match e {
         Event::StickSlip { reaction, .. } => reaction != Reaction::Log,
@@ -514,6 +482,11 @@ fn report_event(e: Event) {
     };
     match e {
         Event::Fault(f) => error!("FAULT {}", f),
+        // The end of a motion: what it identified.
+        Event::State {
+            from: State::Lifting | State::Lowering,
+            ..
+        } => info!("{} {}", e, load),
         _ if warning => warn!("{}", e),
         _ => info!("{}", e),
     }
@@ -632,7 +605,7 @@ async fn console_task(
     ) {
         Ok(uart) => uart,
         Err(e) => {
-            warn!("console disabled: USART2 config rejected: {}", HalError(e));
+            warn!("console disabled: USART2 config rejected: {}", e);
             return;
         }
     };
@@ -702,7 +675,7 @@ async fn console_task(
         match select(uart.read(&mut chunk), NOTICES.receive()).await {
             Either::First(Ok(n)) => (next, read) = (0, n),
             // Framing/noise/overrun: drop the bytes and keep listening.
-            Either::First(Err(e)) => warn!("console read error: {}", HalError(e)),
+            Either::First(Err(e)) => warn!("console read error: {}", e),
             Either::Second(event) => {
                 let _ = write_notice(reply, &event);
             }

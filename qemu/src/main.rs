@@ -532,6 +532,7 @@ fn count_instructions() {
     }
     count_control(overhead);
     count_rest_work(overhead);
+    count_rest_ticks(overhead);
 }
 
 /// Encoder counter, current and supply codes of a lift at the default drive following the
@@ -808,7 +809,7 @@ fn count_rest_work(overhead: u32) {
         for _ in 0..N {
             let mut done = false;
             let t = ticks(&mut search, |s| {
-                done = matches!(s.step(&screw), pair::SearchStep::Done(_));
+                done = matches!(s.step(&screw, &up, &down), pair::SearchStep::Done(_));
             });
             st.push(t, overhead);
             if done {
@@ -867,6 +868,66 @@ fn count_rest_work(overhead: u32) {
         );
     }
     st.report();
+}
+
+/// A lift/lowering pair's means as a 1000 kg car on a thread 1.5× drier than the default
+/// (PTFE) law gives them at α = 20° (the pair model of `liftfw::ident::pair`).
+fn pair_means(screw: &liftfw::model::screw::ScrewModel) -> Option<(liftfw::ident::pair::MotionMeans, liftfw::ident::pair::MotionMeans)> {
+    use liftfw::ident::pair::{rho_q32, MotionMeans};
+    use liftfw::units::{NewtonMetres, Newtons};
+    let (sin, cos) = (0.342_020_143_325_668_7, 0.939_692_620_785_908_4);
+    let mu = 0.0845;
+    let means = |dir: i8| -> Option<MotionMeans> {
+        let d = f64::from(dir);
+        let g = 9.80665 * (cos + 0.6 * d) / sin;
+        let rho = rho_q32(screw, Ratio::from_f64(mu * 1.5), dir)? as f64 / 4_294_967_296.0;
+        Some(MotionMeans {
+            dir,
+            torque: NewtonMetres::from_f64(rho * (1000.0 * g + 24.0 * d)),
+            g_per_kg: (g * 8_388_608.0) as i32,
+            free: Newtons::from_f64(24.0 * d),
+            mu: Ratio::from_f64(mu),
+            n: 1000,
+            slipped: false,
+        })
+    };
+    Some((means(1)?, means(-1)?))
+}
+
+/// Every tick at rest while a lift/lowering pair's work runs (`Controller::bench_pair`: the
+/// search, the law's rescale, the interval's pieces), from the pair's start to the end of its
+/// work: the ticks the budget's "every tick" covers at rest.
+fn count_rest_ticks(overhead: u32) {
+    let Ok(mut c) = Controller::new(&ControlConfig::DEFAULT, 20_000) else {
+        return;
+    };
+    let inp = cruise_inputs(0);
+    for k in 0..100 {
+        tick(&mut c, Instant(1000 * k), &inp);
+    }
+    let Some((up, down)) = pair_means(c.estimator().screw()) else {
+        println!("ICOUNT skipped: pair means");
+        return;
+    };
+    c.bench_pair(up, down);
+    let pairs = c.status().load.pairs;
+    let mut st = Stats::new("control.tick at rest running a pair's work (one piece a tick)");
+    for k in 100..100 + N as u32 {
+        st.push(ticks(&inp, |i| tick(&mut c, Instant(1000 * k), i)), overhead);
+    }
+    let l = c.status().load;
+    println!(
+        "ICOUNT-CHECK pair at rest: solved {} (scale {}, load {} kg)",
+        l.pairs > pairs,
+        l.scale.to_f64(),
+        l.load.to_f64()
+    );
+    st.report();
+    println!(
+        "ICOUNT-GOAL control.tick at rest with a pair's work max {} (goal <= 2000: {})",
+        st.max(),
+        if st.max() <= 2000 { "met" } else { "OVER" }
+    );
 }
 
 /// Typical console lines (docs/console.md).

@@ -449,6 +449,18 @@ impl Controller {
         self.reference_speed()
     }
 
+    /// A lift's and a lowering's means kept and their pair solve under way, as at the end of a
+    /// lowering that followed a lift (the QEMU harness counts the ticks at rest that run it).
+    #[cfg(feature = "bench-hooks")]
+    pub fn bench_pair(
+        &mut self,
+        up: crate::ident::pair::MotionMeans,
+        down: crate::ident::pair::MotionMeans,
+    ) {
+        self.loadid.ident.bench_pair(self.est.screw(), up, down);
+        self.loadid.rest_work = true;
+    }
+
     /// The identification's state (tests, host-sim).
     pub fn load_ident(&self) -> &LoadIdent {
         &self.loadid.ident

@@ -130,8 +130,6 @@ const FINAL: u8 = GRID + 2;
 /// the load).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PairSearch {
-    up: MotionMeans,
-    down: MotionMeans,
     /// The grid's ends, then the bisection's bracket (Q28 scale).
     lo: i64,
     hi: i64,
@@ -172,8 +170,6 @@ impl PairSearch {
         let mu_big = i64::from(up.mu.bits()).max(mu_dn).max(1);
         let hi = i64::from(SCALE_MAX.bits()).min((mu_top << 28) / mu_big);
         (lo < hi).then_some(PairSearch {
-            up: *up,
-            down: *down,
             lo,
             hi,
             grid: (hi - lo) / i64::from(GRID),
@@ -193,19 +189,25 @@ impl PairSearch {
         }
     }
 
-    /// One load evaluation.
-    pub fn step(&mut self, screw: &ScrewModel) -> SearchStep {
-        self.advance(screw).unwrap_or(SearchStep::Done(None))
+    /// One load evaluation, on the means the search was made for.
+    pub fn step(&mut self, screw: &ScrewModel, up: &MotionMeans, down: &MotionMeans) -> SearchStep {
+        self.advance(screw, up, down)
+            .unwrap_or(SearchStep::Done(None))
     }
 
-    fn advance(&mut self, screw: &ScrewModel) -> Option<SearchStep> {
+    fn advance(
+        &mut self,
+        screw: &ScrewModel,
+        up: &MotionMeans,
+        down: &MotionMeans,
+    ) -> Option<SearchStep> {
         let s = self.point();
         let scale = Ratio::from_raw(i32::try_from(s).ok()?);
         let Some(m_up) = self.m_up.take() else {
-            self.m_up = Some(load_at_scale(screw, &self.up, scale)?);
+            self.m_up = Some(load_at_scale(screw, up, scale)?);
             return Some(SearchStep::Pending);
         };
-        let m_down = load_at_scale(screw, &self.down, scale)?;
+        let m_down = load_at_scale(screw, down, scale)?;
         let h = m_up - m_down;
         match self.k {
             0 if h >= 0 => return None,
@@ -253,7 +255,7 @@ impl PairSearch {
 pub fn solve(screw: &ScrewModel, up: &MotionMeans, down: &MotionMeans) -> Option<PairSolution> {
     let mut search = PairSearch::new(screw, up, down)?;
     loop {
-        if let SearchStep::Done(sol) = search.step(screw) {
+        if let SearchStep::Done(sol) = search.step(screw, up, down) {
             return sol;
         }
     }

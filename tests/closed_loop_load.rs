@@ -246,3 +246,115 @@ fn a_fresh_board_refuses_an_overload_beyond_the_driest_assumption() {
     assert_eq!(f.first().map(|x| x.1), Some(FaultKind::Overload), "{f:?}");
     assert!(f[0].0 - 0.02 <= 0.5, "after {:.3} s", f[0].0);
 }
+
+/// Before the first evidence (the settling after the start's ramp and the first windows) a
+/// fresh board lowering a light car reports T_r from the measured thread torque, not the
+/// prior's (the rated load: 10× the truth here, PTFE 100 kg from ≈ 200 mm, a power cycle with
+/// a car on the lift): over those ticks its mean error is under half the prior's (what is left
+/// is the rotor's overshoot after the ramp, docs/model.md).
+#[test]
+fn a_fresh_board_lowering_a_light_car_reports_t_r_from_the_current_before_evidence() {
+    let mut s = Scenario::new(Lubricant::Ptfe, 100.0, 25.9, 2.2);
+    s.wide_stops();
+    // Commissioned as `host-sim estimate` is: the plant motor's no-load current at cruise
+    // (lowering, b_d's error is worth 1.5 kg per mA here).
+    let cruise = s.control.motion.cruise_speed.to_f64();
+    s.control.lube.no_load_current =
+        liftfw::units::Amperes::from_f64(host_sim::studies::estimate::no_load_current(cruise));
+    let g = host_sim::physics::Geometry::paper();
+    let h = g.height(25.9f64.to_radians()) - 4.0e-3;
+    let log = std::sync::Arc::new(std::sync::Mutex::new(Vec::<(f64, bool, f64, f64)>::new()));
+    let inner = std::sync::Arc::clone(&log);
+    let r = run(
+        &s,
+        Box::new(move |k: &mut Tick<'_>| {
+            if (k.t - 0.02).abs() < 5e-4 {
+                k.controller
+                    .command(Command::GoTo(Metres::from_f64(h)))
+                    .unwrap();
+            }
+            let c = &k.controller;
+            // At cruise (the profile's reference within rounding of −3 rad/s).
+            if (c.reference().to_f64() + 3.0).abs() < 1e-3 {
+                let st = c.status();
+                inner.lock().unwrap().push((
+                    k.t,
+                    st.load.identified,
+                    st.friction_torque.to_f64(),
+                    c.estimate().friction_torque.to_f64(),
+                ));
+            }
+        }),
+    );
+    assert!(faults(&r).is_empty(), "{:?}", faults(&r));
+    let log = log.lock().unwrap();
+    // The plant's T_r at the tick's time (records at 1 kHz).
+    let plant = |t: f64| {
+        let i = r.trace.records.partition_point(|x| x.t < t);
+        r.trace.records[i.min(r.trace.records.len() - 1)].friction_torque
+    };
+    let pre: Vec<_> = log.iter().filter(|x| !x.1).collect();
+    assert!(
+        pre.len() >= 20,
+        "{} ticks before the first evidence",
+        pre.len()
+    );
+    let n = pre.len() as f64;
+    let err: f64 = pre.iter().map(|x| x.2 - plant(x.0)).sum::<f64>() / n;
+    let prior: f64 = pre.iter().map(|x| x.3 - plant(x.0)).sum::<f64>() / n;
+    assert!(prior.abs() > 1.5, "the prior's error {prior}");
+    assert!(err.abs() < prior.abs() / 2.0, "{err} (prior {prior})");
+}
+
+/// A dry thread stick-slipping under a rated car (1000 kg from ≈ 200 mm): the mean torque reads
+/// a lighter car (≈ 0.7 of it) and a lower friction; from the breakaways (`ident::stick`) the
+/// status gives the load within 3 % once the stick-slip is established, and the mean T_r over
+/// those ticks within 3 % of the plant's.
+#[test]
+fn a_stick_slipping_lift_reports_its_load_and_mean_t_r_from_the_breakaways() {
+    let mut s = Scenario::new(Lubricant::Dry, 1000.0, 25.9, 2.0);
+    s.wide_stops();
+    let cruise = s.control.motion.cruise_speed.to_f64();
+    s.control.lube.no_load_current =
+        liftfw::units::Amperes::from_f64(host_sim::studies::estimate::no_load_current(cruise));
+    let g = host_sim::physics::Geometry::paper();
+    let h = g.height(25.9f64.to_radians()) + 6.0e-3;
+    let log = std::sync::Arc::new(std::sync::Mutex::new(Vec::<(f64, f64, f64)>::new()));
+    let inner = std::sync::Arc::clone(&log);
+    let r = run(
+        &s,
+        Box::new(move |k: &mut Tick<'_>| {
+            if (k.t - 0.02).abs() < 5e-4 {
+                k.controller
+                    .command(Command::GoTo(Metres::from_f64(h)))
+                    .unwrap();
+            }
+            let c = &k.controller;
+            if (c.reference().to_f64() - 3.0).abs() < 1e-3 && k.t > 0.6 {
+                let st = c.status();
+                inner.lock().unwrap().push((
+                    k.t,
+                    st.load.load.to_f64(),
+                    st.friction_torque.to_f64(),
+                ));
+            }
+        }),
+    );
+    assert!(faults(&r).is_empty(), "{:?}", faults(&r));
+    let log = log.lock().unwrap();
+    assert!(log.len() > 500, "{} ticks", log.len());
+    let plant = |t: f64| {
+        let i = r.trace.records.partition_point(|x| x.t < t);
+        r.trace.records[i.min(r.trace.records.len() - 1)].friction_torque
+    };
+    for &(t, load, _) in log.iter() {
+        assert!((load - 1000.0).abs() <= 30.0, "{load} kg at {t:.3} s");
+    }
+    let n = log.len() as f64;
+    let core: f64 = log.iter().map(|x| x.2).sum::<f64>() / n;
+    let truth: f64 = log.iter().map(|x| plant(x.0)).sum::<f64>() / n;
+    assert!(
+        (core - truth).abs() <= 0.03 * truth,
+        "T_r {core} vs {truth}"
+    );
+}

@@ -5,7 +5,7 @@
 //! **Overload.** The trip compares the lowest load the measurements allow (the identified
 //! load's interval, `ident::LoadIdent::interval`) with `(1 + protect.overload_margin)` × the
 //! rated load, once a motion has identified its load (`ident::MIN_SAMPLES_MS` of steady ticks
-//! after `ident::SETTLE_MS`: ≈ 0.16 s after the start at the default 60 ms ramp), lifting and
+//! after `ident::SETTLE_MS`: ≈ 0.2 s after the start at the default 60 ms ramp), lifting and
 //! lowering alike. Its limit is a load, not a torque: it does not depend on the lubricant. A
 //! thread drier than configured raises the torque like a heavier car would; the interval's lower
 //! end takes the driest thread the board still considers possible, so a rated car on a thread up
@@ -53,6 +53,8 @@ pub(super) struct Identification {
     rescaling: Option<Ratio>,
     /// Pieces of the interval's factors left to compute.
     interval_left: u8,
+    /// The stick-slip detector's breakaway sums (Σ peak, count) when the motion began.
+    breakaways: (i64, u32),
 }
 
 impl Identification {
@@ -74,6 +76,7 @@ impl Identification {
             rest_work: false,
             rescaling: None,
             interval_left: 0,
+            breakaways: (0, 0),
         }
     }
 }
@@ -134,6 +137,7 @@ impl Controller {
                 self.loadid.moving = true;
                 self.loadid.travelled = false;
                 self.loadid.screw_start = self.screw_position();
+                self.loadid.breakaways = self.motion.stick_slip.breakaways();
             }
             let driving = matches!(self.motion.last_bridge, Bridge::Drive(_));
             let reference = self.motion.last_ref_rad;
@@ -298,23 +302,98 @@ impl Controller {
         id.offset = id.ident.torque_offset(self.derived.cfg.rated_load);
     }
 
+    /// A stick-slipping lift (a stick-slip episode under way, two breakaways or more in this
+    /// motion, samples): its load and mean T_r from the breakaways (`ident::stick::lift`, the
+    /// law in force at rest for μ(0)). `None` otherwise. At the status, not in the tick.
+    #[inline(never)]
+    pub(super) fn stick_slip_lift(&self) -> Option<(Kilograms, NewtonMetres)> {
+        if self.live.state != State::Lifting || !self.motion.stick_slip.output().active {
+            return None;
+        }
+        let (sum, n) = self.motion.stick_slip.breakaways();
+        let n = n.wrapping_sub(self.loadid.breakaways.1);
+        let (t, k) = self.loadid.ident.thread_sum();
+        if n < 2 || k == 0 {
+            return None;
+        }
+        let e = &self.live.latest.estimate;
+        // The peaks are the measured screw torque (4-tick means): less the model's own screw
+        // torque and the drive's no-load torque, as the samples.
+        let own = i64::from(e.model_screw_torque.bits()) - i64::from(e.thread_torque.bits());
+        let peak = sum.saturating_sub(self.loadid.breakaways.0) / i64::from(n)
+            - own
+            - self.loadid.ident.drive_bias(1);
+        let mean = t / i64::from(k);
+        // Over the motion (not the last slip alone, whose outliers made the estimate come and
+        // go): a linear wind-up from the trough to the breakaway has its mean half-way, so the
+        // slips fall by 2·(P − T̄); they come every DECIMATE·samples/slips ticks.
+        let drop = peak.saturating_sub(mean).saturating_mul(2);
+        let interval = i64::from(crate::ident::DECIMATE) * i64::from(k) / i64::from(n);
+        // A stick from rest lasts the coupling's wind-up by the slip's fall at the reference
+        // speed, drop/(k_c·ω) (within 2×: the speed loop lets the motor run faster than the
+        // reference right after a slip): ripples and noise fall far more rarely than that. And
+        // it is slow stick-slip, periods beyond `LAG_MAX` ticks, whose peaks the current
+        // resolves: faster cycles reach it through the motor's electromechanical lag as a
+        // ripple (`detect::stickslip`).
+        if interval < crate::detect::stickslip::LAG_MAX as i64 {
+            return None;
+        }
+        let kc = i64::from(
+            self.derived
+                .cfg
+                .estimator
+                .mechanics
+                .coupling_stiffness
+                .bits(),
+        );
+        let w = i64::from(self.reference_speed().bits()).abs();
+        let tick = i64::from(self.derived.cfg.estimator.tick_us);
+        let wind = drop
+            .saturating_mul(1_000_000 << 16)
+            .checked_div(kc.saturating_mul(w).saturating_mul(tick))?;
+        if interval > wind.saturating_mul(2) {
+            return None;
+        }
+        let pos = self.live.enc.position();
+        let g_up = i64::from(self.est.g_per_kg(pos, 1));
+        let g_r = (g_up + i64::from(self.est.g_per_kg(pos, -1))) / 2;
+        let screw = self.est.screw();
+        let mu0 = self.est.law().mu(crate::units::RadiansPerSecond::ZERO);
+        let rho1 = crate::ident::pair::rho_q32(screw, mu0, 1)?;
+        let rho0 = crate::ident::pair::rho_q32(screw, Ratio::ZERO, 1)?;
+        crate::ident::stick::lift(peak, mean, drop, rho1, rho0, g_up, g_r)
+    }
+
     /// The model's friction torque T_r at the identified load: the tick's estimate runs the
-    /// model at the rated load, and at a pose and speed T_r is proportional to the axial
-    /// demand W = M·G_d + D, so T_r(L) = T_r(L_r)·(W + (L − L_r)·G_d)/W (one division, here:
-    /// the status, not the tick). At rest before any motion (no direction yet) lifting's G_d.
+    /// model at the rated load, and at a pose and speed |T_r| is proportional to the axial
+    /// demand |W| = |M·G_d + D| (friction opposes the motion on either flank), so
+    /// T_r(L) = T_r(L_r)·|W + (L − L_r)·G_d|/|W| (one division, here: the status, not the tick).
+    /// At rest before any motion (no direction yet) lifting's G_d.
     pub(super) fn friction_at_load(&self) -> NewtonMetres {
         let e = &self.live.latest.estimate;
-        if self.live.state == State::Lifting && !self.loadid.ident.report().identified {
-            // No evidence yet (the settling after the start's ramp): the thread torque the
-            // current measures instead of the prior's, T_r = T_r(L_r)·T_measured/T_model
-            // (the same proportionality, on this tick's torques). Lifting only: lowering, the
-            // thread torque is small and of either sign, and the ratio is noise.
+        let dir: i8 = match self.live.state {
+            State::Lowering => -1,
+            State::Lifting => 1,
+            _ => 0,
+        };
+        if dir != 0 && !self.loadid.ident.report().identified {
+            // No evidence yet (the settling after the start's ramp, the first windows): the
+            // thread torque the current measures (low-passed, less the model's own screw
+            // torque and the drive's no-load torque) instead of the prior's,
+            // T_r = T_r(L_r)·T_measured/T_model (the same proportionality, on this tick's
+            // torques), both directions. Lowering, the thread torque is small and the ratio
+            // noisy, but unbiased: the prior (the rated load) is not. Bounded by the prior's
+            // stated range, ±2·T_r(L_r).
             let thread = i64::from(e.thread_torque.bits());
             let own = i64::from(e.model_screw_torque.bits()) - thread;
-            let measured = i64::from(e.measured_screw_torque.bits()) - own;
-            if thread.unsigned_abs() >= 1 << 12 && (measured >= 0) == (thread >= 0) {
+            let measured =
+                i64::from(self.motion.torque_lp.bits()) - own - self.loadid.ident.drive_bias(dir);
+            if thread.unsigned_abs() >= 1 << 12 {
                 let tr = i64::from(e.friction_torque.bits());
-                return NewtonMetres::from_raw(sat32(tr.saturating_mul(measured) / thread));
+                // |tr| < 2^31: 2·|tr| fits (no `clamp`: its panic path costs flash).
+                let t = tr.saturating_mul(measured) / thread;
+                let t = t.signum() * t.saturating_abs().min(2 * tr.saturating_abs());
+                return NewtonMetres::from_raw(sat32(t));
             }
         }
         let w = i64::from(e.axial.bits());
@@ -322,16 +401,18 @@ impl Controller {
         if dl == 0 || w.unsigned_abs() < 256 {
             return e.friction_torque;
         }
-        let dir = match self.live.state {
-            State::Lowering => -1,
-            State::Lifting => 1,
-            _ => self.loadid.ident.direction(),
+        let dir = if dir == 0 {
+            self.loadid.ident.direction()
+        } else {
+            dir
         };
         let g = i64::from(self.est.g_per_kg(self.live.enc.position(), dir));
         // W' = W + ΔL·G (Q8: Q12·Q23 → Q35).
         let w2 = w + ((dl * g) >> 27);
         let tr = i64::from(e.friction_torque.bits());
-        NewtonMetres::from_raw(sat32(tr.saturating_mul(w2) / w))
+        NewtonMetres::from_raw(sat32(
+            tr.saturating_mul(w2.saturating_abs()) / w.saturating_abs(),
+        ))
     }
 
     /// What a pair produced: the scaled law (taken, then its table rescaled, by the next ticks

@@ -322,7 +322,15 @@ impl Controller {
     pub fn status(&self) -> Status {
         let latest = &self.live.latest;
         let stick_slip = self.motion.stick_slip.output();
-        let friction_torque = self.friction_at_load();
+        // A stick-slipping lift: the load and mean T_r from its breakaways.
+        let stick = self.stick_slip_lift();
+        let friction_torque = stick.map_or_else(|| self.friction_at_load(), |s| s.1);
+        let mut load = self.loadid.ident.report();
+        if let Some((m, _)) = stick {
+            load.load = m;
+            load.load_lo = load.load_lo.min(m);
+            load.load_hi = load.load_hi.max(m);
+        }
         Status {
             state: self.live.state,
             height: latest.estimate.height,
@@ -336,7 +344,7 @@ impl Controller {
             fault: self.live.fault.map(|f| f.kind),
             position: self.live.enc.position(),
             homed: self.live.homed,
-            load: self.loadid.ident.report(),
+            load,
             friction_torque_range: self.loadid.ident.friction_range(friction_torque),
             cruise_limit: self.motion.cruise_limit,
             #[cfg(feature = "ball-screw")]

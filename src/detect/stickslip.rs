@@ -212,6 +212,10 @@ pub struct StickSlipDetector {
     /// Fast-periodic test and its run of periodic ticks.
     periodicity: Periodicity,
     periodic_run: u32,
+    /// Σ of the slips' peaks (the 4-tick mean torque resisting the motion before each fall:
+    /// the breakaway torque) and their count, since boot (`Controller::stick_slip_lift`).
+    breakaway_sum: i64,
+    breakaways: u32,
     /// Last two torques (for the second difference) and the noise level: EWMA (1/64) of
     /// |second difference|, each sample clipped at 4× the level so slips barely move it, Q16.
     last: [i32; 2],
@@ -490,6 +494,8 @@ impl StickSlipDetector {
             branch_above: (RadiansPerSecond::ZERO, Ratio::ZERO),
             branch_next: false,
             since_fall: u32::MAX,
+            breakaway_sum: 0,
+            breakaways: 0,
             periodicity: Periodicity::new(),
             periodic_run: 0,
             last: [0; 2],
@@ -501,6 +507,12 @@ impl StickSlipDetector {
     /// The last report.
     pub fn output(&self) -> &StickSlipOutput {
         &self.out
+    }
+
+    /// Σ of the slips' peak torques (resisting the motion, Q16 N·m) and their count, since
+    /// boot: each slip's peak is the breakaway torque of the stick before it.
+    pub fn breakaways(&self) -> (i64, u32) {
+        (self.breakaway_sum, self.breakaways)
     }
 
     /// Forget the motion (keeps the episode counter and the last amplitude).
@@ -657,6 +669,8 @@ impl StickSlipDetector {
     }
 
     fn slip(&mut self) {
+        self.breakaway_sum = self.breakaway_sum.saturating_add(i64::from(self.peak));
+        self.breakaways = self.breakaways.wrapping_add(1);
         self.in_event = 1;
         self.event_drop = self.peak.saturating_sub(self.ring_mean());
         self.out.slip = true;

@@ -37,6 +37,7 @@
 //! by more than [`STORE_STEP`] from the stored value (flash wear: not every motion).
 
 pub mod pair;
+pub mod stick;
 
 use crate::model::screw::ScrewModel;
 use crate::units::{qmul, Kilograms, NewtonMetres, Newtons, RadiansPerSecond, Ratio, Q};
@@ -44,8 +45,12 @@ use pair::{MotionMeans, PairSearch, PairSolution, SearchStep};
 
 /// Samples start this long after the reference became constant: after a reversal the coupling
 /// unwinds from the last motion's torque to the new one's (≈ 35 N·m / 160 N·m/rad at 3 rad/s:
-/// 70 ms, part of it in the ramp), and the current says nothing about the load meanwhile.
-pub const SETTLE_MS: u32 = 60;
+/// 70 ms, part of it in the ramp), and the rotor's overshoot at the ramp's end dies out with
+/// the speed loop's time constant, 1/(2π·5 Hz) ≈ 32 ms (its crossover, `control::speed`):
+/// the rotor slowing back to the reference returns its kinetic energy through the current
+/// (host-sim, PTFE lowering: the measured torque 0.2–0.6 N·m off for ≈ 80 ms, worth a few
+/// hundred kg at the lowering's load gain). Three time constants: 100 ms.
+pub const SETTLE_MS: u32 = 100;
 /// The overload trip acts once a motion has sampled this long (steady time; one tick in
 /// [`DECIMATE`] is a sample).
 pub const MIN_SAMPLES_MS: u32 = 40;
@@ -392,6 +397,12 @@ impl LoadIdent {
         }
     }
 
+    /// The drive's no-load torque in the direction of travel `dir` (±1), Q16 N·m.
+    #[inline]
+    pub fn drive_bias(&self, dir: i8) -> i64 {
+        self.bias(dir)
+    }
+
     /// The drive's no-load torque in the direction of travel, Q16.
     #[inline]
     fn bias(&self, dir: i8) -> i64 {
@@ -477,6 +488,11 @@ impl LoadIdent {
         } else {
             1
         }
+    }
+
+    /// Σ of the measured thread torque over the motion's samples (Q16 N·m) and their count.
+    pub fn thread_sum(&self) -> (i64, u32) {
+        (self.run.t, self.run.n)
     }
 
     /// Samples in the motion under way.

@@ -327,7 +327,7 @@ impl MuTable {
         };
         for i in 0..MU_TABLE_LEN {
             let n = law.mu_unfloored_call(Self::node_input(i));
-            t.nodes[i] = n.max(NODE_LO).min(NODE_HI);
+            t.nodes[i] = n.clamp(NODE_LO, NODE_HI);
             if n != t.nodes[i] {
                 t.mark(i.saturating_sub(1));
                 t.mark(i.min(MU_SEGMENTS - 1));
@@ -358,7 +358,7 @@ impl MuTable {
     pub fn rescale_nodes(&mut self, ratio: i32, from: usize, to: usize) {
         for i in from..to.min(MU_TABLE_LEN) {
             let n = (i64::from(self.nodes[i]) * i64::from(ratio)) >> 28;
-            let c = n.max(i64::from(NODE_LO)).min(i64::from(NODE_HI)) as i32;
+            let c = n.clamp(i64::from(NODE_LO), i64::from(NODE_HI)) as i32;
             self.nodes[i] = c;
             if i64::from(c) != n {
                 self.mark(i.saturating_sub(1));

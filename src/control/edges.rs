@@ -107,6 +107,9 @@ impl EdgeInterpolator {
 
     /// As [`EdgeInterpolator::update`], the position's fraction of a count above `count`, Q16
     /// (what the speed filter takes).
+    /// `#[inline(always)]`: once a tick, in the control tick (the core is built at opt-level "z",
+    /// where the call and its arguments cost ≈ 20 instructions; docs/qemu.md).
+    #[inline(always)]
     pub fn update_fraction(&mut self, now: Instant, count: i32, age_us: u16) -> u16 {
         if let Some((prev, prev_t)) = self.last {
             if prev != count {

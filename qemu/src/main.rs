@@ -801,7 +801,10 @@ fn count_rest_work(overhead: u32) {
     }
     st.report();
     let mut st = Stats::new("ident.pair.solve (whole, for comparison)");
-    st.push(ticks((&up, &down), |(u, d)| pair::solve(&screw, u, d)), overhead);
+    st.push(
+        ticks((&up, &down), |(u, d)| pair::solve(&screw, u, d)),
+        overhead,
+    );
     st.report();
     // The same solve as the ticks at rest run it: one step a tick.
     if let Some(mut search) = pair::PairSearch::new(&screw, &up, &down) {
@@ -822,16 +825,10 @@ fn count_rest_work(overhead: u32) {
     let mut st2 = Stats::new("estimator.rescale_step (24 table nodes a tick at rest)");
     for k in 0..8 {
         let s = Ratio::from_bits((1 << 28) + (k << 25));
-        st.push(
-            ticks(s, |s| est.begin_friction_scale(s).is_ok()),
-            overhead,
-        );
+        st.push(ticks(s, |s| est.begin_friction_scale(s).is_ok()), overhead);
         loop {
             let mut done = false;
-            st2.push(
-                ticks(&mut est, |e| done = e.rescale_step()),
-                overhead,
-            );
+            st2.push(ticks(&mut est, |e| done = e.rescale_step()), overhead);
             if done {
                 break;
             }
@@ -845,12 +842,8 @@ fn count_rest_work(overhead: u32) {
         overhead,
     );
     st.report();
-    let mut id = liftfw::ident::LoadIdent::new(
-        Kilograms::lit("1000"),
-        NewtonMetres::lit("0.5"),
-        None,
-        1000,
-    );
+    let mut id =
+        liftfw::ident::LoadIdent::new(Kilograms::lit("1000"), NewtonMetres::lit("0.5"), None, 1000);
     let mut st = Stats::new("ident.set_interval (whole, at configuration)");
     for _ in 0..4 {
         st.push(
@@ -872,7 +865,12 @@ fn count_rest_work(overhead: u32) {
 
 /// A lift/lowering pair's means as a 1000 kg car on a thread 1.5× drier than the default
 /// (PTFE) law gives them at α = 20° (the pair model of `liftfw::ident::pair`).
-fn pair_means(screw: &liftfw::model::screw::ScrewModel) -> Option<(liftfw::ident::pair::MotionMeans, liftfw::ident::pair::MotionMeans)> {
+fn pair_means(
+    screw: &liftfw::model::screw::ScrewModel,
+) -> Option<(
+    liftfw::ident::pair::MotionMeans,
+    liftfw::ident::pair::MotionMeans,
+)> {
     use liftfw::ident::pair::{rho_q32, MotionMeans};
     use liftfw::units::{NewtonMetres, Newtons};
     let (sin, cos) = (0.342_020_143_325_668_7, 0.939_692_620_785_908_4);
@@ -913,7 +911,10 @@ fn count_rest_ticks(overhead: u32) {
     let pairs = c.status().load.pairs;
     let mut st = Stats::new("control.tick at rest running a pair's work (one piece a tick)");
     for k in 100..100 + N as u32 {
-        st.push(ticks(&inp, |i| tick(&mut c, Instant(1000 * k), i)), overhead);
+        st.push(
+            ticks(&inp, |i| tick(&mut c, Instant(1000 * k), i)),
+            overhead,
+        );
     }
     let l = c.status().load;
     println!(

@@ -45,9 +45,9 @@ pub struct Args {
     /// Parallel jobs [default: one per core].
     #[arg(long)]
     jobs: Option<usize>,
-    /// The identified-load case: the core's estimator runs at the true load off by this
-    /// fraction (up on even scenarios, down on odd ones; e.g. 0.08, issue 20's stated
-    /// uncertainty after a lift/lowering pair) instead of the rated 1000 kg. Scored on its own.
+    /// `load.rated` (the load identification's prior) at the true load off by this fraction
+    /// (up on even scenarios, down on odd ones; e.g. 0.08) instead of 1000 kg: the stand-in
+    /// for an identified load used before the controller identified it. Scored on its own.
     #[arg(long)]
     load_error: Option<f64>,
     /// Print one line per run with the digest of its phase log, onsets and slip count (to show

@@ -166,12 +166,10 @@ pub fn scenario_set(n: usize, seed: u64) -> Vec<Scenario> {
         .collect()
 }
 
-/// The identified-load case: the same scenarios with the core's estimator running at the load
-/// an online identification states (issue 20), off the true load by `error` (a fraction) up and
-/// down in turn (even ids over, odd ids under), within what `load.rated` accepts
-/// (10…5000 kg). On main the estimator's load is `load.rated`, so that is what is configured:
-/// the model torque (and the overload monitor that compares the measured torque with it) runs
-/// at the identified load, as with the identification wired in. The detector itself reads the
+/// The same scenarios with `load.rated` off the true load by `error` (a fraction) up and down in
+/// turn (even ids over, odd ids under), within what `load.rated` accepts (10…5000 kg): the
+/// stand-in for an identified load from before the controller identified the load itself
+/// (issue 20). `load.rated` is now the identification's prior. The detector reads the
 /// measured torque, the reference and the friction law, not the load: what can change is the
 /// motion the controller makes (an overload trip ends the scored window).
 pub fn with_load_error(set: &[Scenario], error: f64) -> Vec<Scenario> {

@@ -35,7 +35,7 @@ pub const POSITION_KEY: u8 = 2;
 
 /// The map key of the friction-scale record (the thread's identified friction on the
 /// configured law, `crate::ident`): the position record's layout under its own magic
-/// ([`crate::config::position`]).
+/// (`config::position`).
 pub const FRICTION_KEY: u8 = 3;
 
 /// Work buffer: key + record, rounded up to the 8-byte program unit of the G4.

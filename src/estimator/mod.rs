@@ -484,7 +484,7 @@ impl Estimator {
     /// [`Self::set_friction_scale`] spread over the ticks at rest (`scale` on the law the
     /// estimator was built with): this call takes the law in force times the ratio of the
     /// scales ([`CompiledLaw::rescaled`]: no compile), each
-    /// [`Self::rescale_step`] scales [`RESCALE_NODES`] of its table's nodes
+    /// [`Self::rescale_step`] scales `RESCALE_NODES` (24) of its table's nodes
     /// ([`MuTable::rescale_nodes`]: the law is linear in its scale), and the last of them puts
     /// the law in force. Until then the table is part old, part new: [`Self::finish_rescale`]
     /// completes it before a motion. Refused (nothing changes) as [`Self::set_friction_scale`].
@@ -514,7 +514,7 @@ impl Estimator {
         Ok(())
     }
 
-    /// One piece of a rescale under way: [`RESCALE_NODES`] nodes of the table; the last piece
+    /// One piece of a rescale under way: `RESCALE_NODES` nodes of the table; the last piece
     /// puts the scaled law in force. True when none is under way (any more).
     pub fn rescale_step(&mut self) -> bool {
         let Some(r) = self.rescale.as_mut() else {

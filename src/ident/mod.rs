@@ -20,7 +20,7 @@
 //! the model does not know), with the model's axial demand on the loaded flank (W > 0).
 //! Stick-slip ticks are kept: the mean torque over stick and slip is the mean friction.
 //!
-//! **Prior and uncertainty.** Until a motion has [`MIN_SAMPLES`] samples the load is the prior
+//! **Prior and uncertainty.** Until a motion has [`MIN_SAMPLES_MS`] of samples the load is the prior
 //! (the rated load, or the last motion's identification: the car stays on the lift between
 //! motions, until it reaches the lower stop). The stated interval (`load_lo … load_hi`) is the
 //! friction scale's: one motion cannot tell a heavier car from a drier thread (T ∝ M·ρ_d(s·μ)),

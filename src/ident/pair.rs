@@ -121,7 +121,7 @@ const FINAL: u8 = GRID + 2;
 /// dominates the load-free demand D: h → −∞ just above the self-locking point, where the
 /// search starts. A light load whose D rivals M·G_down can cross twice: the pair is then
 /// ambiguous and refused (the board keeps its scale). So the first crossing from below is
-/// found on a grid of [`GRID`] steps, then bisected; a second crossing refuses the pair.
+/// found on a grid of 32 steps, then bisected; a second crossing refuses the pair.
 /// Refused also: means that do not bracket a solution (no s in range explains both, e.g. a
 /// different car, an obstruction), a lowering that is not self-locking over the whole range
 /// (its torque then carries no friction sign), and a lowering whose load sensitivity is under

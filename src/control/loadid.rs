@@ -130,8 +130,15 @@ impl Controller {
     /// One tick of the identification: a sample while driving at a steady reference, the end
     /// of a motion once at rest. After the protections, before the supervisor: the overload
     /// trip latches like theirs.
+    /// Not on a ball screw (`drive.screw = ball`, ball-screw build): it is not self-locking,
+    /// lowering back-drives it, and the identification's model (the loaded flank of a
+    /// self-locking thread) does not hold there; that drive keeps its own friction
+    /// identification (`lube`), its torque monitor and status at the rated load.
     #[inline]
     pub(super) fn identify_load(&mut self, now: crate::units::Instant, moving: bool, dir: i8) {
+        if self.holds_actively() {
+            return;
+        }
         if moving {
             if !self.loadid.moving {
                 self.loadid.moving = true;
@@ -307,7 +314,10 @@ impl Controller {
     /// law in force at rest for μ(0)). `None` otherwise. At the status, not in the tick.
     #[inline(never)]
     pub(super) fn stick_slip_lift(&self) -> Option<(Kilograms, NewtonMetres)> {
-        if self.live.state != State::Lifting || !self.motion.stick_slip.output().active {
+        if self.holds_actively()
+            || self.live.state != State::Lifting
+            || !self.motion.stick_slip.output().active
+        {
             return None;
         }
         let (sum, n) = self.motion.stick_slip.breakaways();
@@ -371,6 +381,10 @@ impl Controller {
     /// At rest before any motion (no direction yet) lifting's G_d.
     pub(super) fn friction_at_load(&self) -> NewtonMetres {
         let e = &self.live.latest.estimate;
+        if self.holds_actively() {
+            // A ball screw: no load identification (`identify_load`), the model at the rated load.
+            return e.friction_torque;
+        }
         let dir: i8 = match self.live.state {
             State::Lowering => -1,
             State::Lifting => 1,

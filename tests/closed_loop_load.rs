@@ -52,6 +52,24 @@ fn moves(mut s: Scenario, steps: Vec<f64>, known_scale: bool) -> Run {
     )
 }
 
+/// A scenario with wide stops, commissioned as `host-sim estimate` is: `lube.no_load_current`
+/// the plant motor's no-load current at cruise (the drive's no-load torque the identification
+/// takes off).
+fn commissioned(lub: Lubricant, load: f64, deg: f64, duration: f64) -> Scenario {
+    let mut s = Scenario::new(lub, load, deg, duration);
+    s.wide_stops();
+    let cruise = s.control.motion.cruise_speed.to_f64();
+    s.control.lube.no_load_current =
+        liftfw::units::Amperes::from_f64(host_sim::studies::estimate::no_load_current(cruise));
+    s
+}
+
+/// The plant's T_r at time `t` (the trace's record at or after it; records at 1 kHz).
+fn plant_friction_at(r: &Run, t: f64) -> f64 {
+    let i = r.trace.records.partition_point(|x| x.t < t);
+    r.trace.records[i.min(r.trace.records.len() - 1)].friction_torque
+}
+
 fn faults(r: &Run) -> Vec<(f64, FaultKind)> {
     r.events
         .iter()
@@ -254,13 +272,8 @@ fn a_fresh_board_refuses_an_overload_beyond_the_driest_assumption() {
 /// is the rotor's overshoot after the ramp, docs/model.md).
 #[test]
 fn a_fresh_board_lowering_a_light_car_reports_t_r_from_the_current_before_evidence() {
-    let mut s = Scenario::new(Lubricant::Ptfe, 100.0, 25.9, 2.2);
-    s.wide_stops();
-    // Commissioned as `host-sim estimate` is: the plant motor's no-load current at cruise
-    // (lowering, b_d's error is worth 1.5 kg per mA here).
-    let cruise = s.control.motion.cruise_speed.to_f64();
-    s.control.lube.no_load_current =
-        liftfw::units::Amperes::from_f64(host_sim::studies::estimate::no_load_current(cruise));
+    // Lowering, b_d's error is worth 1.5 kg per mA here.
+    let s = commissioned(Lubricant::Ptfe, 100.0, 25.9, 2.2);
     let g = host_sim::physics::Geometry::paper();
     let h = g.height(25.9f64.to_radians()) - 4.0e-3;
     let log = std::sync::Arc::new(std::sync::Mutex::new(Vec::<(f64, bool, f64, f64)>::new()));
@@ -288,11 +301,7 @@ fn a_fresh_board_lowering_a_light_car_reports_t_r_from_the_current_before_eviden
     );
     assert!(faults(&r).is_empty(), "{:?}", faults(&r));
     let log = log.lock().unwrap();
-    // The plant's T_r at the tick's time (records at 1 kHz).
-    let plant = |t: f64| {
-        let i = r.trace.records.partition_point(|x| x.t < t);
-        r.trace.records[i.min(r.trace.records.len() - 1)].friction_torque
-    };
+    let plant = |t: f64| plant_friction_at(&r, t);
     let pre: Vec<_> = log.iter().filter(|x| !x.1).collect();
     assert!(
         pre.len() >= 20,
@@ -312,11 +321,7 @@ fn a_fresh_board_lowering_a_light_car_reports_t_r_from_the_current_before_eviden
 /// those ticks within 3 % of the plant's.
 #[test]
 fn a_stick_slipping_lift_reports_its_load_and_mean_t_r_from_the_breakaways() {
-    let mut s = Scenario::new(Lubricant::Dry, 1000.0, 25.9, 2.0);
-    s.wide_stops();
-    let cruise = s.control.motion.cruise_speed.to_f64();
-    s.control.lube.no_load_current =
-        liftfw::units::Amperes::from_f64(host_sim::studies::estimate::no_load_current(cruise));
+    let s = commissioned(Lubricant::Dry, 1000.0, 25.9, 2.0);
     let g = host_sim::physics::Geometry::paper();
     let h = g.height(25.9f64.to_radians()) + 6.0e-3;
     let log = std::sync::Arc::new(std::sync::Mutex::new(Vec::<(f64, f64, f64)>::new()));
@@ -343,10 +348,7 @@ fn a_stick_slipping_lift_reports_its_load_and_mean_t_r_from_the_breakaways() {
     assert!(faults(&r).is_empty(), "{:?}", faults(&r));
     let log = log.lock().unwrap();
     assert!(log.len() > 500, "{} ticks", log.len());
-    let plant = |t: f64| {
-        let i = r.trace.records.partition_point(|x| x.t < t);
-        r.trace.records[i.min(r.trace.records.len() - 1)].friction_torque
-    };
+    let plant = |t: f64| plant_friction_at(&r, t);
     for &(t, load, _) in log.iter() {
         assert!((load - 1000.0).abs() <= 30.0, "{load} kg at {t:.3} s");
     }

@@ -813,13 +813,17 @@ mod tests {
         }
     }
 
+    /// The axial force per kilogram at α = 20° with 2μ_b = 0.6, direction `dir`:
+    /// G_d = g·(cos α + 0.6·d)/sin α.
+    fn g_at_20(dir: i8) -> f64 {
+        let a = 20f64.to_radians();
+        9.80665 * (a.cos() + 0.6 * f64::from(dir)) / a.sin()
+    }
+
     #[test]
     fn a_pair_recovers_scale_and_load() {
         let sc = screw();
-        // 20°: G_up = g(cos + 0.6)/sin, G_down = g(cos − 0.6)/sin.
-        let a = 20f64.to_radians();
-        let gu = 9.80665 * (a.cos() + 0.6) / a.sin();
-        let gd = 9.80665 * (a.cos() - 0.6) / a.sin();
+        let (gu, gd) = (g_at_20(1), g_at_20(-1));
         for mu in [0.2105, 0.0845, 0.1907] {
             for s in [1.0, 1.5, 2.0, 0.8] {
                 for m in [100.0, 500.0, 1000.0, 1300.0] {
@@ -842,9 +846,7 @@ mod tests {
     #[test]
     fn inconsistent_pairs_are_refused() {
         let sc = screw();
-        let a = 20f64.to_radians();
-        let gu = 9.80665 * (a.cos() + 0.6) / a.sin();
-        let gd = 9.80665 * (a.cos() - 0.6) / a.sin();
+        let (gu, gd) = (g_at_20(1), g_at_20(-1));
         // A light car up, a heavy one down at the same scale: no s makes them agree in range.
         let up = means(&sc, 1, 100.0, 1.0, gu, 24.0, 0.21);
         let dn = means(&sc, -1, 3000.0, 1.0, gd, -24.0, 0.21);
@@ -856,8 +858,7 @@ mod tests {
 
     /// Feed one steady motion whose measured torque is the model's at load `m` and scale `s`.
     fn motion(id: &mut LoadIdent, sc: &ScrewModel, dir: i8, m: f64, s: f64, ticks: u32) {
-        let a = 20f64.to_radians();
-        let g = 9.80665 * (a.cos() + 0.6 * f64::from(dir)) / a.sin();
+        let g = g_at_20(dir);
         let (tan, r) = (sc.tan_lambda().to_f64(), sc.pitch_radius().to_f64());
         let mu = 0.21;
         let rho = |mu: f64| {

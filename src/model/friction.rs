@@ -344,17 +344,12 @@ impl MuTable {
         t
     }
 
-    /// The table of the law times `ratio` (Q28), from this one: the nodes scaled (a node
-    /// beyond the clamp clamped, its segments then exact, as [`Self::build`] does); the exact
-    /// marks kept, since the interpolation's error and its bound (|μ|/8192, the law's own
-    /// step |amp|·2^-16) scale alike. One product per node instead of a law evaluation per
-    /// node and check: what a friction scale identified at rest does to the table.
-    pub fn rescale(&mut self, ratio: i32) {
-        self.rescale_nodes(ratio, 0, MU_TABLE_LEN);
-    }
-
-    /// [`Self::rescale`] of nodes `from..to` only (a rescale spread over several ticks; the
-    /// table is the old law's in some segments and the new one's in others meanwhile).
+    /// Nodes `from..to` of the table of the law times `ratio` (Q28), from this one: the nodes
+    /// scaled (a node beyond the clamp clamped, its segments then exact, as [`Self::build`]
+    /// does); the exact marks kept, since the interpolation's error and its bound (|μ|/8192,
+    /// the law's own step |amp|·2^-16) scale alike. One product per node instead of a law
+    /// evaluation per node and check: what a friction scale identified at rest does to the
+    /// table, spread over several ticks (the table is part old, part new meanwhile).
     pub fn rescale_nodes(&mut self, ratio: i32, from: usize, to: usize) {
         for i in from..to.min(MU_TABLE_LEN) {
             let n = (i64::from(self.nodes[i]) * i64::from(ratio)) >> 28;

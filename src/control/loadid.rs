@@ -314,10 +314,8 @@ impl Controller {
     /// law in force at rest for μ(0)). `None` otherwise. At the status, not in the tick.
     #[inline(never)]
     pub(super) fn stick_slip_lift(&self) -> Option<(Kilograms, NewtonMetres)> {
-        if self.holds_actively()
-            || self.live.state != State::Lifting
-            || !self.motion.stick_slip.output().active
-        {
+        // (A ball screw has no samples, `identify_load`: `None` below.)
+        if self.live.state != State::Lifting || !self.motion.stick_slip.output().active {
             return None;
         }
         let (sum, n) = self.motion.stick_slip.breakaways();

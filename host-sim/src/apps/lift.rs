@@ -287,11 +287,11 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
         last.true_height, err, over
     );
     println!(
-        "T_r over the whole cruise: plant {:.3} N·m mean, core estimate {:.3} N·m ({:+.1} %, {:+.3} N·m), {} ticks",
+        "T_r over the whole cruise: plant {:.3} N·m mean, core estimate {:.3} N·m ({:+.3} N·m{}), {} ticks",
         mean_true,
         mean_core,
-        100.0 * (mean_core - mean_true) / mean_true.abs().max(1e-9),
         mean_core - mean_true,
+        relative(mean_core - mean_true, mean_true, 0.01),
         cruise.len()
     );
     {
@@ -299,7 +299,7 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
         let l = g.0.status().load;
         let id = l.load.to_f64();
         println!(
-            "load: identified {:.0} kg ({}, stated {:.0}…{:.0} kg, friction scale {:.3}{}), true {:.0} kg: {:+.1} kg ({:+.1} %)",
+            "load: identified {:.0} kg ({}, stated {:.0}…{:.0} kg, friction scale {:.3}{}), true {:.0} kg: {:+.1} kg{}",
             id,
             if l.identified { "from the current" } else { "prior" },
             l.load_lo.to_f64(),
@@ -308,7 +308,7 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
             if l.scale_known { "" } else { " assumed" },
             a.load_kg,
             id - a.load_kg,
-            100.0 * (id - a.load_kg) / a.load_kg.max(1e-9)
+            relative(id - a.load_kg, a.load_kg, 1.0)
         );
     }
     println!(
@@ -448,4 +448,14 @@ fn plot(path: &Path, a: &LiftArgs, s: &[Sample]) -> Result<(), String> {
         Ok(())
     };
     draw().map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// ", ±x.x %" of `truth`, or nothing where |truth| is below `least` and a percentage means
+/// nothing (an empty lift printed "+127 kg (+12744799804687.5 %)").
+fn relative(err: f64, truth: f64, least: f64) -> String {
+    if truth.abs() < least {
+        String::new()
+    } else {
+        format!(", {:+.1} %", 100.0 * err / truth.abs())
+    }
 }

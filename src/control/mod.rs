@@ -396,6 +396,10 @@ impl Controller {
             next.motion.debounce = self.motion.debounce;
         }
         next.motion.brake.keep_timing(&self.motion.brake);
+        // The same sense scaling: keep the current-sense zero measured at rest.
+        if cfg.sensing == old.sensing {
+            next.derived.adc = self.derived.adc;
+        }
         // The car stays on the lift and the thread is the same: keep what was identified.
         if same_model {
             next.loadid = self.loadid;
@@ -570,7 +574,9 @@ impl Controller {
                 if self.live.rest_ticks <= self.derived.ticks.settle {
                     self.live.hold_position = self.live.enc.position();
                 }
-                self.at_rest_bridge(&x)
+                let bridge = self.at_rest_bridge(&x);
+                self.rest_current_zero(inputs.current_raw);
+                bridge
             }
         };
         self.detect_stick_slip(&x);
@@ -595,6 +601,20 @@ impl Controller {
             out.event = self.live.pending_event.take();
         }
         out
+    }
+
+    /// A tick at rest: once the lift has settled and the bridge did not drive last tick (no
+    /// current in the sense path), the current code is a sample of the sense's zero
+    /// (`sense::Adc::rest_sample`).
+    #[inline]
+    fn rest_current_zero(&mut self, code: u16) {
+        if matches!(self.motion.last_bridge, Bridge::Drive(_))
+            || self.live.rest_ticks <= self.derived.ticks.settle
+        {
+            self.derived.adc.rest_interrupted();
+            return;
+        }
+        let _ = self.derived.adc.rest_sample(code);
     }
 
     /// The rest of the tick, which its outputs do not wait for: call once a tick after

@@ -28,16 +28,47 @@ impl Switches {
     }
 }
 
-/// ADC scalings, quantised once.
+/// Current-sense codes averaged at rest for the zero ([`Adc::rest_sample`]): a power of two,
+/// so that their sum is their mean in 1/256 codes.
+pub const ZERO_SAMPLES: u16 = 256;
+/// How far (codes) the zero measured at rest may lie from the configured
+/// `sense.current_zero` (0.5 A at the default scaling): an amplifier's offset drift stays
+/// inside; a current that flows at rest or a dead sensor does not, and is not taken.
+pub const ZERO_RANGE_CODES: i32 = 16;
+
+/// ADC scalings, quantised once, and the current-sense zero measured at rest.
+///
+/// **Zero at rest.** With the bridge off no current flows through the sense path, so the
+/// codes read then are the zero. Their mean over [`ZERO_SAMPLES`] has a fraction of a code
+/// that the configured zero (an integer code) cannot hold: an ADC that truncates reads half a
+/// code low on average (host-sim's does: 16 mA, ≈ 0.033 N·m at the screw, worth ≈ 90 kg on a
+/// PTFE lowering's load), and the current-sense amplifier's offset drifts with temperature.
+/// The measured zero replaces the configured one while within [`ZERO_RANGE_CODES`] of it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Adc {
-    zero: i32,
+    /// The zero in force, 1/256 codes.
+    zero_q8: i32,
+    /// The configured zero, 1/256 codes.
+    configured_q8: i32,
+    /// Σ of the rest codes of the batch under way, and their count.
+    rest_sum: u32,
+    rest_n: u16,
     /// A per code in Q16·2^8 (Q24), so that one `SMULL` and a shift give Q16 amperes: ≤ 2^24
     /// for a validated scaling (≤ 1 A per code), an i32 (it was an i64: a 64 × 64-bit product
     /// on every tick).
     amps_q24: i32,
     /// V per code in Q24 (≤ 0.1 V per code validated).
     volts_q24: i32,
+}
+
+/// What a batch of rest codes concluded ([`Adc::rest_sample`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ZeroUpdate {
+    /// The zero in force is now the batch's mean (1/256 codes).
+    Taken(i32),
+    /// The batch's mean (1/256 codes) lies beyond [`ZERO_RANGE_CODES`] of the configured
+    /// zero: the zero in force stays.
+    OutOfRange(i32),
 }
 
 impl Adc {
@@ -47,8 +78,12 @@ impl Adc {
         // (Saturated beyond 128 units per code, far outside the validated ranges.)
         let q24 =
             |micro: u32| i32::try_from((i64::from(micro) << 24) / 1_000_000).unwrap_or(i32::MAX);
+        let zero = i32::from(s.current_zero_code) << 8;
         Adc {
-            zero: i32::from(s.current_zero_code),
+            zero_q8: zero,
+            configured_q8: zero,
+            rest_sum: 0,
+            rest_n: 0,
             amps_q24: q24(s.current_ua_per_code),
             volts_q24: q24(s.supply_uv_per_code),
         }
@@ -57,8 +92,42 @@ impl Adc {
     /// Motor current for a current-sense code (codes above 4095 are read as 4095).
     #[inline]
     pub fn current(&self, code: u16) -> Amperes {
-        let c = i64::from(i32::from(code.min(4095)) - self.zero);
-        Amperes::from_raw(crate::units::sat32((c * i64::from(self.amps_q24)) >> 8))
+        let c = i64::from((i32::from(code.min(4095)) << 8) - self.zero_q8);
+        Amperes::from_raw(crate::units::sat32((c * i64::from(self.amps_q24)) >> 16))
+    }
+
+    /// The current-sense zero in force, 1/256 codes.
+    pub fn zero_q8(&self) -> i32 {
+        self.zero_q8
+    }
+
+    /// A current-sense code read while no current flows (at rest, the bridge off since the
+    /// last tick at least): every [`ZERO_SAMPLES`] codes, their mean becomes the zero if it is
+    /// within [`ZERO_RANGE_CODES`] of the configured one.
+    #[inline]
+    pub fn rest_sample(&mut self, code: u16) -> Option<ZeroUpdate> {
+        // ≤ 4095 · 256 < 2^20: the sum cannot overflow.
+        self.rest_sum += u32::from(code.min(4095));
+        self.rest_n += 1;
+        if self.rest_n < ZERO_SAMPLES {
+            return None;
+        }
+        let mean = i32::try_from(self.rest_sum).unwrap_or(i32::MAX);
+        self.rest_sum = 0;
+        self.rest_n = 0;
+        if (mean - self.configured_q8).abs() <= ZERO_RANGE_CODES << 8 {
+            self.zero_q8 = mean;
+            Some(ZeroUpdate::Taken(mean))
+        } else {
+            Some(ZeroUpdate::OutOfRange(mean))
+        }
+    }
+
+    /// A batch under way is dropped (the bridge drove: the codes are no longer the zero's).
+    #[inline]
+    pub fn rest_interrupted(&mut self) {
+        self.rest_sum = 0;
+        self.rest_n = 0;
     }
 
     /// Supply voltage for a divider code.
@@ -186,6 +255,108 @@ mod tests {
                 assert_eq!(adc.current(code).bits(), amps, "{ua} uA, code {code}");
                 assert_eq!(adc.supply(code).bits(), volts, "{uv} uV, code {code}");
             }
+        }
+    }
+
+    /// The codes an ADC that truncates reads for a true level `level` (codes, fractional) with
+    /// Gaussian noise `sigma` (codes rms): host-sim's sensor model, from a seeded generator.
+    fn truncated_codes(level: f64, sigma: f64, seed: u64, n: usize) -> impl Iterator<Item = u16> {
+        let mut x = seed | 1;
+        let mut uniform = move || {
+            // xorshift64*: enough for a noise model in a test.
+            x ^= x >> 12;
+            x ^= x << 25;
+            x ^= x >> 27;
+            (x.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
+        };
+        (0..n).map(move |_| {
+            // Box–Muller.
+            let (u, v) = (uniform().max(1e-300), uniform());
+            let g = (-2.0 * u.ln()).sqrt() * (2.0 * core::f64::consts::PI * v).cos();
+            (level + sigma * g).floor().clamp(0.0, 4095.0) as u16
+        })
+    }
+
+    #[test]
+    fn the_zero_measured_at_rest_takes_the_truncation_half_code_out() {
+        let mut adc = Adc::new(&SensingConfig::DEFAULT);
+        // The amplifier sits at code 2048.0 exactly; a truncating ADC reads 2047.5 on average.
+        let mut last = None;
+        for code in truncated_codes(2048.0, 1.5, 7, usize::from(ZERO_SAMPLES) * 4) {
+            last = adc.rest_sample(code).or(last);
+        }
+        let Some(ZeroUpdate::Taken(z)) = last else {
+            panic!("{last:?}")
+        };
+        let zero = f64::from(z) / 256.0;
+        assert!((zero - 2047.5).abs() < 0.2, "{zero}");
+        // A current at the true zero now reads (within the mean's noise) 0 A: before, the
+        // configured integer zero read it half a code (16 mA) low.
+        let i = adc.current(2048).to_f64() - adc.current(2047).to_f64();
+        assert!((i - 0.032227).abs() < 1e-4, "{i}");
+        let mid = (adc.current(2047).to_f64() + adc.current(2048).to_f64()) / 2.0;
+        assert!(mid.abs() < 0.2 * 0.032227, "{mid}");
+    }
+
+    #[test]
+    fn a_rest_reading_far_from_the_configured_zero_is_not_taken() {
+        let mut adc = Adc::new(&SensingConfig::DEFAULT);
+        let before = adc.zero_q8();
+        // A dead sensor (stuck at 0), then a current flowing at rest (≈ 1 A = 31 codes).
+        for level in [0.0, 2048.0 + 31.0] {
+            let mut last = None;
+            for code in truncated_codes(level, 1.0, 3, usize::from(ZERO_SAMPLES)) {
+                last = adc.rest_sample(code).or(last);
+            }
+            assert!(matches!(last, Some(ZeroUpdate::OutOfRange(_))), "{level}: {last:?}");
+            assert_eq!(adc.zero_q8(), before);
+            assert_eq!(adc.current(2048), Amperes::ZERO);
+        }
+        // An interrupted batch starts over: 255 codes, a drive, 255 more conclude nothing.
+        for code in truncated_codes(2050.0, 1.0, 5, usize::from(ZERO_SAMPLES) - 1) {
+            assert_eq!(adc.rest_sample(code), None);
+        }
+        adc.rest_interrupted();
+        for code in truncated_codes(2050.0, 1.0, 6, usize::from(ZERO_SAMPLES) - 1) {
+            assert_eq!(adc.rest_sample(code), None);
+        }
+    }
+
+    proptest::proptest! {
+        /// Over the validated scalings and every zero the rest may measure: the current is the
+        /// float model (code − zero)·A/code, within the Q16 result's rounding.
+        #[test]
+        fn current_with_a_measured_zero_is_the_float_model(
+            ua in 1u32..=1_000_000,
+            zero in 0u16..=4095,
+            frac in -(ZERO_RANGE_CODES << 8)..=(ZERO_RANGE_CODES << 8),
+            code in 0u16..=4095,
+        ) {
+            let s = SensingConfig {
+                current_zero_code: zero,
+                current_ua_per_code: ua,
+                supply_uv_per_code: 4_468,
+            };
+            let mut adc = Adc::new(&s);
+            let z = (i32::from(zero) << 8) + frac;
+            // Feed a batch whose sum is exactly z (a constant code and one adjustment).
+            let base = (z / 256).clamp(0, 4095);
+            let mut rest = z - base * 256;
+            let mut last = None;
+            for _ in 0..ZERO_SAMPLES {
+                let step = rest.clamp(-base, 4095 - base);
+                let c = u16::try_from(base + step).unwrap_or(0);
+                rest -= step;
+                last = adc.rest_sample(c).or(last);
+            }
+            let taken = rest == 0 && matches!(last, Some(ZeroUpdate::Taken(m)) if m == z);
+            proptest::prop_assume!(taken);
+            let want = (f64::from(code) - f64::from(z) / 256.0) * f64::from(ua) * 1e-6;
+            let got = adc.current(code).to_f64();
+            // The scale is quantised to Q24 per code (≤ 2^-24 A per code · 4096 codes) and
+            // the result to Q16.
+            let tol = 4096.0 / 16_777_216.0 + 1.0 / 65_536.0;
+            proptest::prop_assert!((got - want).abs() <= tol, "{got} vs {want}");
         }
     }
 

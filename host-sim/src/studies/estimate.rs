@@ -227,6 +227,11 @@ pub fn no_load_current(cruise: f64) -> f64 {
     (d.motor_coulomb + d.motor_viscous * w) / d.torque_constant
 }
 
+/// How long the board rests after power-up before the first move, ms: the rest's settling
+/// and one batch of the current sense's zero (`control::sense::ZERO_SAMPLES` ticks), with
+/// room.
+const BOOT_REST_MS: u64 = 600;
+
 /// Run one case.
 pub fn run_case(c: &Case) -> Result<Outcome, String> {
     let g = Geometry::paper();
@@ -277,8 +282,10 @@ pub fn run_case(c: &Case) -> Result<Outcome, String> {
     let mut sim = Sim::new(cfg, driver).map_err(|e| e.to_string())?;
     let per_tick = (1e-3 / cfg.dt).round() as u64;
     let mut out = Outcome::default();
-    // Let the board read its supply and settle before the first command.
-    let mut t = sim.step_n(per_tick * 50);
+    // The board at rest after power-up before the first command: it reads its supply and
+    // measures the current sense's zero (`control::sense`, a batch of ZERO_SAMPLES codes once
+    // the rest has settled).
+    let mut t = sim.step_n(per_tick * BOOT_REST_MS);
     for &up in &dirs {
         // Command the move from where the core believes the screw is.
         {

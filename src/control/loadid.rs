@@ -404,7 +404,15 @@ impl Controller {
                 let tr = i64::from(e.friction_torque.bits());
                 // |tr| < 2^31: 2·|tr| fits (no `clamp`: its panic path costs flash).
                 let t = tr.saturating_mul(measured) / thread;
-                let t = t.signum() * t.saturating_abs().min(2 * tr.saturating_abs());
+                // Friction opposes the motion: a ratio of the other sign than the model's
+                // T_r is the start's transients (the rotor's overshoot, the coupling
+                // unwinding: host-sim, PTFE 250 kg lowering read +2 N·m against −1 N·m), and
+                // reads 0.
+                let t = if t.signum() == tr.signum() {
+                    t.signum() * t.saturating_abs().min(2 * tr.saturating_abs())
+                } else {
+                    0
+                };
                 return NewtonMetres::from_raw(sat32(t));
             }
         }

@@ -308,7 +308,10 @@ mod tests {
             for code in truncated_codes(level, 1.0, 3, usize::from(ZERO_SAMPLES)) {
                 last = adc.rest_sample(code).or(last);
             }
-            assert!(matches!(last, Some(ZeroUpdate::OutOfRange(_))), "{level}: {last:?}");
+            assert!(
+                matches!(last, Some(ZeroUpdate::OutOfRange(_))),
+                "{level}: {last:?}"
+            );
             assert_eq!(adc.zero_q8(), before);
             assert_eq!(adc.current(2048), Amperes::ZERO);
         }

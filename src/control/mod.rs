@@ -605,8 +605,9 @@ impl Controller {
 
     /// A tick at rest: once the lift has settled and the bridge did not drive last tick (no
     /// current in the sense path), the current code is a sample of the sense's zero
-    /// (`sense::Adc::rest_sample`).
-    #[inline]
+    /// (`sense::Adc::rest_sample`). Out of line: at rest only (kept out of the moving
+    /// tick's register allocation).
+    #[inline(never)]
     fn rest_current_zero(&mut self, code: u16) {
         if matches!(self.motion.last_bridge, Bridge::Drive(_))
             || self.live.rest_ticks <= self.derived.ticks.settle

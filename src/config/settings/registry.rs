@@ -222,7 +222,7 @@ registry! {
         "uncommanded nut travel before the runaway fault",
         [q32 protection.runaway_travel];
     20 => SENSE_CURRENT_ZERO, num(0, COUNTS),
-        "current-sense ADC code at 0 A",
+        "current-sense ADC code at 0 A (refined at rest, within 16 codes)",
         [int u16, sensing.current_zero_code];
     21 => SENSE_CURRENT_UA_PER_CODE, num(0, MICROAMPS),
         "motor current per ADC code",

@@ -395,6 +395,8 @@ async fn control(board: &'static mut Board, lift: &'static SharedController, mut
         // Truncation to u32 is the core's wrapping µs clock (71.6 min period).
         let now = Instant(Clock::now().as_micros() as u32);
         let inputs = board.sensors.sample();
+        // The periodic status line is due on this tick.
+        let line_due = ticks.wrapping_add(1) % STATUS_EVERY_TICKS == 0;
         let (outputs, status, record, friction) = lift.lock(|c| {
             let mut ctl = c.borrow_mut();
             let outputs = ctl.step(now, &inputs);
@@ -404,9 +406,11 @@ async fn control(board: &'static mut Board, lift: &'static SharedController, mut
             // pose nodes): a tick that crosses into a pose segment drives the bridge as soon as
             // any other.
             ctl.finish_tick();
-            let status = ctl.status();
+            // The whole status (the identification's divisions) only on a tick that logs it:
+            // with the lock held interrupts are off.
+            let status = (line_due || outputs.event.is_some()).then(|| ctl.status());
             let record = park
-                .step(&status)
+                .observe(ctl.state(), ctl.position_counts(), ctl.homed())
                 .map(|p| StoreRequest::Position(p, geometry_stamp(ctl.config())));
             let friction = ctl
                 .take_friction_store()
@@ -439,8 +443,8 @@ async fn control(board: &'static mut Board, lift: &'static SharedController, mut
         // State changes and faults (with their snapshot) go to the defmt log (stick-slip with
         // the reactions `warn` and `speed` as a warning); faults, homing and those stick-slip
         // warnings also to the console.
-        if let Some(e) = outputs.event {
-            report_event(e, &status.load);
+        if let (Some(e), Some(s)) = (outputs.event, &status) {
+            report_event(e, &s.load);
         }
         // A change of the bridge's mode (coast, brake, drive up or down) is logged, not every
         // new duty: a motion would log a frame every tick (14 000 in a 15 s lift, measured
@@ -450,8 +454,8 @@ async fn control(board: &'static mut Board, lift: &'static SharedController, mut
         }
         last_bridge = outputs.bridge;
         ticks = ticks.wrapping_add(1);
-        if ticks % STATUS_EVERY_TICKS == 0 {
-            info!("t={} us {}", now.0, status);
+        if let (true, Some(s)) = (line_due, &status) {
+            info!("t={} us {}", now.0, s);
         }
     }
 }

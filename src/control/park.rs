@@ -1,7 +1,8 @@
 //! When to record the lift's position in flash, so that it survives a power cut.
 //!
 //! The encoder is incremental: after a power cut the board knows the height only from what it
-//! wrote before. [`ParkLog`] watches the controller's [`Status`] each tick and says what to
+//! wrote before. [`ParkLog`] watches the controller's state, position and homing each tick
+//! ([`ParkLog::observe`]; [`ParkLog::step`] reads them from a [`Status`]) and says what to
 //! write: [`Parked::Moving`] as soon as a motion starts (a cut from then on means "unknown,
 //! home first"), and [`Parked::At`] once the lift has been at rest, with the encoder still,
 //! for [`SETTLED_TICKS`] — after the coupling has unwound. Nothing is recorded while the
@@ -46,17 +47,24 @@ impl ParkLog {
 
     /// One tick: what to write now, if anything.
     pub fn step(&mut self, s: &Status) -> Option<Parked> {
-        let moving = matches!(s.state, State::Lifting | State::Lowering);
-        if s.position == self.last_position && !moving {
+        self.observe(s.state, s.position, s.homed)
+    }
+
+    /// [`Self::step`] from the three values it reads (`Controller::state`,
+    /// `Controller::position_counts`, `Controller::homed`): the firmware's control task calls
+    /// this every tick, and builds the whole status only when it logs it.
+    pub fn observe(&mut self, state: State, position: i32, homed: bool) -> Option<Parked> {
+        let moving = matches!(state, State::Lifting | State::Lowering);
+        if position == self.last_position && !moving {
             self.still = self.still.saturating_add(1);
         } else {
             self.still = 0;
         }
-        self.last_position = s.position;
+        self.last_position = position;
         let want = if moving {
             Parked::Moving
-        } else if s.homed && self.still >= SETTLED_TICKS {
-            Parked::At(s.position)
+        } else if homed && self.still >= SETTLED_TICKS {
+            Parked::At(position)
         } else {
             return None;
         };

@@ -423,3 +423,47 @@ fn an_amplifier_offset_present_at_boot_is_measured_at_rest_and_leaves_the_load_u
     // 306 kg off (measured on main f1262f0).
     assert!(worst <= 0.1 * load, "{worst:.1} kg");
 }
+
+#[test]
+fn an_empty_lift_lowering_reads_an_empty_head() {
+    // A light lowering's torque is V-shaped in the load (docs/model.md "An empty head"): an
+    // empty head carries on the thread's other flank, and the loaded flank's reading of the
+    // same torque is tens of kg (PTFE at 30°: ≈ 30 kg). The status reports the near branch.
+    for lub in [Lubricant::Ptfe, Lubricant::Lithium, Lubricant::Dry] {
+        let mut s = commissioned(lub, 0.0, 30.0, 3.0);
+        s.seed = 5;
+        let g = host_sim::physics::Geometry::paper();
+        let h = g.height(30f64.to_radians()) - 3.5e-3;
+        let last = std::sync::Arc::new(std::sync::Mutex::new(None));
+        let seen = std::sync::Arc::clone(&last);
+        let r = run(
+            &s,
+            Box::new(move |k: &mut Tick<'_>| {
+                if (k.t - 0.7).abs() < 5e-4 {
+                    k.controller
+                        .command(Command::GoTo(Metres::from_f64(h)))
+                        .unwrap();
+                }
+                let c = &k.controller;
+                if (c.reference().to_f64() + 3.0).abs() < 1e-3 {
+                    *seen.lock().unwrap() =
+                        Some((k.t, c.status().load, c.status().friction_torque));
+                }
+            }),
+        );
+        assert!(faults(&r).is_empty(), "{lub:?}: {:?}", faults(&r));
+        let (t, l, tr) = last.lock().unwrap().expect("a cruise");
+        let plant = plant_friction_at(&r, t);
+        println!(
+            "{lub:?} empty lowering: {:.1} kg at {t:.3} s, T_r {:.4} N·m (plant {plant:.4})",
+            l.load.to_f64(),
+            tr.to_f64()
+        );
+        assert!(l.load.to_f64() <= 10.0, "{lub:?}: {l:?}");
+        // The goal's floor for a tiny torque: 0.05 N·m.
+        assert!(
+            (tr.to_f64() - plant).abs() <= 0.05,
+            "{lub:?}: {tr:?} vs {plant}"
+        );
+    }
+}

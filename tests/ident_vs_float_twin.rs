@@ -185,6 +185,65 @@ proptest! {
         prop_assert!((got - want).abs() <= 5e-4 * want.abs() + 0.1 + q, "{} vs {} (t {})", got, want, t);
     }
 
+    /// A lowering's load on the reversed flank (`pair::reversed_flank_load`): a head lighter
+    /// than M* = −D/G_d carries on the other flank, whose ρ is lifting's, T = ρ_up·(M·G + D);
+    /// the near branch's load is that M, within 0.5 % or 0.2 kg of the twin (M = (T/ρ_up − D)/G),
+    /// 0 down to T = 1.5·ρ_up·D, and `None` beyond (only the loaded flank explains it) or where
+    /// D ≥ 0.
+    #[test]
+    fn a_light_lowering_reads_the_near_branch_like_the_twin(
+        alpha in 15.0f64..50.0,
+        m_frac in 0.0f64..1.0,
+        mu in 0.05f64..0.4,
+        d in -200.0f64..-5.0,
+        extra in 0.0f64..1.0,
+    ) {
+        // Lowering's G_d: 9.81·(cos α − 0.6)/sin α, positive below ≈ 53°.
+        let g = g_per_kg(alpha, -1.0, 0.3);
+        prop_assume!(g > 0.5);
+        // A load on the reversed flank: 0 ≤ M ≤ M*.
+        let m_star = -d / g;
+        let m = m_frac * m_star;
+        let t = rho(1.0, mu) * (m * g + d);
+        let mut mm = MotionMeans {
+            dir: -1,
+            torque: NewtonMetres::from_f64(t),
+            g_per_kg: (g * f64::from(1u32 << 23)).round() as i32,
+            free: Newtons::from_f64(d),
+            mu: Ratio::from_f64(mu),
+            n: 1000,
+            slipped: false,
+        };
+        let (tq, gq, dq, muq) = (
+            mm.torque.to_f64(),
+            f64::from(mm.g_per_kg) / f64::from(1u32 << 23),
+            mm.free.to_f64(),
+            mm.mu.to_f64(),
+        );
+        let want = ((tq / rho(1.0, muq) - dq) / gq).max(0.0);
+        let q = 2f64.powi(-16) / (rho(1.0, muq) * gq);
+        match pair::reversed_flank_load(&screw(), &mm) {
+            Some(got) => {
+                let got = got as f64 / 4096.0;
+                prop_assert!((got - want).abs() <= 5e-3 * want + 0.2 + q, "{} vs {}", got, want);
+            }
+            // Only at the range's quantised edges.
+            None => prop_assert!(!(1e-3..=0.999).contains(&m_frac), "None for {} of {}", m, m_star),
+        }
+        // More downward torque than 1.5× an empty head's: the loaded flank's reading only.
+        mm.torque = NewtonMetres::from_f64(rho(1.0, mu) * d * (1.52 + extra));
+        prop_assert_eq!(pair::reversed_flank_load(&screw(), &mm), None);
+        // Between 1× and 1.48× an empty head's: the near branch reads 0.
+        mm.torque = NewtonMetres::from_f64(rho(1.0, mu) * d * (1.0 + 0.48 * extra));
+        prop_assert_eq!(pair::reversed_flank_load(&screw(), &mm), Some(0));
+        // Lifting, or a positive load-free demand: not this reading.
+        mm.dir = 1;
+        prop_assert_eq!(pair::reversed_flank_load(&screw(), &mm), None);
+        mm.dir = -1;
+        mm.free = Newtons::from_f64(-d);
+        prop_assert_eq!(pair::reversed_flank_load(&screw(), &mm), None);
+    }
+
     /// A lift/lowering pair: the scale within 0.2 % and the load within 0.3 % or 0.5 kg of the
     /// twin's solution, and, where the load's push while lowering is at least 8× the load-free
     /// demand, both within 1 % (0.5 kg) of the truth the means were made from, and never

@@ -372,6 +372,19 @@ impl Controller {
         crate::ident::stick::lift(peak, mean, drop, rho1, rho0, g_up, g_r)
     }
 
+    /// A lowering's load on the reversed flank, where its torque is an empty (or nearly empty)
+    /// head's (`ident::LoadIdent::reversed_flank_load`), while it runs and at rest after it:
+    /// the status reports it. At the status.
+    pub(super) fn lowering_load(&self) -> Option<Kilograms> {
+        let moving = self.live.moving();
+        if moving && self.live.state != State::Lowering {
+            return None;
+        }
+        self.loadid
+            .ident
+            .reversed_flank_load(self.est.screw(), self.est.law(), moving)
+    }
+
     /// The model's friction torque T_r at the identified load: the tick's estimate runs the
     /// model at the rated load, and at a pose and speed |T_r| is proportional to the axial
     /// demand |W| = |M·G_d + D| (friction opposes the motion on either flank), so
@@ -417,7 +430,8 @@ impl Controller {
             }
         }
         let w = i64::from(e.axial.bits());
-        let dl = i64::from(self.loadid.load.bits()) - i64::from(self.derived.cfg.rated_load.bits());
+        let load = self.lowering_load().unwrap_or(self.loadid.load);
+        let dl = i64::from(load.bits()) - i64::from(self.derived.cfg.rated_load.bits());
         if dl == 0 || w.unsigned_abs() < 256 {
             return e.friction_torque;
         }

@@ -326,7 +326,7 @@ impl Controller {
         let stick = self.stick_slip_lift();
         let friction_torque = stick.map_or_else(|| self.friction_at_load(), |s| s.1);
         let mut load = self.loadid.ident.report();
-        if let Some((m, _)) = stick {
+        if let Some(m) = stick.map(|s| s.0).or_else(|| self.lowering_load()) {
             load.load = m;
             load.load_lo = load.load_lo.min(m);
             load.load_hi = load.load_hi.max(m);

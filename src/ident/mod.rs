@@ -169,6 +169,8 @@ pub struct LoadIdent {
     identified: bool,
     run: Sums,
     run_dir: i8,
+    /// The last motion's sums if it was a lowering (the status at rest reads them).
+    ended: Sums,
     up: Option<MotionMeans>,
     down: Option<MotionMeans>,
     steady: u32,
@@ -221,6 +223,7 @@ impl LoadIdent {
             identified: false,
             run: Sums::default(),
             run_dir: 0,
+            ended: Sums::default(),
             up: None,
             down: None,
             steady: 0,
@@ -558,6 +561,12 @@ impl LoadIdent {
         self.steady = 0;
         self.prev_reference = RadiansPerSecond::ZERO;
         let run = core::mem::take(&mut self.run);
+        // A lowering's sums stay for the status at rest (`reversed_flank_load`).
+        self.ended = if self.run_dir < 0 {
+            run
+        } else {
+            Sums::default()
+        };
         self.win_g = 0;
         self.gain_due = false;
         if !fault && run.n >= self.pair_samples && !run.any_reversed {
@@ -584,6 +593,7 @@ impl LoadIdent {
             self.search = None;
             self.load = self.prior;
             self.identified = false;
+            self.ended = Sums::default();
         }
     }
 
@@ -617,6 +627,27 @@ impl LoadIdent {
         self.settle
     }
 
+    /// The load on the reversed flank (`pair::reversed_flank_load`) of the lowering under way
+    /// (`moving`) or, at rest, of the last motion if it was a lowering, when it has enough
+    /// samples to act on and that reading is below the loaded-flank one: an empty or nearly
+    /// empty head. `law` is the law in force (scaled). At the status, not in the tick.
+    pub fn reversed_flank_load(
+        &self,
+        screw: &ScrewModel,
+        law: &crate::model::friction::CompiledLaw,
+        moving: bool,
+    ) -> Option<Kilograms> {
+        // At rest: the last motion's, if it was a lowering (`end_motion` kept its sums).
+        let s = if moving { &self.run } else { &self.ended };
+        if self.run_dir >= 0 || s.n < self.min_samples || s.any_reversed {
+            return None;
+        }
+        let mu = law.mu(self.run_reference.sat_abs());
+        let m = pair::reversed_flank_load(screw, &self.means(s, mu))?;
+        let m = Kilograms::from_raw(i32::try_from(m).ok()?.max(0));
+        (m < self.load).then_some(m)
+    }
+
     /// Whether a pair solve is under way.
     pub fn solving(&self) -> bool {
         self.search.is_some()
@@ -624,11 +655,13 @@ impl LoadIdent {
 
     fn means(&self, s: &Sums, mu: Ratio) -> MotionMeans {
         let n = i64::from(s.n.max(1));
+        // G_d and D enter the sums when a window closes: over the closed windows' samples.
+        let closed = i64::from(s.n.saturating_sub(self.win).max(1));
         MotionMeans {
             dir: self.run_dir,
             torque: NewtonMetres::from_raw(crate::units::sat32(s.t / n)),
-            g_per_kg: crate::units::sat32(s.gk / n),
-            free: Newtons::from_raw(crate::units::sat32(s.d / n)),
+            g_per_kg: crate::units::sat32(s.gk / closed),
+            free: Newtons::from_raw(crate::units::sat32(s.d / closed)),
             mu,
             n: s.n,
             slipped: false,

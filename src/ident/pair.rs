@@ -67,6 +67,35 @@ pub fn rho_q32(screw: &ScrewModel, mu: Ratio, dir: i8) -> Option<i64> {
     div_scaled(r.checked_mul(num)? >> 16, den, 24)
 }
 
+/// A lowering's load read on the reversed flank: `M = (T/ρ_up(μ) − D)/G_d` where the mean
+/// thread torque puts the axial demand W = T/ρ_up between D and 0. A light lowering's D is
+/// negative (the structure's damping resists the descent more than the load pushes), so below
+/// M* = −D/G_d the thread carries on its other flank, whose r_m·ξ is lifting's. The thread
+/// torque is then V-shaped in M: from r_m·ξ_up·D at an empty head to the support torque at M*,
+/// then down the loaded flank's much flatter slope (PTFE at 150 mm: 0 kg and 26 kg give the same
+/// torque). The loaded-flank solve reads an empty lift as the far branch's load; this one gives
+/// the near branch's (the smaller load that explains the same torque). `mu` is the law in force
+/// at the samples' speed (its scale included). `None` lifting, where D ≥ 0, or where the torque
+/// lies outside the reversed flank's range (the load is on the loaded flank). Two 32-bit
+/// divisions; not in the tick.
+#[inline(never)]
+pub fn reversed_flank_load(screw: &ScrewModel, m: &MotionMeans) -> Option<i64> {
+    let d = i64::from(m.free.bits()) << 8; // Q16 N
+    if m.dir >= 0 || d >= 0 || m.g_per_kg <= 0 {
+        return None;
+    }
+    let rho = rho_q32(screw, m.mu, 1)?;
+    // W = T/ρ in Q16 N: T (Q16 N·m)·2^32/ρ (Q32 m).
+    let axial = div_scaled(i64::from(m.torque.bits()), rho, 32)?;
+    // Down to 1.5·D: an empty head's torque read with the current's accuracy (≈ 0.01 N·m at
+    // the screw, a third of an empty PTFE head's 0.027 N·m), which the near branch reads as 0.
+    if axial > 0 || axial < d + d / 2 {
+        return None;
+    }
+    // kg Q12 = N (Q16)·2^19 / G (Q23).
+    div_scaled((axial - d).max(0), i64::from(m.g_per_kg), 19)
+}
+
 /// The load one motion's means give at friction scale `scale` (on the configured law):
 /// `M = (T/ρ_d(s·μ) − D)/G_d`. `None` where it is not defined (ρ or G zero, overflow).
 /// Not clamped: a pair solve needs the sign and the slope. Three 32-bit divisions.

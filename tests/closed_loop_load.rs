@@ -80,6 +80,32 @@ fn faults(r: &Run) -> Vec<(f64, FaultKind)> {
         .collect()
 }
 
+/// A lowering of `mm` from the start angle `deg`, commanded at `at` s, with `each` called on
+/// every tick at the cruise reference (−3 rad/s as quantised).
+fn lowering(
+    s: &Scenario,
+    deg: f64,
+    mm: f64,
+    at: f64,
+    mut each: impl FnMut(&mut Tick<'_>) + Send + 'static,
+) -> Run {
+    let g = host_sim::physics::Geometry::paper();
+    let h = g.height(deg.to_radians()) - mm * 1e-3;
+    run(
+        s,
+        Box::new(move |k: &mut Tick<'_>| {
+            if (k.t - at).abs() < 5e-4 {
+                k.controller
+                    .command(Command::GoTo(Metres::from_f64(h)))
+                    .unwrap();
+            }
+            if (k.controller.reference().to_f64() + 3.0).abs() < 1e-3 {
+                each(k);
+            }
+        }),
+    )
+}
+
 #[test]
 fn the_identified_load_converges_within_half_a_second_of_cruise() {
     for (lub, load) in [
@@ -285,31 +311,18 @@ fn a_fresh_board_refuses_an_overload_beyond_the_driest_assumption() {
 fn a_fresh_board_lowering_a_light_car_reports_t_r_from_the_current_before_evidence() {
     // Lowering, b_d's error is worth 1.5 kg per mA here.
     let s = commissioned(Lubricant::Ptfe, 100.0, 25.9, 2.2);
-    let g = host_sim::physics::Geometry::paper();
-    let h = g.height(25.9f64.to_radians()) - 4.0e-3;
     let log = std::sync::Arc::new(std::sync::Mutex::new(Vec::<(f64, bool, f64, f64)>::new()));
     let inner = std::sync::Arc::clone(&log);
-    let r = run(
-        &s,
-        Box::new(move |k: &mut Tick<'_>| {
-            if (k.t - 0.02).abs() < 5e-4 {
-                k.controller
-                    .command(Command::GoTo(Metres::from_f64(h)))
-                    .unwrap();
-            }
-            let c = &k.controller;
-            // At cruise (the profile's reference within rounding of −3 rad/s).
-            if (c.reference().to_f64() + 3.0).abs() < 1e-3 {
-                let st = c.status();
-                inner.lock().unwrap().push((
-                    k.t,
-                    st.load.identified,
-                    st.friction_torque.to_f64(),
-                    c.estimate().friction_torque.to_f64(),
-                ));
-            }
-        }),
-    );
+    let r = lowering(&s, 25.9, 4.0, 0.02, move |k| {
+        let c = &k.controller;
+        let st = c.status();
+        inner.lock().unwrap().push((
+            k.t,
+            st.load.identified,
+            st.friction_torque.to_f64(),
+            c.estimate().friction_torque.to_f64(),
+        ));
+    });
     assert!(faults(&r).is_empty(), "{:?}", faults(&r));
     let log = log.lock().unwrap();
     let plant = |t: f64| plant_friction_at(&r, t);
@@ -385,32 +398,18 @@ fn an_amplifier_offset_present_at_boot_is_measured_at_rest_and_leaves_the_load_u
         &host_sim::inject::parse_list("current-offset@0:0.1").expect("a valid fault"),
     )
     .expect("a valid plan");
-    let g = host_sim::physics::Geometry::paper();
-    let h = g.height(30f64.to_radians()) - 3.5e-3;
     let mut cruise_at: Option<f64> = None;
     let worst = std::sync::Arc::new(std::sync::Mutex::new((0.0f64, 0u32)));
     let seen = std::sync::Arc::clone(&worst);
-    let r = run(
-        &s,
-        Box::new(move |k: &mut Tick<'_>| {
-            if (k.t - 0.7).abs() < 5e-4 {
-                k.controller
-                    .command(Command::GoTo(Metres::from_f64(h)))
-                    .unwrap();
-            }
-            let c = &k.controller;
-            // The cruise reference (−3 rad/s, as quantised).
-            if (c.reference().to_f64() + 3.0).abs() < 1e-3 {
-                let t0 = *cruise_at.get_or_insert(k.t);
-                if k.t >= t0 + 0.5 {
-                    let l = c.status().load;
-                    assert!(l.identified, "{l:?}");
-                    let mut w = seen.lock().unwrap();
-                    *w = (w.0.max((l.load.to_f64() - load).abs()), w.1 + 1);
-                }
-            }
-        }),
-    );
+    let r = lowering(&s, 30.0, 3.5, 0.7, move |k| {
+        let t0 = *cruise_at.get_or_insert(k.t);
+        if k.t >= t0 + 0.5 {
+            let l = k.controller.status().load;
+            assert!(l.identified, "{l:?}");
+            let mut w = seen.lock().unwrap();
+            *w = (w.0.max((l.load.to_f64() - load).abs()), w.1 + 1);
+        }
+    });
     assert!(faults(&r).is_empty(), "{:?}", faults(&r));
     let (worst, checked) = *worst.lock().unwrap();
     assert!(
@@ -432,25 +431,12 @@ fn an_empty_lift_lowering_reads_an_empty_head() {
     for lub in [Lubricant::Ptfe, Lubricant::Lithium, Lubricant::Dry] {
         let mut s = commissioned(lub, 0.0, 30.0, 3.0);
         s.seed = 5;
-        let g = host_sim::physics::Geometry::paper();
-        let h = g.height(30f64.to_radians()) - 3.5e-3;
         let last = std::sync::Arc::new(std::sync::Mutex::new(None));
         let seen = std::sync::Arc::clone(&last);
-        let r = run(
-            &s,
-            Box::new(move |k: &mut Tick<'_>| {
-                if (k.t - 0.7).abs() < 5e-4 {
-                    k.controller
-                        .command(Command::GoTo(Metres::from_f64(h)))
-                        .unwrap();
-                }
-                let c = &k.controller;
-                if (c.reference().to_f64() + 3.0).abs() < 1e-3 {
-                    *seen.lock().unwrap() =
-                        Some((k.t, c.status().load, c.status().friction_torque));
-                }
-            }),
-        );
+        let r = lowering(&s, 30.0, 3.5, 0.7, move |k| {
+            let st = k.controller.status();
+            *seen.lock().unwrap() = Some((k.t, st.load, st.friction_torque));
+        });
         assert!(faults(&r).is_empty(), "{lub:?}: {:?}", faults(&r));
         let (t, l, tr) = last.lock().unwrap().expect("a cruise");
         let plant = plant_friction_at(&r, t);

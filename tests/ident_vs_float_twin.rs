@@ -204,16 +204,9 @@ proptest! {
         // A load on the reversed flank: 0 ≤ M ≤ M*.
         let m_star = -d / g;
         let m = m_frac * m_star;
-        let t = rho(1.0, mu) * (m * g + d);
-        let mut mm = MotionMeans {
-            dir: -1,
-            torque: NewtonMetres::from_f64(t),
-            g_per_kg: (g * f64::from(1u32 << 23)).round() as i32,
-            free: Newtons::from_f64(d),
-            mu: Ratio::from_f64(mu),
-            n: 1000,
-            slipped: false,
-        };
+        // `means` puts the torque on the loaded flank; on the reversed one ρ is lifting's.
+        let (mut mm, _) = means(-1, m, 1.0, g, d, mu);
+        mm.torque = NewtonMetres::from_f64(rho(1.0, mu) * (m * g + d));
         let (tq, gq, dq, muq) = (
             mm.torque.to_f64(),
             f64::from(mm.g_per_kg) / f64::from(1u32 << 23),

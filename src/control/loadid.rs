@@ -385,12 +385,13 @@ impl Controller {
             .reversed_flank_load(self.est.screw(), self.est.law(), moving)
     }
 
-    /// The model's friction torque T_r at the identified load: the tick's estimate runs the
+    /// The model's friction torque T_r at `load` (the identified load, or a lowering's
+    /// reading on the reversed flank, `lowering_load`): the tick's estimate runs the
     /// model at the rated load, and at a pose and speed |T_r| is proportional to the axial
     /// demand |W| = |M·G_d + D| (friction opposes the motion on either flank), so
     /// T_r(L) = T_r(L_r)·|W + (L − L_r)·G_d|/|W| (one division, here: the status, not the tick).
     /// At rest before any motion (no direction yet) lifting's G_d.
-    pub(super) fn friction_at_load(&self) -> NewtonMetres {
+    pub(super) fn friction_at_load(&self, load: Kilograms) -> NewtonMetres {
         let e = &self.live.latest.estimate;
         if self.holds_actively() {
             // A ball screw: no load identification (`identify_load`), the model at the rated load.
@@ -401,7 +402,7 @@ impl Controller {
             State::Lifting => 1,
             _ => 0,
         };
-        if dir != 0 && !self.loadid.ident.report().identified {
+        if dir != 0 && !self.loadid.ident.identified() {
             // No evidence yet (the settling after the start's ramp, the first windows): the
             // thread torque the current measures (low-passed, less the model's own screw
             // torque and the drive's no-load torque) instead of the prior's,
@@ -430,7 +431,6 @@ impl Controller {
             }
         }
         let w = i64::from(e.axial.bits());
-        let load = self.lowering_load().unwrap_or(self.loadid.load);
         let dl = i64::from(load.bits()) - i64::from(self.derived.cfg.rated_load.bits());
         if dl == 0 || w.unsigned_abs() < 256 {
             return e.friction_torque;

@@ -323,10 +323,19 @@ impl Controller {
         let latest = &self.live.latest;
         let stick_slip = self.motion.stick_slip.output();
         // A stick-slipping lift: the load and mean T_r from its breakaways.
+        // Else an empty head lowering: its load on the reversed flank (computed once here).
         let stick = self.stick_slip_lift();
-        let friction_torque = stick.map_or_else(|| self.friction_at_load(), |s| s.1);
+        let lowering = if stick.is_none() {
+            self.lowering_load()
+        } else {
+            None
+        };
+        let friction_torque = stick.map_or_else(
+            || self.friction_at_load(lowering.unwrap_or(self.loadid.load)),
+            |s| s.1,
+        );
         let mut load = self.loadid.ident.report();
-        if let Some(m) = stick.map(|s| s.0).or_else(|| self.lowering_load()) {
+        if let Some(m) = stick.map(|s| s.0).or(lowering) {
             load.load = m;
             load.load_lo = load.load_lo.min(m);
             load.load_hi = load.load_hi.max(m);

@@ -648,6 +648,13 @@ impl LoadIdent {
         (m < self.load).then_some(m)
     }
 
+    /// The load comes from a motion's current (this one's or an earlier one's), not the prior
+    /// (`LoadReport::identified`, without building the report).
+    #[inline]
+    pub fn identified(&self) -> bool {
+        self.identified
+    }
+
     /// Whether a pair solve is under way.
     pub fn solving(&self) -> bool {
         self.search.is_some()

@@ -1022,8 +1022,10 @@ impl Sim {
     }
 
     /// Live stepping (`host-sim serve`): advances `n` base steps from where the previous call
-    /// ended, ticking the driver on schedule; no trace, no summary, no end. Returns the
-    /// simulated time reached. Not to be mixed with [`Sim::run`] on the same `Sim`.
+    /// ended, ticking the driver on schedule and observing the sensors after every step as
+    /// [`Sim::run`] does (the encoder's edge times: without them the board's speed loop sees
+    /// whole counts only and rings, ±0.5 A at 3 rad/s); no trace, no summary, no end. Returns
+    /// the simulated time reached. Not to be mixed with [`Sim::run`] on the same `Sim`.
     pub fn step_n(&mut self, n: u64) -> f64 {
         let dt = self.cfg.dt;
         let per_tick = (1.0 / (self.cfg.control_rate * dt)).round().max(1.0) as u64;
@@ -1033,8 +1035,10 @@ impl Sim {
             if !self.driver.is_paper() && k.is_multiple_of(per_tick) {
                 self.tick(t);
             }
-            self.advance(t, (k + 1) as f64 * dt);
+            let t_next = (k + 1) as f64 * dt;
+            self.advance(t, t_next);
             self.steps += 1;
+            self.observe(t_next, dt);
         }
         self.steps as f64 * dt
     }

@@ -17,7 +17,7 @@ use super::derived::ARRIVED_COUNTS;
 use super::{Bridge, Controller, Event, FaultKind, State};
 use crate::estimator::Estimator;
 use crate::ident::{LoadIdent, MotionEnd, TickSample};
-use crate::units::{qmul, sat32, Kilograms, NewtonMetres, Ratio, Q};
+use crate::units::{qmul, sat32, Kilograms, NewtonMetres, RadiansPerSecond, Ratio, Q};
 
 /// The controller's identification state: built with the configuration;
 /// [`Controller::reconfigure`] keeps what was identified when the model stays the same.
@@ -276,6 +276,11 @@ impl Controller {
         if !id.ident.add(&sample, || est.g_per_kg(position, dir)) {
             return;
         }
+        // A window closed. A lowering that stick-slips keeps the load it began with from now
+        // on (`LoadIdent::hold_start`: within a window of the detector's episode).
+        if dir < 0 && self.motion.stick_slip.output().active {
+            id.ident.hold_start();
+        }
         id.load = id.ident.load();
         id.offset = id.ident.torque_offset(rated);
         if self.live.state != State::Fault {
@@ -300,9 +305,19 @@ impl Controller {
         let slipped = episodes != self.loadid.episodes || self.motion.stick_slip.output().active;
         self.loadid.episodes = episodes;
         let fault = self.live.state == State::Fault;
+        // A stick-slipping lift's load is its breakaways' (the status said so while it ran):
+        // the load at rest and the next motion's start (a lowering that stick-slips keeps it).
+        let breakaway = if slipped && !fault && !at_lower && self.loadid.ident.direction() > 0 {
+            self.breakaway_lift(self.loadid.ident.reference())
+        } else {
+            None
+        };
         self.loadid
             .ident
             .end_motion(self.est.screw(), self.est.law(), at_lower, fault, slipped);
+        if let Some((m, _)) = breakaway {
+            self.loadid.ident.set_load(m);
+        }
         let id = &mut self.loadid;
         id.rest_work |= id.ident.solving();
         id.load = id.ident.load();
@@ -318,6 +333,13 @@ impl Controller {
         if self.live.state != State::Lifting || !self.motion.stick_slip.output().active {
             return None;
         }
+        self.breakaway_lift(self.reference_speed())
+    }
+
+    /// [`Self::stick_slip_lift`]'s reading of this lift's breakaways at the cruise reference
+    /// `reference` (also at its end, at rest: `end_load_motion`).
+    #[inline(never)]
+    fn breakaway_lift(&self, reference: RadiansPerSecond) -> Option<(Kilograms, NewtonMetres)> {
         let (sum, n) = self.motion.stick_slip.breakaways();
         let n = n.wrapping_sub(self.loadid.breakaways.1);
         let (t, k) = self.loadid.ident.thread_sum();
@@ -354,7 +376,7 @@ impl Controller {
                 .coupling_stiffness
                 .bits(),
         );
-        let w = i64::from(self.reference_speed().bits()).abs();
+        let w = i64::from(reference.bits()).abs();
         let tick = i64::from(self.derived.cfg.estimator.tick_us);
         let wind = drop
             .saturating_mul(1_000_000 << 16)

@@ -167,6 +167,11 @@ pub struct LoadIdent {
     prior: Kilograms,
     load: Kilograms,
     identified: bool,
+    /// The load and `identified` when the motion under way began (the last motion's
+    /// identification, or the prior): a stick-slipping lowering goes back to it.
+    start: (Kilograms, bool),
+    /// This motion's samples no longer set the load ([`Self::hold_start`]).
+    held: bool,
     run: Sums,
     run_dir: i8,
     /// The last motion's sums if it was a lowering (the status at rest reads them).
@@ -221,6 +226,8 @@ impl LoadIdent {
             prior,
             load: prior,
             identified: false,
+            start: (prior, false),
+            held: false,
             run: Sums::default(),
             run_dir: 0,
             ended: Sums::default(),
@@ -470,6 +477,9 @@ impl LoadIdent {
         // A negative load before the motion has converged is a transient the settling did
         // not cover: the load stays. Once converged it is an empty lift's noise: 0.
         let converged = s.n >= self.min_samples;
+        if self.held {
+            return;
+        }
         if let Some(m) = ratio_q12(s.y, s.g).filter(|&m| m >= 0 || converged) {
             let m = m.clamp(0, crate::estimator::LOAD_MAX.bits());
             self.load = Kilograms::from_raw(m);
@@ -587,6 +597,11 @@ impl LoadIdent {
                 self.search = PairSearch::new(screw, &up, &down);
             }
         }
+        if self.held {
+            // Its sums are no reading of the load at rest either (`reversed_flank_load`).
+            self.ended = Sums::default();
+            self.held = false;
+        }
         if at_lower_stop {
             self.up = None;
             self.down = None;
@@ -595,6 +610,45 @@ impl LoadIdent {
             self.identified = false;
             self.ended = Sums::default();
         }
+        self.start = (self.load, self.identified);
+    }
+
+    /// A lowering that stick-slips (a detected episode): its mean torque is not the law's
+    /// sliding torque. The stick phases mobilise the static friction only in part, and the
+    /// slips run at tens of rad/s, where a dry or greased thread's μ is below its cruise value
+    /// (docs/model.md "A stick-slipping lowering"). Read with the law it gives the car too
+    /// light (host-sim, dry 1000 kg: 350…860 kg). The load goes back to what it was when the
+    /// motion began (the lift's identification, or the prior with its interval) and this
+    /// motion's samples no longer set it; they stay in the sums (a pair takes the motion as
+    /// stick-slipped, `MotionMeans::slipped`). True on the call that started holding. Cheap:
+    /// a flag once held.
+    #[inline]
+    pub fn hold_start(&mut self) -> bool {
+        if self.held {
+            return false;
+        }
+        self.held = true;
+        (self.load, self.identified) = self.start;
+        true
+    }
+
+    /// This motion's samples no longer set the load ([`Self::hold_start`]).
+    pub fn held(&self) -> bool {
+        self.held
+    }
+
+    /// A stick-slipping lift's load from its breakaways (`ident::stick::lift`), after
+    /// [`Self::end_motion`]: the mean of its samples reads such a lift light (its slips run
+    /// where μ is lower). The load at rest and the next motion's start.
+    pub fn set_load(&mut self, load: Kilograms) {
+        self.load = load;
+        self.identified = true;
+        self.start = (load, true);
+    }
+
+    /// The constant reference of the motion's samples (the last motion's at rest).
+    pub fn reference(&self) -> RadiansPerSecond {
+        self.run_reference
     }
 
     /// One tick at rest: one step of the pair solve under way, if any (a motion pauses it).
@@ -639,7 +693,7 @@ impl LoadIdent {
     ) -> Option<Kilograms> {
         // At rest: the last motion's, if it was a lowering (`end_motion` kept its sums).
         let s = if moving { &self.run } else { &self.ended };
-        if self.run_dir >= 0 || s.n < self.min_samples || s.any_reversed {
+        if self.run_dir >= 0 || s.n < self.min_samples || s.any_reversed || self.held {
             return None;
         }
         let mu = law.mu(self.run_reference.sat_abs());
@@ -998,5 +1052,49 @@ mod tests {
         // At the lower stop the car may change: back to the prior.
         id.end_motion(&sc, &law(&sc), true, false, false);
         assert_eq!(id.load(), Kilograms::lit("1000"));
+    }
+
+    /// A stick-slipping lowering keeps the load the motion began with (`hold_start`): the
+    /// lift's identification, or at boot the prior with its interval; a stick-slipping lift's
+    /// breakaway load (`set_load`) is the next motion's start.
+    #[test]
+    fn a_stick_slipping_lowering_keeps_the_load_it_began_with() {
+        let sc = screw();
+        let bias = NewtonMetres::from_f64(0.5);
+        let mut id = LoadIdent::new(Kilograms::lit("1000"), bias, None, 1000);
+        id.set_interval(&sc, Ratio::from_f64(0.21));
+        motion(&mut id, &sc, 1, 600.0, 1.0, 400);
+        id.end_motion(&sc, &law(&sc), false, false, false);
+        let lifted = id.load();
+        assert!((lifted.to_f64() - 600.0).abs() < 0.6, "{lifted:?}");
+        // The lowering's samples read a lighter car (its stick-slip's mean): 400 kg.
+        motion(&mut id, &sc, -1, 400.0, 1.0, 300);
+        assert!((id.load().to_f64() - 400.0).abs() < 2.0, "{:?}", id.load());
+        assert!(id.hold_start(), "the first call starts holding");
+        assert!(!id.hold_start() && id.held());
+        assert_eq!(id.load(), lifted);
+        // Further samples no longer move it, nor does the motion's end.
+        motion(&mut id, &sc, -1, 400.0, 1.0, 300);
+        assert_eq!(id.load(), lifted);
+        assert!(id.reversed_flank_load(&sc, &law(&sc), true).is_none());
+        id.end_motion(&sc, &law(&sc), false, false, true);
+        assert!(!id.held() && id.identified());
+        assert_eq!(id.load(), lifted);
+        assert!(id.reversed_flank_load(&sc, &law(&sc), false).is_none());
+        // A lift whose breakaways said 700 kg: the load at rest and the next motion's start.
+        motion(&mut id, &sc, 1, 500.0, 1.0, 400);
+        id.end_motion(&sc, &law(&sc), false, false, true);
+        id.set_load(Kilograms::lit("700"));
+        motion(&mut id, &sc, -1, 400.0, 1.0, 300);
+        assert!(id.hold_start());
+        assert_eq!(id.load(), Kilograms::lit("700"));
+        // At boot a stick-slipping lowering goes back to the prior, not identified: 0…2×.
+        let mut id = LoadIdent::new(Kilograms::lit("1000"), bias, None, 1000);
+        id.set_interval(&sc, Ratio::from_f64(0.21));
+        motion(&mut id, &sc, -1, 400.0, 1.0, 300);
+        assert!(id.identified());
+        assert!(id.hold_start());
+        assert!(!id.identified() && id.load() == Kilograms::lit("1000"));
+        assert_eq!(id.interval(), (Kilograms::ZERO, Kilograms::lit("2000")));
     }
 }

@@ -370,10 +370,12 @@ impl LoadIdent {
     #[inline]
     pub fn add(&mut self, x: &TickSample, g_per_kg: impl FnOnce() -> i32) -> bool {
         if self.run.n > 0 && self.run_dir != x.dir {
-            // A reversal without a rest between: start over.
+            // A reversal without a rest between: start over (a hold was the other way's).
             self.run = Sums::default();
             self.win = 0;
             self.win_g = 0;
+            self.held = false;
+            self.start = (self.load, self.identified);
         }
         self.run_dir = x.dir;
         if self.win >= self.window_len() {
@@ -1081,6 +1083,13 @@ mod tests {
         assert!(!id.held() && id.identified());
         assert_eq!(id.load(), lifted);
         assert!(id.reversed_flank_load(&sc, &law(&sc), false).is_none());
+        // A reversal without a rest (a lowering that held, then a lift): the lift identifies.
+        motion(&mut id, &sc, -1, 400.0, 1.0, 300);
+        assert!(id.hold_start() && id.load() == lifted);
+        motion(&mut id, &sc, 1, 650.0, 1.0, 400);
+        assert!(!id.held());
+        assert!((id.load().to_f64() - 650.0).abs() < 1.0, "{:?}", id.load());
+        id.end_motion(&sc, &law(&sc), false, false, false);
         // A lift whose breakaways said 700 kg: the load at rest and the next motion's start.
         motion(&mut id, &sc, 1, 500.0, 1.0, 400);
         id.end_motion(&sc, &law(&sc), false, false, true);

@@ -51,6 +51,10 @@ struct Sample {
     core_load: f64,
     /// The profile's reference is at cruise speed.
     cruise: bool,
+    /// The plant's thread sticks (its truth).
+    stuck: bool,
+    /// The board's stick-slip detector has an episode under way.
+    flagged: bool,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -189,6 +193,8 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
             cruise: matches!(c.state(), State::Lifting | State::Lowering)
                 && (c.reference().to_f64().abs() - control.motion.cruise_speed.to_f64()).abs()
                     < 1e-3,
+            stuck: matches!(r.phase, crate::twin::plant::Phase::Stick),
+            flagged: st.stick_slip,
         };
         samples.push(s);
         let state = c.state();
@@ -309,6 +315,19 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
             a.load_kg,
             id - a.load_kg,
             relative(id - a.load_kg, a.load_kg, 1.0)
+        );
+    }
+    {
+        // Stick-slip, the plant's truth beside what the board saw (docs/stick-slip.md).
+        let stuck = cruise.iter().filter(|s| s.stuck).count() as f64 / n;
+        let flagged = cruise.iter().filter(|s| s.flagged).count() as f64 / n;
+        let episodes = lock(&shared).0.status().stick_slip_episodes;
+        println!(
+            "stick-slip: the plant's thread stuck {:.0} % of the cruise; the board flagged {:.0} % of it ({} episode{})",
+            100.0 * stuck,
+            100.0 * flagged,
+            episodes,
+            if episodes == 1 { "" } else { "s" }
         );
     }
     println!(

@@ -172,6 +172,9 @@ pub struct LoadIdent {
     start: (Kilograms, bool),
     /// This motion's samples no longer set the load ([`Self::hold_start`]).
     held: bool,
+    /// Their reading while held: light (the stick-slip's mean), so still a floor under the
+    /// load for the overload trip.
+    held_reading: Option<Kilograms>,
     run: Sums,
     run_dir: i8,
     /// The last motion's sums if it was a lowering (the status at rest reads them).
@@ -228,6 +231,7 @@ impl LoadIdent {
             identified: false,
             start: (prior, false),
             held: false,
+            held_reading: None,
             run: Sums::default(),
             run_dir: 0,
             ended: Sums::default(),
@@ -375,6 +379,7 @@ impl LoadIdent {
             self.win = 0;
             self.win_g = 0;
             self.held = false;
+            self.held_reading = None;
             self.start = (self.load, self.identified);
         }
         self.run_dir = x.dir;
@@ -479,13 +484,14 @@ impl LoadIdent {
         // A negative load before the motion has converged is a transient the settling did
         // not cover: the load stays. Once converged it is an empty lift's noise: 0.
         let converged = s.n >= self.min_samples;
-        if self.held {
-            return;
-        }
         if let Some(m) = ratio_q12(s.y, s.g).filter(|&m| m >= 0 || converged) {
-            let m = m.clamp(0, crate::estimator::LOAD_MAX.bits());
-            self.load = Kilograms::from_raw(m);
-            self.identified = true;
+            let m = Kilograms::from_raw(m.clamp(0, crate::estimator::LOAD_MAX.bits()));
+            if self.held {
+                self.held_reading = Some(m);
+            } else {
+                self.load = m;
+                self.identified = true;
+            }
         }
     }
 
@@ -549,10 +555,18 @@ impl LoadIdent {
     /// has converged.
     #[inline]
     pub fn load_floor(&self) -> Option<Kilograms> {
-        if !self.converged() || !self.identified {
+        if !self.converged() {
             return None;
         }
-        Some(qmul(self.load, self.floor[usize::from(self.run_dir < 0)]))
+        // A held lowering: the larger of the load it keeps (if identified) and its samples'
+        // light reading, each a floor.
+        let load = match (self.identified, self.held_reading) {
+            (true, Some(r)) => self.load.max(r),
+            (true, None) => self.load,
+            (false, Some(r)) if self.held => r,
+            _ => return None,
+        };
+        Some(qmul(load, self.floor[usize::from(self.run_dir < 0)]))
     }
 
     /// The lift came to rest (`fault`: a fault ended the motion, whose samples then say
@@ -603,6 +617,7 @@ impl LoadIdent {
             // Its sums are no reading of the load at rest either (`reversed_flank_load`).
             self.ended = Sums::default();
             self.held = false;
+            self.held_reading = None;
         }
         if at_lower_stop {
             self.up = None;
@@ -630,6 +645,9 @@ impl LoadIdent {
             return false;
         }
         self.held = true;
+        if self.identified && self.run.n > 0 {
+            self.held_reading = Some(self.load);
+        }
         (self.load, self.identified) = self.start;
         true
     }
@@ -1105,5 +1123,14 @@ mod tests {
         assert!(id.hold_start());
         assert!(!id.identified() && id.load() == Kilograms::lit("1000"));
         assert_eq!(id.interval(), (Kilograms::ZERO, Kilograms::lit("2000")));
+        // Its samples' reading, light as it is, stays a floor for the overload trip.
+        // (The driest scale still possible, 2×, puts the lowering's floor at ≈ 0.39 of it.)
+        let floor = id.load_floor().expect("a floor while held").to_f64();
+        assert!(floor > 120.0 && floor < 400.0, "{floor}");
+        // Heavier samples (the same motion's sums: their mean ≈ 1200 kg) raise it.
+        motion(&mut id, &sc, -1, 2000.0, 1.0, 300);
+        let heavier = id.load_floor().expect("a floor while held").to_f64();
+        assert!(heavier > 2.0 * floor, "{heavier} {floor}");
+        assert_eq!(id.load(), Kilograms::lit("1000"));
     }
 }

@@ -558,13 +558,13 @@ impl LoadIdent {
         if !self.converged() {
             return None;
         }
-        // A held lowering: the larger of the load it keeps (if identified) and its samples'
-        // light reading, each a floor.
+        // A held lowering (`held_reading` is `Some` only then): the larger of the load it
+        // keeps (if identified) and its samples' light reading, each a floor.
         let load = match (self.identified, self.held_reading) {
             (true, Some(r)) => self.load.max(r),
             (true, None) => self.load,
-            (false, Some(r)) if self.held => r,
-            _ => return None,
+            (false, Some(r)) => r,
+            (false, None) => return None,
         };
         Some(qmul(load, self.floor[usize::from(self.run_dir < 0)]))
     }

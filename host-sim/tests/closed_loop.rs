@@ -94,8 +94,8 @@ fn lowering_by_duty_runs_the_motor_backwards() {
     assert!(s.late_screw_speed < -1.0, "{}", s.late_screw_speed);
 }
 
-/// Runs a duty driver that also logs what the board saw.
-fn logged(seed: u64) -> (Vec<Inputs>, Trace) {
+/// A duty driver that also logs what the board saw: the log and the driver.
+fn logging_duty() -> (Arc<Mutex<Vec<Inputs>>>, Driver) {
     let log = Arc::new(Mutex::new(Vec::new()));
     let sink = Arc::clone(&log);
     let duty = OpenLoopDuty {
@@ -106,6 +106,12 @@ fn logged(seed: u64) -> (Vec<Inputs>, Trace) {
         sink.lock().expect("log").push(*inputs);
         duty.command(t, inputs)
     }));
+    (log, driver)
+}
+
+/// Runs a duty driver that also logs what the board saw.
+fn logged(seed: u64) -> (Vec<Inputs>, Trace) {
+    let (log, driver) = logging_duty();
     let (_, trace) = run(cfg(1000.0, 0.15, seed), driver);
     let inputs = log.lock().expect("log").clone();
     (inputs, trace)
@@ -152,16 +158,7 @@ fn the_board_sees_the_motor_through_encoder_and_current_sense() {
 /// What the board sees, tick by tick, from a duty driver stepped by `run` (`pieces` = 0) or
 /// live by `step_n`, `pieces` base steps a call (host-sim serve, lift and estimate).
 fn seen(pieces: u64) -> Vec<Inputs> {
-    let log = Arc::new(Mutex::new(Vec::new()));
-    let sink = Arc::clone(&log);
-    let duty = OpenLoopDuty {
-        duty: 0.6,
-        ramp: 0.05,
-    };
-    let driver = Driver::Custom(Box::new(move |t, inputs: &Inputs| -> Bridge {
-        sink.lock().expect("log").push(*inputs);
-        duty.command(t, inputs)
-    }));
+    let (log, driver) = logging_duty();
     let mut c = cfg(1000.0, 0.15, 5);
     c.record_rate = 0.0;
     let steps = (c.duration / c.dt).round() as u64;

@@ -600,9 +600,11 @@ fn with_a_brake_the_motor_lets_go_at_rest_and_moves_without_a_drop() {
 
 #[test]
 fn with_a_brake_a_lift_from_16_degrees_that_trips_does_not_sink() {
-    // A rated-load lift from α₀ = 16° with the factory protections trips over-current (45 A)
-    // at the breakaway (a known limit of the 4008 configuration at the bottom, issue 9). The
-    // shorted motor then lets the load sink below where it started; the brake holds it.
+    // A rated-load lift from α₀ = 16° with the factory protections does not break away (a
+    // known limit of the 4008 configuration at the bottom, issue 9): the current holds at its
+    // 40 A limit and the stall monitor trips (before the speed loop's second current bound,
+    // the current overshot and over-current, 45 A, tripped). The shorted motor then lets the
+    // load sink below where it started; the brake holds it.
     let start = height_at(16.0);
     let mut sinks = [0.0; 2];
     for (i, brake) in [false, true].into_iter().enumerate() {
@@ -615,13 +617,17 @@ fn with_a_brake_a_lift_from_16_degrees_that_trips_does_not_sink() {
             command_at(0.05, Command::GoTo(Metres::from_f64(start + 0.005))),
         );
         let (t, f) = r.first_fault().expect("the breakaway trips");
-        assert_eq!(f.kind, FaultKind::OverCurrent, "brake {brake}");
+        assert!(
+            matches!(f.kind, FaultKind::Stall | FaultKind::OverCurrent),
+            "brake {brake}: {:?}",
+            f.kind
+        );
         sinks[i] = (height_at_time(&r, t) - r.final_height()) * 1e3;
         let below = (start - r.extreme_height(false)) * 1e3;
         println!(
-            "16° lift, brake {brake}: over-current at {t:.3} s, sank {:.3} mm after it, \
+            "16° lift, brake {brake}: {:?} at {t:.3} s, sank {:.3} mm after it, \
              lowest {below:.3} mm under the start",
-            sinks[i]
+            f.kind, sinks[i]
         );
         if brake {
             assert!(below < 0.05, "{below:.3} mm under the start");

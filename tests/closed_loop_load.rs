@@ -535,3 +535,51 @@ fn a_stick_slipping_lowering_keeps_the_load_its_lift_identified() {
         "{rest:?}"
     );
 }
+
+/// A car the drive cannot break away: 1300 kg on a thread twice as dry as configured (lithium
+/// and dry, ≈ 26°). The speed loop holds the current at its limit (the back-EMF bound alone
+/// rang ±5 A about it and tripped over-current 0.2 s in), the rotor winds the coupling up and
+/// slows to a creep, and the stall protection stops the lift; the fault names the load read
+/// from the torque (the prior's friction: heavier than the car).
+#[test]
+fn a_screw_that_will_not_break_away_stalls_at_the_current_limit_without_over_current() {
+    for lub in [Lubricant::Lithium, Lubricant::Dry] {
+        let mut s = commissioned(lub, 1300.0, 25.9, 1.5);
+        s.thread_friction_factor = 2.0;
+        let r = moves(s, vec![3.0], false);
+        let f = faults(&r);
+        assert_eq!(
+            f.first().map(|x| x.1),
+            Some(FaultKind::Stall),
+            "{lub:?}: {f:?}"
+        );
+        // Measured: 0.52 s (dry) and 0.63 s (lithium) after the command: the rotor's run-down
+        // and stall_ms (300 ms) of creeping.
+        let t = f[0].0 - 0.02;
+        assert!(t <= 0.8, "{lub:?}: stall after {t:.3} s");
+        let worst = r
+            .trace
+            .records
+            .iter()
+            .map(|x| x.current.abs())
+            .fold(0.0, f64::max);
+        let limit = default_current_limit();
+        eprintln!(
+            "{lub:?}: stall at {t:.3} s, worst current {worst:.2} A, load {:?}",
+            r.controller.fault().unwrap().load
+        );
+        assert!(
+            worst < limit + 2.0,
+            "{lub:?}: {worst:.2} A against the {limit} A limit"
+        );
+        let fault = r.controller.fault().unwrap();
+        assert!(fault.load.to_f64() > 1300.0, "{lub:?}: {:?}", fault.load);
+    }
+}
+
+/// The default current limit, amperes.
+fn default_current_limit() -> f64 {
+    liftfw::control::config::ProtectionConfig::DEFAULT
+        .current_limit
+        .to_f64()
+}

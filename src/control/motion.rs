@@ -322,7 +322,6 @@ impl Controller {
                 supply: x.supply,
                 current_headroom: d.current_headroom,
                 current: x.current,
-                current_limit: d.cfg.protection.current_limit,
                 resistance: d.cfg.estimator.motor.resistance,
             },
         )

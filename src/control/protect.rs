@@ -191,6 +191,8 @@ pub struct Monitors {
     high_supply: u32,
     overload: u32,
     fast_lowering: u32,
+    /// Counts forward since the stall monitor's pushing began.
+    crept: i32,
 }
 
 impl Monitors {
@@ -238,15 +240,29 @@ impl Monitors {
         if count(&mut self.blind, no_count && turning) >= l.stall_ticks {
             return Some(FaultKind::EncoderLost);
         }
-        // Pushing: high duty (Roboteq's rule), or sitting at the current limit (at standstill
-        // the limit caps the duty at R·I/V, far below any useful duty threshold).
-        let pushing = s.duty.unsigned_abs() >= l.stall_duty.unsigned_abs()
-            || s.current.sat_abs() >= l.stall_current
-            || s.lagging;
-        // No progress in the direction of travel: still, or pushed back (a jammed screw under a
-        // load beyond the motor creeps back a count now and then).
-        let no_progress = s.moving && (s.delta == 0 || (s.delta > 0) == s.lowering);
-        if count(&mut self.still, no_progress && pushing && !turning) >= l.stall_ticks {
+        // Stalled: moving, not turning by the voltage balance (most moving ticks end here),
+        // pushing — high duty (Roboteq's rule), or sitting at the current limit (at standstill
+        // the limit caps the duty at R·I/V, far below any useful duty threshold) — and no
+        // progress in the direction of travel: less than `CREEP_COUNTS` forward since the
+        // pushing began (a jammed screw under a load beyond the motor creeps back a count now
+        // and then; a screw that does not break away at the current limit lets the rotor wind
+        // the coupling up at ≈ 1 rad/s, a count every ≈ 0.1 s, host-sim lithium 2× drier at
+        // 1300 kg: each count had restarted the count of still ticks, and the lift pushed at
+        // the limit for as long as it was let).
+        let stalled = s.moving
+            && !turning
+            && (s.duty.unsigned_abs() >= l.stall_duty.unsigned_abs()
+                || s.current.sat_abs() >= l.stall_current
+                || s.lagging)
+            && {
+                let forward = if s.lowering { -s.delta } else { s.delta };
+                self.crept = self.crept.saturating_add(forward.max(0));
+                self.crept <= CREEP_COUNTS
+            };
+        if !stalled {
+            self.crept = 0;
+        }
+        if count(&mut self.still, stalled) >= l.stall_ticks {
             return Some(FaultKind::Stall);
         }
         // The margin is a fraction of the model torque's size: lowering an overhauling load the
@@ -271,8 +287,72 @@ impl Monitors {
     }
 }
 
+/// Forward travel, counts, under which a pushing drive makes no progress (1/180 of a screw
+/// turn with the default 2880 counts: 11 µm of nut; a creeping rotor winds the coupling 2–3
+/// counts in `stall_ms`; a lift at 1/8 of the default 3 rad/s cruise covers 52).
+pub const CREEP_COUNTS: i32 = 16;
+
 /// Count consecutive ticks of `cond` (reset when it clears); returns the count.
 fn count(c: &mut u32, cond: bool) -> u32 {
     *c = if cond { c.saturating_add(1) } else { 0 };
     *c
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn limits() -> Limits {
+        // 48 counts a motor turn, 60:1, 2 mm lead: the default drive.
+        let counts_per_motor_rad_q16 = (48.0 / core::f64::consts::TAU * 65536.0) as i64;
+        let nut_q40 = (0.002 / 2880.0 * (1u64 << 40) as f64) as i64;
+        Limits::new(
+            &ProtectionConfig::DEFAULT,
+            1000,
+            counts_per_motor_rad_q16,
+            nut_q40,
+            RadiansPerSecond::from_int(3),
+        )
+    }
+
+    /// Lifting at the current limit, the voltage balance saying the motor stands, with a
+    /// forward count every `every` ticks: the tick the stall trips, if it does in 2 s.
+    fn pushing_with_a_count_every(every: u32) -> Option<u32> {
+        let l = limits();
+        let mut m = Monitors::default();
+        for k in 1..=2000u32 {
+            let s = Sample {
+                moving: true,
+                lowering: false,
+                duty: 8100,
+                delta: i32::from(k % every == 0),
+                current: Amperes::from_int(40),
+                supply: Volts::lit("12.6"),
+                emf_speed: RadiansPerSecond::ZERO,
+                speed: RadiansPerSecond::lit("0.02"),
+                reference: RadiansPerSecond::lit("0.3"),
+                cruise: RadiansPerSecond::from_int(3),
+                travel_while_stopped: 0,
+                measured_torque: NewtonMetres::ZERO,
+                model_torque: NewtonMetres::ZERO,
+                overload_armed: false,
+                lagging: true,
+            };
+            if let Some(f) = m.check(&l, &s) {
+                assert_eq!(f, FaultKind::Stall);
+                return Some(k);
+            }
+        }
+        None
+    }
+
+    #[test]
+    fn a_rotor_creeping_at_the_current_limit_stalls() {
+        // A count every 100 ticks (the rotor winding the coupling up at ≈ 1 rad/s): the
+        // stall trips after `stall_ms` as if the encoder stood (each count used to restart it).
+        assert_eq!(pushing_with_a_count_every(100), Some(300));
+        assert_eq!(pushing_with_a_count_every(5000), Some(300));
+        // A lift at 1/8 of cruise (a count every ≈ 6 ticks) makes progress: no stall.
+        assert_eq!(pushing_with_a_count_every(6), None);
+    }
 }

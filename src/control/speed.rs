@@ -102,11 +102,11 @@ impl SpeedLoop {
         let p: Volts = qmul(error, g.kp);
         let unsat = ff.sat_add(p).sat_add(self.integral);
         let vmax = x.supply.sat_abs();
-        // Current limit, two bounds. The steady one: the voltage leaves the back-EMF of the measured speed by
-        // at most R·I_limit. The measured speed lags a braking rotor (the filter's ≈ 12 ms: a
-        // screw that stands while the coupling winds up brakes it) and jumps when an encoder
-        // edge ends a stall, so that back-EMF reads high and the current overshoots the limit
-        // by as much. The second bound follows the current itself: from the last voltage, at
+        // Current limit, two bounds. The steady one: the voltage leaves the back-EMF of the
+        // measured speed by at most R·I_limit. The measured speed lags a braking rotor (the
+        // filter's ≈ 12 ms: a screw that stands while the coupling winds up brakes it) and
+        // jumps when an encoder edge ends a stall, so that back-EMF reads high and the current
+        // overshoots the limit by as much. The second bound follows the current itself: from the last voltage, at
         // most half the way to the limit (R·(I_limit ∓ i)/2), so the excess halves every tick
         // whatever the speed reads, plus the back-EMF's change since the last tick where it
         // takes current towards the limit (a braking rotor's falling back-EMF: 0.12 V a tick
@@ -188,6 +188,65 @@ mod tests {
     }
 
     proptest::proptest! {
+        /// The current limit's bounds against their float64 twin, over the envelope (supply
+        /// 8…16 V, ±60 A, the screw at ±8 rad/s, R 0.05…0.5 Ω, a limit of 1…60 A, any last
+        /// voltage and back-EMF, any reference and integrator): the applied voltage
+        /// (duty·supply) never leaves [lo, hi] by more than the duty's and Q16's rounding
+        /// (where the bounds cross, hi wins; the duty saturates at the supply).
+        #[test]
+        fn the_current_bounds_match_their_float_twin(
+            supply in 8.0f64..16.0,
+            current in -60.0f64..60.0,
+            measured in -8.0f64..8.0,
+            last_speed in -8.0f64..8.0,
+            last in -16.0f64..16.0,
+            r in 0.05f64..0.5,
+            limit in 1.0f64..60.0,
+            reference in -8.0f64..8.0,
+            integral in -16.0f64..16.0,
+        ) {
+            let g = SpeedGains::design(
+                Ratio::lit("0.04"),
+                Ratio::from_f64(r),
+                Factor::from_int(60),
+                1000,
+            );
+            let last = last.clamp(-supply, supply);
+            let mut l = SpeedLoop {
+                integral: Volts::from_f64(integral.clamp(-supply, supply)),
+                last: Volts::from_f64(last),
+                last_emf: qmul(RadiansPerSecond::from_f64(last_speed), g.ke_n),
+            };
+            let headroom = Volts::from_f64(r * limit);
+            let x = SpeedInputs {
+                reference: RadiansPerSecond::from_f64(reference),
+                position_error: Radians::ZERO,
+                measured: RadiansPerSecond::from_f64(measured),
+                model_motor_torque: NewtonMetres::ZERO,
+                supply: Volts::from_f64(supply),
+                current_headroom: headroom,
+                current: Amperes::from_f64(current),
+                resistance: Ratio::from_f64(r),
+            };
+            let v = f64::from(l.step(&g, &x)) / 32768.0 * supply;
+            // The float64 twin.
+            let ke_n = 0.04 * 60.0;
+            let (h, emf) = (headroom.to_f64(), ke_n * measured);
+            let d_emf = emf - ke_n * last_speed;
+            let hi = (emf + h)
+                .min(supply)
+                .min(last + (h - r * current) / 2.0 + d_emf.min(0.0));
+            let lo = (emf - h)
+                .max(-supply)
+                .max(last - (h + r * current) / 2.0 + d_emf.max(0.0));
+            let eps = 2e-3 + 2.0 * supply / 32768.0;
+            // (The duty saturates at ±1: a bound beyond the supply applies the supply.)
+            let hi = hi.max(-supply);
+            let lo = lo.min(hi);
+            proptest::prop_assert!(v <= hi + eps, "{v} V above hi {hi} V");
+            proptest::prop_assert!(v >= lo - eps, "{v} V below lo {lo} V");
+        }
+
         /// The division's duty against the float64 quotient, over every supply the bridge
         /// can see (1…31 V; above 31 V the supply is taken as 31 V) and any voltage.
         #[test]

@@ -5,7 +5,7 @@
 //! | fault | trips when | reaction time |
 //! |---|---|---|
 //! | over-current | one current sample above the limit | the same tick |
-//! | stall | duty ≥ stall duty, current ≥ 90 % of the limit or the screw lagging its reference (the planner waiting), no encoder progress in the direction of travel, and the motor's voltage balance says the shaft is still, for `stall_ms` | `stall_ms` |
+//! | stall | duty ≥ stall duty, current ≥ 90 % of the limit or the screw lagging its reference (the planner waiting), less than `CREEP_COUNTS` of encoder progress in the direction of travel since the pushing began, and the motor's voltage balance says the shaft is still, for `stall_ms` | `stall_ms` |
 //! | encoder lost | no encoder count while the voltage balance says the shaft turns, for `stall_ms` | `stall_ms` |
 //! | encoder implausible | a jump faster than the motor can turn | the same tick |
 //! | under-voltage | supply below the run threshold while moving, for `supply_ms` | `supply_ms` |
@@ -255,7 +255,11 @@ impl Monitors {
                 || s.current.sat_abs() >= l.stall_current
                 || s.lagging)
             && {
-                let forward = if s.lowering { -s.delta } else { s.delta };
+                let forward = if s.lowering {
+                    s.delta.saturating_neg()
+                } else {
+                    s.delta
+                };
                 self.crept = self.crept.saturating_add(forward.max(0));
                 self.crept <= CREEP_COUNTS
             };

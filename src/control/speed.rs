@@ -76,7 +76,7 @@ pub struct SpeedInputs {
     pub resistance: Ratio,
 }
 
-/// The integrator state.
+/// The loop's state: the integrator and what the current limit's second bound starts from.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct SpeedLoop {
     integral: Volts,
@@ -87,7 +87,7 @@ pub struct SpeedLoop {
 }
 
 impl SpeedLoop {
-    /// Forget the integrators.
+    /// Forget the state.
     pub fn reset(&mut self) {
         *self = Self::default();
     }
@@ -106,12 +106,13 @@ impl SpeedLoop {
         // measured speed by at most R·I_limit. The measured speed lags a braking rotor (the
         // filter's ≈ 12 ms: a screw that stands while the coupling winds up brakes it) and
         // jumps when an encoder edge ends a stall, so that back-EMF reads high and the current
-        // overshoots the limit by as much. The second bound follows the current itself: from the last voltage, at
-        // most half the way to the limit (R·(I_limit ∓ i)/2), so the excess halves every tick
-        // whatever the speed reads, plus the back-EMF's change since the last tick where it
-        // takes current towards the limit (a braking rotor's falling back-EMF: 0.12 V a tick
-        // at 3 rad/s² at the motor left 3.5 A over the limit without it; a rising one, or an
-        // encoder edge's jump, is not followed: the current's own correction follows it).
+        // overshoots the limit by as much. The second bound follows the current itself: from
+        // the last voltage, at most half the way to the limit (R·(I_limit ∓ i)/2), so the
+        // excess halves every tick whatever the speed reads, plus the back-EMF's change since
+        // the last tick where it takes current towards the limit (a braking rotor's falling
+        // back-EMF: 0.12 V a tick at 3 rad/s² at the motor left 3.5 A over the limit without
+        // it; a rising one, or an encoder edge's jump, is not followed: the current's own
+        // correction follows it).
         // A cut of 4·R per ampere of excess (e' = L − 4·e) rang ±5 A about the limit and
         // tripped over-current on a screw that would not break away (host-sim, 1300 kg on a
         // 2× drier dry thread).

@@ -115,12 +115,7 @@ fn a_current_sensor_reading_low_still_lets_the_overcurrent_limit_stop_a_jam() {
     );
     assert!(t > 1.5 && t < 2.5, "tripped at {t:.3} s");
     // The true current (the plant's, not the sensor's) stayed within the bridge's rating.
-    let peak = r
-        .trace
-        .records
-        .iter()
-        .map(|x| x.current.abs())
-        .fold(0.0, f64::max);
+    let peak = r.peak_current();
     assert!(peak < 80.0, "true current {peak:.1} A");
 }
 

@@ -163,6 +163,15 @@ impl Run {
         }
     }
 
+    /// The largest true motor current of the run (the plant's, not the sensor's), A.
+    pub fn peak_current(&self) -> f64 {
+        self.trace
+            .records
+            .iter()
+            .map(|r| r.current.abs())
+            .fold(0.0, f64::max)
+    }
+
     /// Time of the first fault event, s.
     pub fn first_fault(&self) -> Option<(f64, liftfw::control::Fault)> {
         self.events.iter().find_map(|(t, e)| match e {

@@ -80,7 +80,10 @@ static LIFT: StaticCell<SharedController> = StaticCell::new();
 /// The console's UART ring buffers and reply, in statics rather than in the console task's
 /// future: spawning a task builds its future on the boot stack and copies it into the
 /// task's storage, so 4.4 KiB of buffers in the future were 4.4 KiB more boot stack.
-static CONSOLE_TX: ConstStaticCell<[u8; 256]> = ConstStaticCell::new([0; 256]);
+static CONSOLE_TX: ConstStaticCell<[u8; CONSOLE_TX_LEN]> =
+    ConstStaticCell::new([0; CONSOLE_TX_LEN]);
+/// The console's transmit ring, bytes: the longest piece of a reply written at once.
+const CONSOLE_TX_LEN: usize = 256;
 static CONSOLE_RX: ConstStaticCell<[u8; 64]> = ConstStaticCell::new([0; 64]);
 static CONSOLE_REPLY: ConstStaticCell<Reply> = ConstStaticCell::new(Reply(heapless::String::new()));
 
@@ -537,7 +540,7 @@ fn write_notice(out: &mut dyn core::fmt::Write, e: &Event) -> core::fmt::Result 
             out.write_str("warning: fault latched: ")?;
             out.write_str(f.kind.name())?;
             if f.kind == liftfw::control::FaultKind::Overload {
-                liftfw::console::write_load(out, f.load)?;
+                liftfw::console::write_load(out, f.load, f.load_identified)?;
             }
             out.write_str(" (`fault` shows the snapshot, `fault clear` clears it)")
         }
@@ -630,8 +633,17 @@ async fn console_task(
         // await point instead of one per kind: less state machine on the board).
         if !reply.0.is_empty() {
             let _ = reply.write_str("\r\n");
-            if uart.write_all(reply.0.as_bytes()).await.is_err() {
-                warn!("console write failed");
+            // embassy-stm32 0.6's `BufferedUart::write` takes a buffer only whole: one longer
+            // than the ring fails (`BufferTooLong`: the reply was lost), and with less room in
+            // the ring than the buffer it returns `Pending` without registering its waker (the
+            // reply then waited for the next received byte; fwsim: a 181-byte `fault` reply
+            // right after the fault's notice). So a ring's worth at most, each into an empty
+            // ring: `flush` waits for the transmission-complete interrupt, which wakes it.
+            for piece in reply.0.as_bytes().chunks(CONSOLE_TX_LEN) {
+                if uart.flush().await.is_err() || uart.write_all(piece).await.is_err() {
+                    warn!("console write failed");
+                    break;
+                }
             }
             reply.0.clear();
         }

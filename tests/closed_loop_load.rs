@@ -273,6 +273,7 @@ fn an_overload_is_refused_within_half_a_second_lifting_and_lowering() {
             let t = f[0].0;
             assert!(t - 0.02 <= 0.5, "{lub:?} {up}: after {t:.3} s");
             let fault = r.controller.fault().unwrap();
+            assert!(fault.load_identified, "{lub:?} {up}: the prior tripped");
             // Lowering, the trip comes on the first, noisier estimate (PTFE: 1531 kg for 1700).
             // The trip comes on the first estimates, before the coupling's catch-up after the ramp
             // has averaged out (measured: lithium lifting 1341 kg for 1500, PTFE lowering 1531

@@ -72,6 +72,41 @@ fn core_in_the_loop(
     (sim, t, c)
 }
 
+/// A reply longer than the console's 256-byte transmit ring (`help keys`, every setting)
+/// arrives whole, byte for byte what the core writes: embassy-stm32's buffered write takes a
+/// buffer only whole (longer than the ring it failed, and the reply was lost), so the console
+/// task sends a ring's worth at a time.
+#[test]
+#[ignore = "needs FWSIM_ELF"]
+fn a_reply_longer_than_the_transmit_ring_arrives_whole() {
+    let mut r = rig(parked_store(counts_at(200.0).unwrap()).unwrap(), 200.0);
+    boot(&mut r);
+    let mut all = String::new();
+    liftfw::console::write_help(&mut all, liftfw::console::HelpTopic::Keys).unwrap();
+    // The default (lead-screw) image has no `ballscrew.*` settings; the workspace's tests may
+    // build the host's core with them.
+    let want: String = all
+        .split("\r\n")
+        .filter(|l| !l.trim_start().starts_with("ballscrew."))
+        .flat_map(|l| [l, "\r\n"])
+        .collect();
+    assert!(
+        want.len() > 256,
+        "{} bytes: not longer than the ring",
+        want.len()
+    );
+    let _ = r.machine.take_console();
+    r.machine.console_send(b"help keys\r\n");
+    let mut seen = String::new();
+    // At 115 200 baud, ≈ 87 µs a byte.
+    let end = r.t + 0.2 + want.len() as f64 * 1e-4;
+    while r.t < end && !seen.ends_with(&want) {
+        r.run_for(1e-3).unwrap();
+        seen.push_str(&r.machine.take_console());
+    }
+    assert_eq!(seen, want, "{} of {} bytes", seen.len(), want.len());
+}
+
 #[test]
 #[ignore = "needs FWSIM_ELF"]
 fn boot_greeting_and_version_as_the_core_writes_them() {

@@ -378,11 +378,20 @@ pub fn write_thread_dry_warning(out: &mut dyn Write, r: &crate::ident::LoadRepor
     )
 }
 
-/// ` at an identified load of N kg` (an overload's notice).
-pub fn write_load(out: &mut dyn Write, load: crate::units::Kilograms) -> fmt::Result {
+/// ` at an identified load of N kg`, or ` at the prior load of N kg (not identified)` (an
+/// overload's notice).
+pub fn write_load(
+    out: &mut dyn Write,
+    load: crate::units::Kilograms,
+    identified: bool,
+) -> fmt::Result {
     fill(
         out,
-        " at an identified load of \x01 kg",
+        if identified {
+            " at an identified load of \x01 kg"
+        } else {
+            " at the prior load of \x01 kg (not identified)"
+        },
         &[Arg::Fixed(load.to_bits(), 12, 0)],
     )
 }
@@ -533,7 +542,7 @@ mod tests {
             let p = permille.unsigned_abs();
             format!(
                 "fault={} t={}.{:03}s state={} height={} speed={}rad/s current={}A supply={}V \
-                 duty={}{}.{}% torque={}Nm model_torque={}Nm load={}kg",
+                 duty={}{}.{}% torque={}Nm model_torque={}Nm load={}kg load_src={}",
                 word(f.kind.name()),
                 ms / 1000,
                 ms % 1000,
@@ -551,7 +560,12 @@ mod tests {
                 p % 10,
                 fixed(f.measured_torque.to_bits(), 16, 3),
                 fixed(f.model_torque.to_bits(), 16, 3),
-                fixed(f.load.to_bits(), 12, 0)
+                fixed(f.load.to_bits(), 12, 0),
+                if f.load_identified {
+                    "current"
+                } else {
+                    "prior"
+                }
             )
         }
     }
@@ -687,6 +701,7 @@ mod tests {
                 measured_torque: NewtonMetres::from_bits(b(41)),
                 model_torque: NewtonMetres::from_bits(b(43)),
                 load: crate::units::Kilograms::from_bits(b(57)),
+                load_identified: i % 5 == 1,
             };
             let mut out = String::new();
             service::write_fault(&mut out, Some(&f)).unwrap();

@@ -262,8 +262,9 @@ const VERSION_HEAD: &str = concat!(
 
 /// The reply to `fault`, `key=value` like `status`: `fault=none`, or the fault and the state
 /// of the lift when it tripped: `fault=over-current t=12.345s state=lifting height=212.4mm
-/// speed=3.00rad/s current=61.20A supply=12.31V duty=85.0% torque=1.234Nm model_torque=1.100Nm load=1000kg` (the
-/// identified load, or the prior, when it tripped).
+/// speed=3.00rad/s current=61.20A supply=12.31V duty=85.0% torque=1.234Nm model_torque=1.100Nm
+/// load=1000kg load_src=current` (the load when it tripped: identified from the current, or
+/// the prior, as `status` says).
 pub fn write_fault(out: &mut dyn Write, fault: Option<&Fault>) -> fmt::Result {
     let Some(f) = fault else {
         return out.write_str("fault=none");
@@ -274,7 +275,7 @@ pub fn write_fault(out: &mut dyn Write, fault: Option<&Fault>) -> fmt::Result {
     fill(
         out,
         "fault=\x01 t=\x01s state=\x01 height=\x01\x01 speed=\x01rad/s current=\x01A supply=\x01V \
-         duty=\x01% torque=\x01Nm model_torque=\x01Nm load=\x01kg",
+         duty=\x01% torque=\x01Nm model_torque=\x01Nm load=\x01kg load_src=\x01",
         &[
             Arg::Word(f.kind.name()),
             Arg::Deci(ms, 3),
@@ -290,6 +291,11 @@ pub fn write_fault(out: &mut dyn Write, fault: Option<&Fault>) -> fmt::Result {
             Arg::Fixed(f.measured_torque.to_bits(), 16, 3),
             Arg::Fixed(f.model_torque.to_bits(), 16, 3),
             Arg::Fixed(f.load.to_bits(), 12, 0),
+            Arg::Str(if f.load_identified {
+                "current"
+            } else {
+                "prior"
+            }),
         ],
     )
 }

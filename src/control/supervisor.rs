@@ -148,6 +148,9 @@ pub struct Fault {
     pub model_torque: NewtonMetres,
     /// The identified load (or the prior) at the moment it tripped.
     pub load: crate::units::Kilograms,
+    /// `load` came from a motion's current (this one's or an earlier one's); false: it is the
+    /// prior (nothing weighed yet, or a screw that never moved).
+    pub load_identified: bool,
 }
 
 /// What a tick reports for the logs.
@@ -442,6 +445,7 @@ impl Controller {
             measured_torque: e.measured_screw_torque,
             model_torque: e.model_screw_torque,
             load: self.loadid.load,
+            load_identified: self.loadid.ident.identified(),
         };
         let here = live.enc.position();
         self.live.fault = Some(f);

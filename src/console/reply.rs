@@ -336,7 +336,7 @@ pub fn write_status(out: &mut dyn Write, s: &StatusView) -> fmt::Result {
             Arg::Fixed(l.load.to_bits(), 12, 0),
             Arg::Fixed(l.load_lo.to_bits(), 12, 0),
             Arg::Fixed(l.load_hi.to_bits(), 12, 0),
-            Arg::Str(if l.identified { "current" } else { "prior" }),
+            Arg::Str(load_src(l.identified)),
             Arg::Fixed(l.scale.to_bits(), 28, 3),
             Arg::Str(if l.scale_known { "" } else { "(assumed)" }),
         ],
@@ -376,6 +376,16 @@ pub fn write_thread_dry_warning(out: &mut dyn Write, r: &crate::ident::LoadRepor
             Arg::Fixed(r.load.to_bits(), 12, 0),
         ],
     )
+}
+
+/// Where a load came from, as `status` and the `fault` snapshot say it (`load_src=`): the
+/// motor current, or the prior.
+pub(crate) fn load_src(identified: bool) -> &'static str {
+    if identified {
+        "current"
+    } else {
+        "prior"
+    }
 }
 
 /// ` at an identified load of N kg`, or ` at the prior load of N kg (not identified)` (an

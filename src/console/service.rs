@@ -291,11 +291,7 @@ pub fn write_fault(out: &mut dyn Write, fault: Option<&Fault>) -> fmt::Result {
             Arg::Fixed(f.measured_torque.to_bits(), 16, 3),
             Arg::Fixed(f.model_torque.to_bits(), 16, 3),
             Arg::Fixed(f.load.to_bits(), 12, 0),
-            Arg::Str(if f.load_identified {
-                "current"
-            } else {
-                "prior"
-            }),
+            Arg::Str(super::reply::load_src(f.load_identified)),
         ],
     )
 }

@@ -970,6 +970,19 @@ mod tests {
         assert_eq!(pair::solve(&sc, &up, &dn), None);
     }
 
+    /// A fresh board: the rated 1000 kg prior, 0.5 N·m of drive bias, its interval at the test
+    /// motions' μ (0.21).
+    fn fresh(sc: &ScrewModel) -> LoadIdent {
+        let mut id = LoadIdent::new(
+            Kilograms::lit("1000"),
+            NewtonMetres::from_f64(0.5),
+            None,
+            1000,
+        );
+        id.set_interval(sc, Ratio::from_f64(0.21));
+        id
+    }
+
     /// Feed one steady motion whose measured torque is the model's at load `m` and scale `s`.
     fn motion(id: &mut LoadIdent, sc: &ScrewModel, dir: i8, m: f64, s: f64, ticks: u32) {
         let g = g_at_20(dir);
@@ -1024,9 +1037,7 @@ mod tests {
     #[test]
     fn a_motion_identifies_the_load_and_a_pair_the_scale() {
         let sc = screw();
-        let bias = NewtonMetres::from_f64(0.5);
-        let mut id = LoadIdent::new(Kilograms::lit("1000"), bias, None, 1000);
-        id.set_interval(&sc, Ratio::from_f64(0.21));
+        let mut id = fresh(&sc);
         assert_eq!(id.load(), Kilograms::lit("1000"));
         assert!(!id.report().identified);
         // Nominal thread, 600 kg: the load within 0.1 % once converged.
@@ -1038,8 +1049,7 @@ mod tests {
         id.end_motion(&sc, &law(&sc), false, false, false);
         assert_eq!(rest(&mut id, &sc), None);
         // A 2× drier thread: the lift alone reads it as a heavier car, within the interval.
-        let mut id = LoadIdent::new(Kilograms::lit("1000"), bias, None, 1000);
-        id.set_interval(&sc, Ratio::from_f64(0.21));
+        let mut id = fresh(&sc);
         motion(&mut id, &sc, 1, 1000.0, 2.0, 800);
         let (lo, hi) = id.interval();
         assert!(id.load().to_f64() > 1500.0, "{:?}", id.load());
@@ -1080,9 +1090,7 @@ mod tests {
     #[test]
     fn a_stick_slipping_lowering_keeps_the_load_it_began_with() {
         let sc = screw();
-        let bias = NewtonMetres::from_f64(0.5);
-        let mut id = LoadIdent::new(Kilograms::lit("1000"), bias, None, 1000);
-        id.set_interval(&sc, Ratio::from_f64(0.21));
+        let mut id = fresh(&sc);
         motion(&mut id, &sc, 1, 600.0, 1.0, 400);
         id.end_motion(&sc, &law(&sc), false, false, false);
         let lifted = id.load();
@@ -1116,8 +1124,7 @@ mod tests {
         assert!(id.hold_start());
         assert_eq!(id.load(), Kilograms::lit("700"));
         // At boot a stick-slipping lowering goes back to the prior, not identified: 0…2×.
-        let mut id = LoadIdent::new(Kilograms::lit("1000"), bias, None, 1000);
-        id.set_interval(&sc, Ratio::from_f64(0.21));
+        let mut id = fresh(&sc);
         motion(&mut id, &sc, -1, 400.0, 1.0, 300);
         assert!(id.identified());
         assert!(id.hold_start());

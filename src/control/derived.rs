@@ -12,7 +12,9 @@ use crate::keys::ConfigError;
 use crate::model::ballscrew::BallScrew;
 use crate::model::geometry::Geometry;
 use crate::model::Scale;
-use crate::units::{ms_to_ticks, qmul, sat32, Amperes, Factor, RadiansPerSecond, Ratio, Volts, Q};
+use crate::units::{
+    ms_to_ticks, qmul, sat32, Amperes, Factor, NewtonMetres, RadiansPerSecond, Ratio, Volts, Q,
+};
 
 /// Ticks after the reference arrives during which the loop may settle before the bridge coasts.
 const SETTLE_MS: u32 = 300;
@@ -86,6 +88,10 @@ pub(super) struct Derived {
     pub(super) inv_ke_n: Ratio,
     /// R·I_limit.
     pub(super) current_headroom: Volts,
+    /// 15/16 of the current limit: from there a stick's breakaway may be clipped (`clip`).
+    pub(super) clip_current: Amperes,
+    /// The coupling's torque per encoder count of wind-up, k_c·rad per count (Q16 N·m).
+    pub(super) torque_per_count: NewtonMetres,
     /// Highest screw speed at which shorting the motor keeps the current within [`BRAKE_AMPS`].
     pub(super) brake_speed: RadiansPerSecond,
     /// The cruise speeds the stick-slip reaction switches between, Q32 counts/tick: the
@@ -124,6 +130,12 @@ impl Derived {
         // Twist counts = T/k · counts/rad: from Q16 N·m.
         let k = i128::from(cfg.estimator.mechanics.coupling_stiffness.bits()); // Q16
         let twist_scale = Scale::from_ratio(i128::from(counts_per_rad_q16), k << 16);
+        // Its inverse, Q16 N·m per count: k (Q16) · 2^16 / counts per rad (Q16).
+        let torque_per_count = NewtonMetres::from_raw(sat32(mul_div(
+            k.unsigned_abs() as u64,
+            1 << 16,
+            counts_per_rad_q16.unsigned_abs().max(1),
+        ) as i64));
         // Cruise: rad/s → Q32 counts/tick = ω·counts/rad·T·2^32.
         // (Both speeds are validated positive: 0.2…20 rad/s.)
         let counts_per_rad_tick = counts_per_rad_q16.unsigned_abs() * u64::from(tick_us);
@@ -172,6 +184,11 @@ impl Derived {
             limits,
             inv_ke_n,
             current_headroom: qmul(cfg.protection.current_limit, motor.resistance),
+            clip_current: cfg
+                .protection
+                .current_limit
+                .sat_sub(Amperes::from_raw(cfg.protection.current_limit.bits() >> 4)),
+            torque_per_count,
             brake_speed: qmul(
                 qmul::<_, _, Volts>(Amperes::from_int(BRAKE_AMPS), motor.resistance),
                 inv_ke_n,

@@ -27,6 +27,7 @@
 //! state machine, fault, buttons, where the lift rests, the latest measurements). A tick's
 //! measurements pass from phase to phase as values (`Reading`).
 
+pub mod clip;
 pub mod config;
 mod derived;
 pub mod edges;

@@ -3,6 +3,7 @@
 //! back-EMF speed, and the detectors that watch a motion (stick-slip, and on a ball screw the
 //! friction identification).
 
+use super::clip::{ClipTick, ClipTracker};
 use super::derived::{Derived, ARRIVED_COUNTS};
 use super::edges::EdgeInterpolator;
 #[cfg(feature = "ball-screw")]
@@ -41,6 +42,8 @@ pub(super) struct Motion {
     pub(super) last_bridge: Bridge,
     /// Stick-slip detector (`crate::detect::stickslip`).
     pub(super) stick_slip: StickSlipDetector,
+    /// Its breakaways the current limit clipped (`clip`).
+    pub(super) clip: ClipTracker,
     /// The cruise speed of the motion under way when the motor cannot reach the configured one
     /// (`limit_cruise`).
     pub(super) cruise_limit: Option<RadiansPerSecond>,
@@ -86,6 +89,7 @@ impl Motion {
             last_duty: 0,
             last_bridge: Bridge::Coast,
             stick_slip: StickSlipDetector::new(&cfg.stick_slip, tick_us),
+            clip: ClipTracker::default(),
             cruise_limit: None,
             cruise_reported: false,
             reversing: false,
@@ -120,6 +124,37 @@ impl Controller {
         if out.onset {
             self.stick_slip_onset();
         }
+        // One add and one compare on most ticks (|i| > c as (i + c) > 2c unsigned; the ADC's
+        // current is far inside i32): the plateau's work only near the current limit.
+        let c = self.derived.clip_current.bits();
+        let near = (x.current.bits().wrapping_add(c) as u32) > (c as u32).wrapping_mul(2);
+        if near || self.motion.clip.busy() {
+            self.track_clip(x, near);
+        }
+    }
+
+    /// A tick near the current limit, or after one (`clip`). Out of line and cold.
+    #[cold]
+    #[inline(never)]
+    fn track_clip(&mut self, x: &Reading, near: bool) {
+        let driving = self.live.moving() && matches!(self.motion.last_bridge, Bridge::Drive(_));
+        let (t, p) = (x.estimate.measured_screw_torque, self.live.enc.position());
+        let lowering = self.live.state == State::Lowering;
+        let tick = ClipTick {
+            at_limit: near && driving,
+            torque: if lowering { t.sat_neg() } else { t }.bits(),
+            position: if lowering { p.saturating_neg() } else { p },
+            breakaways: self.motion.stick_slip.breakaways(),
+            slip: self.motion.stick_slip.output().slip,
+        };
+        self.motion.clip.step(&tick, self.derived.torque_per_count);
+    }
+
+    /// The stick-slip detector's breakaways (Σ peak, count) since boot, with what the current
+    /// limit clipped off their peaks added back (`clip`).
+    pub(super) fn breakaway_totals(&self) -> (i64, u32) {
+        let (sum, n) = self.motion.stick_slip.breakaways();
+        (sum.saturating_add(self.motion.clip.extra()), n)
     }
 
     /// The reaction to a stick-slip episode's onset, and its event: out of line and cold

@@ -12,7 +12,7 @@
 //! [`ClipTracker`] follows that and keeps the excess over the detector's peak, per slip, as a
 //! sum beside the detector's.
 //!
-//! "At the limit" is the measured current at or above 15/16 of it (the speed loop holds it at
+//! "At the limit" is the measured current above 15/16 of it (the speed loop holds it at
 //! the limit within ≈ ±2 A, `control::speed`): from there the reading is the torque of a
 //! current that still follows the coupling, and the wind-up from there is counted.
 
@@ -55,7 +55,7 @@ pub struct ClipTracker {
 /// One tick's view of the drive and the detector.
 #[derive(Clone, Copy, Debug)]
 pub struct ClipTick {
-    /// The current at or above 15/16 of the limit while driving.
+    /// The current above 15/16 of the limit while driving.
     pub at_limit: bool,
     /// Measured screw torque resisting the motion (Q16 N·m).
     pub torque: i32,

@@ -88,7 +88,7 @@ pub(super) struct Derived {
     pub(super) inv_ke_n: Ratio,
     /// R·I_limit.
     pub(super) current_headroom: Volts,
-    /// 15/16 of the current limit: from there a stick's breakaway may be clipped (`clip`).
+    /// 15/16 of the current limit: above it a stick's breakaway may be clipped (`clip`).
     pub(super) clip_current: Amperes,
     /// The coupling's torque per encoder count of wind-up, k_c·rad per count (Q16 N·m).
     pub(super) torque_per_count: NewtonMetres,

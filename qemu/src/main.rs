@@ -721,6 +721,22 @@ fn count_control(overhead: u32) {
     }
     braking.report();
     let mut worst = tick_all.max().max(braking.max());
+    // A lift at the current limit (39 A of the default 40: above 15/16 of it), where the tick
+    // follows the plateau for a clipped breakaway (`control::clip`) on every tick.
+    if let Some(mut c) = lifting_controller() {
+        let mut st = Stats::new("control.tick lifting at the current limit (39 A)");
+        for k in 0..N {
+            let now = Instant(10_000 + 1000 * k as u32);
+            let mut inp = cruise_inputs(k);
+            inp.current_raw = 2048 + 1210; // 39 A
+            let t = ticks(&inp, |i| tick(&mut c, now, i));
+            if k >= 80 {
+                st.push(t, overhead);
+            }
+        }
+        st.report();
+        worst = worst.max(st.max());
+    }
     worst = worst.max(count_crossing_ticks(overhead));
     println!(
         "ICOUNT-STATE after the lift motion: {} (fault: {:?})",

@@ -436,6 +436,37 @@ fn a_breakaway_the_current_limit_clipped_is_read_with_the_wind_up_past_it() {
     }
 }
 
+/// A fault during a stick-slipping lift names the load the status reported, the breakaways'
+/// (the mean torque reads such a car ≈ 30 % light): dry 1000 kg from ≈ 200 mm, the supply sags
+/// to 8 V at 1.2 s and the under-voltage monitor stops the lift. Before: the snapshot said the
+/// mean torque's load (a dry 1300 kg lift from 145 mm tripped overload with load=935 kg).
+#[test]
+fn a_fault_during_a_stick_slipping_lift_names_the_breakaways_load() {
+    let mut s = commissioned(Lubricant::Dry, 1000.0, 25.9, 2.0);
+    s.faults = host_sim::inject::Plan::new(
+        &host_sim::inject::parse_list("supply-sag@1.2:8+0.5").expect("a valid fault"),
+    )
+    .expect("a valid plan");
+    let g = host_sim::physics::Geometry::paper();
+    let h = g.height(25.9f64.to_radians()) + 6.0e-3;
+    let r = run(
+        &s,
+        Box::new(move |k: &mut Tick<'_>| {
+            if (k.t - 0.02).abs() < 5e-4 {
+                k.controller
+                    .command(Command::GoTo(Metres::from_f64(h)))
+                    .unwrap();
+            }
+        }),
+    );
+    let (t, f) = r.first_fault().expect("the sag stops the lift");
+    assert_eq!(f.kind, FaultKind::UnderVoltage, "at {t:.3} s: {f:?}");
+    assert_eq!(f.state, liftfw::control::State::Lifting, "{f:?}");
+    assert!(f.load_identified, "{f:?}");
+    let load = f.load.to_f64();
+    assert!((load - 1000.0).abs() <= 30.0, "{load} kg at {t:.3} s");
+}
+
 #[test]
 fn an_amplifier_offset_present_at_boot_is_measured_at_rest_and_leaves_the_load_unbiased() {
     // The current-sense amplifier reads 0.1 A (3.1 codes) more than flows from power-up on

@@ -324,16 +324,23 @@ impl Controller {
         id.offset = id.ident.torque_offset(self.derived.cfg.rated_load);
     }
 
-    /// A stick-slipping lift (a stick-slip episode under way, two breakaways or more in this
-    /// motion, samples): its load and mean T_r from the breakaways (`ident::stick::lift`, the
-    /// law in force at rest for μ(0)). `None` otherwise. At the status, not in the tick.
+    /// A stick-slipping lift (a stick-slip episode in this motion, two breakaways or more,
+    /// samples): its load and mean T_r from the breakaways (`ident::stick::lift`, the law in
+    /// force at rest for μ(0)), at the samples' cruise reference. From the first episode to the
+    /// motion's end, braking included, and on the tick the lift comes to rest before
+    /// `end_load_motion` keeps the reading (`end_load_motion` takes the same motions: the
+    /// status and a fault's snapshot said the mean torque's load, ≈ 30 % light, while the
+    /// lift braked and on that tick). `None` otherwise. At the status, not in the tick.
     #[inline(never)]
     pub(super) fn stick_slip_lift(&self) -> Option<(Kilograms, NewtonMetres)> {
         // (A ball screw has no samples, `identify_load`: `None` below.)
-        if self.live.state != State::Lifting || !self.motion.stick_slip.output().active {
+        let id = &self.loadid;
+        let lifting = self.live.state == State::Lifting || (id.moving && id.ident.direction() > 0);
+        let out = self.motion.stick_slip.output();
+        if !lifting || !(out.active || out.episodes != id.episodes) {
             return None;
         }
-        self.breakaway_lift(self.reference_speed())
+        self.breakaway_lift(id.ident.reference())
     }
 
     /// [`Self::stick_slip_lift`]'s reading of this lift's breakaways at the cruise reference
@@ -397,6 +404,29 @@ impl Controller {
         let rho1 = crate::ident::pair::rho_q32(screw, mu0, 1)?;
         let rho0 = crate::ident::pair::rho_q32(screw, Ratio::ZERO, 1)?;
         crate::ident::stick::lift(peak, mean, drop, rho1, rho0, g_up, g_r)
+    }
+
+    /// What the status reports beside the mean torque's identification, computed once: a
+    /// stick-slipping lift's load and mean T_r from its breakaways, else an empty head
+    /// lowering's load on the reversed flank. At the status, and once when a fault latches
+    /// (its snapshot names the same load).
+    pub(super) fn load_readings(&self) -> (Option<(Kilograms, NewtonMetres)>, Option<Kilograms>) {
+        let stick = self.stick_slip_lift();
+        let lowering = if stick.is_none() {
+            self.lowering_load()
+        } else {
+            None
+        };
+        (stick, lowering)
+    }
+
+    /// The load the status reports (`load_readings`, else the identification's) and whether it
+    /// was measured (`false`: the prior).
+    pub(super) fn reported_load(&self) -> (Kilograms, bool) {
+        match self.load_readings() {
+            (Some((m, _)), _) | (None, Some(m)) => (m, true),
+            (None, None) => (self.loadid.load, self.loadid.ident.identified()),
+        }
     }
 
     /// A lowering's load on the reversed flank, where its torque is an empty (or nearly empty)

@@ -323,14 +323,7 @@ impl Controller {
     pub fn status(&self) -> Status {
         let latest = &self.live.latest;
         let stick_slip = self.motion.stick_slip.output();
-        // A stick-slipping lift: the load and mean T_r from its breakaways.
-        // Else an empty head lowering: its load on the reversed flank (computed once here).
-        let stick = self.stick_slip_lift();
-        let lowering = if stick.is_none() {
-            self.lowering_load()
-        } else {
-            None
-        };
+        let (stick, lowering) = self.load_readings();
         let friction_torque = stick.map_or_else(
             || self.friction_at_load(lowering.unwrap_or(self.loadid.load)),
             |s| s.1,

@@ -340,19 +340,15 @@ fn a_fresh_board_lowering_a_light_car_reports_t_r_from_the_current_before_eviden
     assert!(err.abs() < prior.abs() / 2.0, "{err} (prior {prior})");
 }
 
-/// A dry thread stick-slipping under a rated car (1000 kg from ≈ 200 mm): the mean torque reads
-/// a lighter car (≈ 0.7 of it) and a lower friction; from the breakaways (`ident::stick`) the
-/// status gives the load within 3 % once the stick-slip is established, and the mean T_r over
-/// those ticks within 3 % of the plant's.
-#[test]
-fn a_stick_slipping_lift_reports_its_load_and_mean_t_r_from_the_breakaways() {
-    let s = commissioned(Lubricant::Dry, 1000.0, 25.9, 2.0);
+/// A lift 6 mm up from `deg` (the command at 20 ms) in `s`, and the status's (t, load, T_r) on
+/// every tick at the 3 rad/s cruise.
+fn lift_6mm(s: &Scenario, deg: f64) -> (Run, Vec<(f64, f64, f64)>) {
     let g = host_sim::physics::Geometry::paper();
-    let h = g.height(25.9f64.to_radians()) + 6.0e-3;
+    let h = g.height(deg.to_radians()) + 6.0e-3;
     let log = std::sync::Arc::new(std::sync::Mutex::new(Vec::<(f64, f64, f64)>::new()));
     let inner = std::sync::Arc::clone(&log);
     let r = run(
-        &s,
+        s,
         Box::new(move |k: &mut Tick<'_>| {
             if (k.t - 0.02).abs() < 5e-4 {
                 k.controller
@@ -360,7 +356,7 @@ fn a_stick_slipping_lift_reports_its_load_and_mean_t_r_from_the_breakaways() {
                     .unwrap();
             }
             let c = &k.controller;
-            if (c.reference().to_f64() - 3.0).abs() < 1e-3 && k.t > 0.6 {
+            if (c.reference().to_f64() - 3.0).abs() < 1e-3 {
                 let st = c.status();
                 inner.lock().unwrap().push((
                     k.t,
@@ -370,8 +366,20 @@ fn a_stick_slipping_lift_reports_its_load_and_mean_t_r_from_the_breakaways() {
             }
         }),
     );
+    let log = std::mem::take(&mut *log.lock().unwrap());
+    (r, log)
+}
+
+/// A dry thread stick-slipping under a rated car (1000 kg from ≈ 200 mm): the mean torque reads
+/// a lighter car (≈ 0.7 of it) and a lower friction; from the breakaways (`ident::stick`) the
+/// status gives the load within 3 % once the stick-slip is established, and the mean T_r over
+/// those ticks within 3 % of the plant's.
+#[test]
+fn a_stick_slipping_lift_reports_its_load_and_mean_t_r_from_the_breakaways() {
+    let s = commissioned(Lubricant::Dry, 1000.0, 25.9, 2.0);
+    let (r, log) = lift_6mm(&s, 25.9);
     assert!(faults(&r).is_empty(), "{:?}", faults(&r));
-    let log = log.lock().unwrap();
+    let log: Vec<_> = log.into_iter().filter(|x| x.0 > 0.6).collect();
     assert!(log.len() > 500, "{} ticks", log.len());
     let plant = |t: f64| plant_friction_at(&r, t);
     for &(t, load, _) in log.iter() {
@@ -397,30 +405,7 @@ fn a_breakaway_the_current_limit_clipped_is_read_with_the_wind_up_past_it() {
     let deg = ((0.150 - g.h0) / g.length).asin().to_degrees();
     let mut s = commissioned(Lubricant::Dry, 1300.0, deg, 2.0);
     s.seed = 2;
-    let h = g.height(deg.to_radians()) + 6.0e-3;
-    let log = std::sync::Arc::new(std::sync::Mutex::new(Vec::<(f64, f64)>::new()));
-    let inner = std::sync::Arc::clone(&log);
-    let cruise_from = std::sync::Arc::new(std::sync::Mutex::new(None::<f64>));
-    let r = run(
-        &s,
-        Box::new(move |k: &mut Tick<'_>| {
-            if (k.t - 0.02).abs() < 5e-4 {
-                k.controller
-                    .command(Command::GoTo(Metres::from_f64(h)))
-                    .unwrap();
-            }
-            let c = &k.controller;
-            if (c.reference().to_f64() - 3.0).abs() < 1e-3 {
-                let from = *cruise_from.lock().unwrap().get_or_insert(k.t);
-                if k.t >= from + 0.5 {
-                    inner
-                        .lock()
-                        .unwrap()
-                        .push((k.t, c.status().load.load.to_f64()));
-                }
-            }
-        }),
-    );
+    let (r, log) = lift_6mm(&s, deg);
     assert!(faults(&r).is_empty(), "{:?}", faults(&r));
     // The case is a clipped one: the current reached the limit.
     let limit = default_current_limit();
@@ -429,9 +414,10 @@ fn a_breakaway_the_current_limit_clipped_is_read_with_the_wind_up_past_it() {
         "{} A",
         r.peak_current()
     );
-    let log = log.lock().unwrap();
+    let from = log.first().map_or(f64::INFINITY, |x| x.0) + 0.5;
+    let log: Vec<_> = log.into_iter().filter(|x| x.0 >= from).collect();
     assert!(log.len() > 500, "{} ticks", log.len());
-    for &(t, load) in log.iter() {
+    for &(t, load, _) in log.iter() {
         assert!((load - 1300.0).abs() <= 39.0, "{load} kg at {t:.3} s");
     }
 }
@@ -447,18 +433,7 @@ fn a_fault_during_a_stick_slipping_lift_names_the_breakaways_load() {
         &host_sim::inject::parse_list("supply-sag@1.2:8+0.5").expect("a valid fault"),
     )
     .expect("a valid plan");
-    let g = host_sim::physics::Geometry::paper();
-    let h = g.height(25.9f64.to_radians()) + 6.0e-3;
-    let r = run(
-        &s,
-        Box::new(move |k: &mut Tick<'_>| {
-            if (k.t - 0.02).abs() < 5e-4 {
-                k.controller
-                    .command(Command::GoTo(Metres::from_f64(h)))
-                    .unwrap();
-            }
-        }),
-    );
+    let (r, _) = lift_6mm(&s, 25.9);
     let (t, f) = r.first_fault().expect("the sag stops the lift");
     assert_eq!(f.kind, FaultKind::UnderVoltage, "at {t:.3} s: {f:?}");
     assert_eq!(f.state, liftfw::control::State::Lifting, "{f:?}");

@@ -301,9 +301,8 @@ impl Controller {
         let at_lower = self.live.enc.position() <= lower.saturating_add(ARRIVED_COUNTS);
         // A motion a fault ended says nothing about the friction; one that stick-slipped
         // (a detected episode) is marked: its pair may not conclude a wetter thread.
-        let episodes = self.motion.stick_slip.output().episodes;
-        let slipped = episodes != self.loadid.episodes || self.motion.stick_slip.output().active;
-        self.loadid.episodes = episodes;
+        let slipped = self.motion_slipped();
+        self.loadid.episodes = self.motion.stick_slip.output().episodes;
         let fault = self.live.state == State::Fault;
         // A stick-slipping lift's load is its breakaways' (the status said so while it ran):
         // the load at rest and the next motion's start (a lowering that stick-slips keeps it).
@@ -336,11 +335,17 @@ impl Controller {
         // (A ball screw has no samples, `identify_load`: `None` below.)
         let id = &self.loadid;
         let lifting = self.live.state == State::Lifting || (id.moving && id.ident.direction() > 0);
-        let out = self.motion.stick_slip.output();
-        if !lifting || !(out.active || out.episodes != id.episodes) {
+        if !lifting || !self.motion_slipped() {
             return None;
         }
         self.breakaway_lift(id.ident.reference())
+    }
+
+    /// The motion under way (or the one just ended, until `end_load_motion` counts it) had a
+    /// stick-slip episode: one is under way, or one started since the last motion ended.
+    fn motion_slipped(&self) -> bool {
+        let out = self.motion.stick_slip.output();
+        out.active || out.episodes != self.loadid.episodes
     }
 
     /// [`Self::stick_slip_lift`]'s reading of this lift's breakaways at the cruise reference

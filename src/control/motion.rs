@@ -115,7 +115,7 @@ impl Controller {
     pub(super) fn detect_stick_slip(&mut self, x: &Reading) {
         let state = self.live.state;
         let d = DetectorInputs {
-            driving: self.live.moving() && matches!(self.motion.last_bridge, Bridge::Drive(_)),
+            driving: self.drives(),
             direction: if state == State::Lowering { -1 } else { 1 },
             reference: self.reference_speed(),
             measured_torque: x.estimate.measured_screw_torque,
@@ -133,11 +133,17 @@ impl Controller {
         }
     }
 
+    /// A motion whose bridge drove on the last tick (this tick's current answers that command).
+    #[inline(always)]
+    fn drives(&self) -> bool {
+        self.live.moving() && matches!(self.motion.last_bridge, Bridge::Drive(_))
+    }
+
     /// A tick near the current limit, or after one (`clip`). Out of line and cold.
     #[cold]
     #[inline(never)]
     fn track_clip(&mut self, x: &Reading, near: bool) {
-        let driving = self.live.moving() && matches!(self.motion.last_bridge, Bridge::Drive(_));
+        let driving = self.drives();
         let (t, p) = (x.estimate.measured_screw_torque, self.live.enc.position());
         let lowering = self.live.state == State::Lowering;
         let tick = ClipTick {

@@ -635,3 +635,65 @@ fn default_current_limit() -> f64 {
         .current_limit
         .to_f64()
 }
+
+/// A fresh board lowering a dry thread (the car unknown: the prior at boot) creeps at 0.3 rad/s
+/// until two breakaways have weighed the car, then cruises at that load (`control::creep`):
+/// the load from 0.5 s of cruise within 3 %, and the cruise's mean T_r (the stuck thread's at
+/// the mean torque, `ident::stick::StuckLowering::friction`) within 3 % of the plant's mean
+/// over stick and slip. A pose and a car outside `host-sim estimate`'s matrix (900 kg from 22°,
+/// its own seed). Before the creep the status said the prior's 1000 kg through the cruise.
+#[test]
+fn a_fresh_board_lowering_a_dry_thread_weighs_the_car_while_it_creeps() {
+    use std::sync::{Arc, Mutex};
+    let load = 900.0;
+    let mut s = commissioned(Lubricant::Dry, load, 22.0, 2.6);
+    s.seed = 11;
+    let crept = Arc::new(Mutex::new(false));
+    let seen = Arc::clone(&crept);
+    let g = host_sim::physics::Geometry::paper();
+    let h = g.height(22f64.to_radians()) - 5e-3;
+    // (t, load, T_r) at the cruise reference.
+    let log = Arc::new(Mutex::new(Vec::<(f64, f64, f64)>::new()));
+    let sink = Arc::clone(&log);
+    let r = run(
+        &s,
+        Box::new(move |k: &mut Tick<'_>| {
+            if (k.t - 0.6).abs() < 5e-4 {
+                k.controller
+                    .command(Command::GoTo(Metres::from_f64(h)))
+                    .unwrap();
+            }
+            let w = k.controller.reference().to_f64();
+            if (w + 0.3).abs() < 1e-3 {
+                *seen.lock().unwrap() = true;
+            }
+            if (w + 3.0).abs() < 1e-3 {
+                let st = k.controller.status();
+                sink.lock().unwrap().push((
+                    k.t,
+                    st.load.load.to_f64(),
+                    st.friction_torque.to_f64(),
+                ));
+            }
+        }),
+    );
+    assert!(faults(&r).is_empty(), "{:?}", faults(&r));
+    assert!(*crept.lock().unwrap(), "the lowering did not creep");
+    let log = log.lock().unwrap().clone();
+    assert!(log.len() > 1000, "{} cruise ticks", log.len());
+    let t0 = log[0].0;
+    let worst = log
+        .iter()
+        .filter(|x| x.0 >= t0 + 0.5)
+        .map(|x| (x.1 - load).abs())
+        .fold(0.0, f64::max);
+    let n = log.len() as f64;
+    let core = log.iter().map(|x| x.2).sum::<f64>() / n;
+    let plant = log.iter().map(|x| plant_friction_at(&r, x.0)).sum::<f64>() / n;
+    eprintln!("load worst {worst:.1} kg off; T_r mean {core:.3} against the plant's {plant:.3}");
+    assert!(worst < 0.03 * load, "load {worst} kg off");
+    assert!(
+        (core - plant).abs() < 0.03 * plant.abs(),
+        "T_r {core:.3} against {plant:.3}"
+    );
+}

@@ -410,3 +410,91 @@ proptest! {
         }
     }
 }
+
+/// The twin of `ident::stick::StuckLowering`'s τ(ρ) (docs/model.md "A stick-slipping
+/// lowering"): r_m·ξ_down(ρ·μ(0))·(G_R − ρ·G_F), N·m per kg, signed.
+fn twin_tau(rho_: f64, mu0: f64, g_up: f64, g_dn: f64) -> f64 {
+    let (g_r, g_f) = ((g_up + g_dn) / 2.0, (g_up - g_dn) / 2.0);
+    rho(-1.0, rho_ * mu0) * (g_r - rho_ * g_f)
+}
+
+/// Where |τ| peaks over ρ ∈ [0, 1] and its value, by a dense scan and a golden-section
+/// refinement (no closed form: the fixed point's ρ_x drops the denominator's variation).
+fn twin_peak(mu0: f64, g_up: f64, g_dn: f64) -> (f64, f64) {
+    let f = |r: f64| -twin_tau(r, mu0, g_up, g_dn);
+    let mut best = (0.0, f(0.0));
+    for i in 0..=1000 {
+        let r = f64::from(i) / 1000.0;
+        if f(r) > best.1 {
+            best = (r, f(r));
+        }
+    }
+    let (mut a, mut b) = ((best.0 - 1e-3).max(0.0), (best.0 + 1e-3).min(1.0));
+    for _ in 0..60 {
+        let (c, d) = (b - (b - a) / 1.618, a + (b - a) / 1.618);
+        if f(c) > f(d) {
+            b = d;
+        } else {
+            a = c;
+        }
+    }
+    let r = (a + b) / 2.0;
+    (r, f(r))
+}
+
+/// The twin of `StuckLowering::friction`: ρ̄ where M·τ(ρ̄) = T̄ on [0, ρ_x], then
+/// T_r = −M·r_m·ρ̄μ₀·(G_R − ρ̄G_F)/(1 + ρ̄μ₀·tan λ).
+fn twin_lower_friction(m: f64, mean: f64, mu0: f64, g_up: f64, g_dn: f64) -> f64 {
+    let (rx, _) = twin_peak(mu0, g_up, g_dn);
+    let (mut lo, mut hi) = (0.0, rx);
+    for _ in 0..60 {
+        let mid = (lo + hi) / 2.0;
+        if m * twin_tau(mid, mu0, g_up, g_dn) > mean {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let r = (lo + hi) / 2.0;
+    let (rm, tan) = twin_screw();
+    let (g_r, g_f) = ((g_up + g_dn) / 2.0, (g_up - g_dn) / 2.0);
+    -m * rm * r * mu0 * (g_r - r * g_f) / (1.0 + r * mu0 * tan)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
+
+    /// A stuck lowering's breakaway load and its mean T_r within 0.2 % (+0.5 kg, +2 mN·m) of
+    /// the twin over the envelope: α 12…44° (above, G_down < G_up/8 and lowering does not
+    /// weigh, docs/model.md), loads 50…2000 kg, μ(0) 0.1…0.4 (self-locking), pins μ_b
+    /// 0.05…0.4, mean mobilisation anywhere between the load's push alone and the breakaway.
+    #[test]
+    fn a_stuck_lowering_follows_the_twin(
+        alpha in 12.0f64..44.0,
+        m in 50.0f64..2000.0,
+        mu0 in 0.1f64..0.4,
+        mu_pin in 0.05f64..0.4,
+        at in 0.0f64..1.0,
+    ) {
+        let (g_up, g_dn) = (g_per_kg(alpha, 1.0, mu_pin), g_per_kg(alpha, -1.0, mu_pin));
+        prop_assume!(g_dn >= g_up / 8.0);
+        let q23 = |x: f64| (x * f64::from(1u32 << 23)).round() as i64;
+        let sc = screw();
+        let s = liftfw::ident::stick::StuckLowering::new(&sc, Ratio::from_f64(mu0), q23(g_up), q23(g_dn));
+        let (rx, _) = twin_peak(mu0, g_up, g_dn);
+        let s = s.expect("self-locking at μ(0) ≥ 0.1");
+        // The breakaway at full mobilisation: the load a twin peak gives.
+        let p = -m * twin_tau(1.0, mu0, g_up, g_dn);
+        let got = s.load((p * 65536.0).round() as i64).unwrap().to_f64();
+        prop_assert!((got - m).abs() <= 2e-3 * m + 0.5, "M {} vs {}", got, m);
+        // |τ|'s peak within 1 % of ρ (where it is flat).
+        let px = s.peak_mobilisation() as f64 / 65536.0;
+        prop_assert!((px - rx).abs() <= 0.01, "ρ_x {} vs {}", px, rx);
+        // The mean T_r at a mean torque between the push alone (ρ = 0) and |τ|'s peak.
+        let mean = m * twin_tau(at * rx, mu0, g_up, g_dn);
+        let want = twin_lower_friction(m, mean, mu0, g_up, g_dn);
+        let load = liftfw::units::Kilograms::from_f64(m);
+        let got = s.friction(&sc, load, (mean * 65536.0).round() as i64).unwrap().to_f64();
+        prop_assert!((got - want).abs() <= 2e-3 * want.abs() + 2e-3, "T_r {} vs {}", got, want);
+    }
+}

@@ -98,6 +98,12 @@ pub(super) struct Derived {
     /// configured one and `stickslip.escape_speed`.
     pub(super) cruise_q32: i64,
     pub(super) escape_q32: i64,
+    /// A weighing lowering's creep speed ([`super::creep::CREEP_SPEED`], at most the cruise),
+    /// Q32 counts per tick.
+    pub(super) creep_q32: i64,
+    /// A 4-tick mean's lag behind the coupling's wind-up at the creep speed, 1.5 ticks of
+    /// k_c·ω (`creep`).
+    pub(super) creep_lag: NewtonMetres,
     /// How far the reference may lead the screw before the planner waits for it, counts.
     pub(super) lag_counts: i32,
     /// The ball screw (`cfg.ball_screw`, compiled).
@@ -195,6 +201,21 @@ impl Derived {
             ),
             cruise_q32: per_tick_q32(cfg.motion.cruise_speed),
             escape_q32: per_tick_q32(cfg.stick_slip.escape_speed),
+            creep_q32: per_tick_q32(super::creep::CREEP_SPEED.min(cfg.motion.cruise_speed)),
+            // k_c (Q16 N·m/rad)·ω (Q16 rad/s)·1.5 ticks (µs) → Q16 N·m; < 2^63 (k_c ≤ 10⁴,
+            // ω ≤ 20, tick ≤ 10⁵ µs).
+            creep_lag: NewtonMetres::from_raw(sat32(
+                (i64::from(cfg.estimator.mechanics.coupling_stiffness.bits())
+                    * i64::from(
+                        super::creep::CREEP_SPEED
+                            .min(cfg.motion.cruise_speed)
+                            .bits(),
+                    )
+                    * i64::from(tick_us)
+                    * 3
+                    / 2_000_000)
+                    >> 16,
+            )),
             // The planner waits while the screw lags its reference by more than 0.25 rad of
             // the screw (≈ 0.08 mm of nut on the S12x2; at least the arrival window), see
             // `drive`.

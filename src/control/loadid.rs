@@ -55,6 +55,8 @@ pub(super) struct Identification {
     interval_left: u8,
     /// The stick-slip detector's breakaway sums (Σ peak, count) when the motion began.
     breakaways: (i64, u32),
+    /// A lowering's weighing creep (`creep`).
+    pub(super) creep: super::creep::Creep,
 }
 
 impl Identification {
@@ -77,6 +79,7 @@ impl Identification {
             rescaling: None,
             interval_left: 0,
             breakaways: (0, 0),
+            creep: super::creep::Creep::default(),
         }
     }
 }
@@ -146,7 +149,12 @@ impl Controller {
                 self.loadid.screw_start = self.screw_position();
                 self.loadid.breakaways = self.breakaway_totals();
             }
-            let driving = matches!(self.motion.last_bridge, Bridge::Drive(_));
+            // The creep's ticks are no samples: its slow stick-slip is not the cruise's.
+            let creeping = self.loadid.creep.on;
+            if creeping {
+                self.creep_tick();
+            }
+            let driving = matches!(self.motion.last_bridge, Bridge::Drive(_)) && !creeping;
             let reference = self.motion.last_ref_rad;
             let braking = self.motion.profile.near_target();
             let segment = self.est.pose_segment_index();
@@ -162,6 +170,7 @@ impl Controller {
             }
         } else if self.loadid.moving {
             self.loadid.moving = false;
+            self.loadid.creep.on = false;
             self.end_load_motion();
         } else if self.loadid.rest_work {
             self.rest_identification();
@@ -341,6 +350,31 @@ impl Controller {
         self.breakaway_lift(id.ident.reference())
     }
 
+    /// A held lowering (one that stick-slips: `ident::LoadIdent::hold_start`, or weighed by its
+    /// creep): its load, and its mean T_r as the stuck thread's at the mean measured thread
+    /// torque of its samples (`ident::stick::StuckLowering::friction`; the sliding model's
+    /// T_r at that load is 17…27 % off the plant's mean over stick and slip). `None`
+    /// otherwise, or before its first sample. At the status, not in the tick.
+    #[inline(never)]
+    fn stick_slip_lower(&self) -> Option<(Kilograms, NewtonMetres)> {
+        let id = &self.loadid;
+        if self.live.state != State::Lowering || !id.ident.held() {
+            return None;
+        }
+        let (t, k) = id.ident.thread_sum();
+        if k == 0 {
+            return None;
+        }
+        let pos = self.live.enc.position();
+        let (up, down) = (self.est.g_per_kg(pos, 1), self.est.g_per_kg(pos, -1));
+        let mu0 = self.est.law().mu(RadiansPerSecond::ZERO);
+        let screw = self.est.screw();
+        let s =
+            crate::ident::stick::StuckLowering::new(screw, mu0, i64::from(up), i64::from(down))?;
+        let tr = s.friction(screw, id.load, t / i64::from(k))?;
+        Some((id.load, tr))
+    }
+
     /// The motion under way (or the one just ended, until `end_load_motion` counts it) had a
     /// stick-slip episode: one is under way, or one started since the last motion ended.
     fn motion_slipped(&self) -> bool {
@@ -416,7 +450,7 @@ impl Controller {
     /// lowering's load on the reversed flank. At the status, and once when a fault latches
     /// (its snapshot names the same load).
     pub(super) fn load_readings(&self) -> (Option<(Kilograms, NewtonMetres)>, Option<Kilograms>) {
-        let stick = self.stick_slip_lift();
+        let stick = self.stick_slip_lift().or_else(|| self.stick_slip_lower());
         let lowering = if stick.is_none() {
             self.lowering_load()
         } else {

@@ -29,6 +29,7 @@
 
 pub mod clip;
 pub mod config;
+mod creep;
 mod derived;
 pub mod edges;
 mod hold;

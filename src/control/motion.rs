@@ -171,7 +171,8 @@ impl Controller {
         let out = self.motion.stick_slip.output();
         let (amplitude, episode) = (out.amplitude, out.episodes);
         let reaction = self.derived.cfg.stick_slip.reaction;
-        if reaction == Reaction::ChangeSpeed {
+        // (A creep keeps its speed: its end takes the escape speed, `creep`.)
+        if reaction == Reaction::ChangeSpeed && !self.loadid.creep.on {
             self.motion.profile.set_cruise(self.derived.escape_q32);
         }
         if self.live.pending_event.is_none() {

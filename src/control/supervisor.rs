@@ -396,6 +396,9 @@ impl Controller {
         } else {
             State::Lowering
         });
+        if !moving && dir < 0 {
+            self.start_creep();
+        }
         Ok(())
     }
 

@@ -14,7 +14,8 @@
 //! T_cap = P − ρ₀·M·G_d = P·(1 − ρ₀/ρ₁). Both are linear in ρ, so their means are too:
 //! T̄_r = T_cap·(T̄ − T₀)/(P − T₀), T̄ the mean measured thread torque.
 
-use crate::units::{sat32, Kilograms, NewtonMetres, Q};
+use crate::model::screw::ScrewModel;
+use crate::units::{sat32, Kilograms, NewtonMetres, Ratio, Q};
 
 /// The load and the mean T_r of a stick-slipping lift, from the mean breakaway thread torque
 /// `peak` P and the mean thread torque `mean` T̄ (Q16 N·m), ρ₁ = ρ_up(μ(0)) and ρ₀ = r_m·tan λ
@@ -56,3 +57,159 @@ pub fn lift(
         NewtonMetres::from_raw(sat32(tr)),
     ))
 }
+
+/// A stuck lowering (docs/model.md "A stick-slipping lowering"): the thread torque per
+/// kilogram on the head at mobilisation ρ ∈ [0, 1] (the common fraction of the thread's, the
+/// pins' and the supports' static capacity), signed as the screw sees it (negative: the motor
+/// drives the screw down):
+///
+///   τ(ρ) = r_m·ξ_down(ρ·μ(0))·(G_R − ρ·G_F),  ξ_down(μ) = (tan λ − μ)/(1 + μ·tan λ),
+///
+/// with G_R = (G_up + G_down)/2 the load's push and G_F = (G_up − G_down)/2 the pins' static
+/// capacity per kilogram (the nut stands: D = 0). The screw breaks away when the coupling's
+/// torque overcomes the thread and the pins at full static friction, ρ = 1:
+/// P = M·τ(1) = M·ρ_down(μ(0))·G_down, as lifting's P = M·ρ_up(μ(0))·G_up (host-sim's
+/// breakaways at a 0.3 rad/s creep: dry 700…1300 kg from 150 and 200 mm, 1.6…4 % below the
+/// largest |τ|, which lies inside, at ρ ≈ 0.9, and 0.3…1.2 % above M·|τ(1)|, the drive's
+/// lag included).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StuckLowering {
+    /// μ(0) of the law in force.
+    mu0: Ratio,
+    /// G_R and G_F, Q23 N/kg.
+    g_r: i64,
+    g_f: i64,
+    /// Where |τ| peaks (the end of the monotone branch a stick winds up along), ρ_x Q16; and
+    /// the breakaway's |τ(1)|, Q40 N·m per kg.
+    rho_x: i64,
+    tau_b: i64,
+}
+
+impl StuckLowering {
+    /// At a pose whose axial force per kilogram lifting and lowering is `g_up`, `g_down` (Q23
+    /// N/kg, `Estimator::g_per_kg`), for the law in force's μ(0) `mu0`. |τ|'s peak maximises
+    /// the product's numerator (the denominator 1 + ρ·μ(0)·tan λ moves by ≈ 1 % over ρ and
+    /// shifts it by less than 0.1 % of |τ|, where |τ| is flat):
+    /// d/dρ [(ρμ₀ − t)(G_R − ρG_F)] = 0 at ρ_x = (μ₀·G_R + t·G_F)/(2·μ₀·G_F), clamped to [0, 1]
+    /// (1 where the pins carry no friction). `None` where the thread does not self-lock at
+    /// μ(0) (τ(1) ≥ 0: nothing to break away) or out of range. At the creep's end and the
+    /// status, not in the tick.
+    #[inline(never)]
+    pub fn new(screw: &ScrewModel, mu0: Ratio, g_up: i64, g_down: i64) -> Option<StuckLowering> {
+        let mut s = Self::start(screw, mu0, g_up, g_down)?;
+        s.finish(screw).then_some(s)
+    }
+
+    /// [`Self::new`]'s first half (ρ_x: one 64-bit division), for a control tick's budget; its
+    /// breakaway torque is 0 until [`Self::finish`].
+    #[inline(never)]
+    pub fn start(screw: &ScrewModel, mu0: Ratio, g_up: i64, g_down: i64) -> Option<StuckLowering> {
+        let (g_r, g_f) = ((g_up + g_down) / 2, (g_up - g_down) / 2);
+        let mu = i64::from(mu0.bits());
+        if mu <= 0 || g_r <= 0 || g_f < 0 {
+            return None;
+        }
+        let t = i64::from(screw.tan_lambda().bits());
+        // Q28·Q23 = Q51 (μ₀ < 16, G < 2^8·2^23: < 2^62).
+        let num = mu.checked_mul(g_r)?.checked_add(t.checked_mul(g_f)?)?;
+        let den = (2 * mu).checked_mul(g_f)?;
+        // num·2^16/den through den's normalised reciprocal (both Q51 → Q27: 32 bits): a 32-bit
+        // division, not a 64-bit one (the creep's start runs in control ticks).
+        let rho_x = match super::pair::div_scaled(num >> 24, den >> 24, 16) {
+            Some(r) if den >> 24 > 0 => r.clamp(0, ONE),
+            _ => ONE,
+        };
+        Some(StuckLowering {
+            mu0,
+            g_r,
+            g_f,
+            rho_x,
+            tau_b: 0,
+        })
+    }
+
+    /// [`Self::new`]'s second half: the breakaway's |τ(1)|. False where the thread does not
+    /// self-lock at μ(0) (nothing to break away) or out of range (the load then stays
+    /// unknown: [`Self::load`] gives `None`).
+    #[inline(never)]
+    pub fn finish(&mut self, screw: &ScrewModel) -> bool {
+        // |τ(1)| in Q32 N·m per kg must fit 32 bits for `load`'s reciprocal.
+        self.tau_b = match self.tau(screw, ONE) {
+            Some(t) if t < 0 && (-t) >> 8 <= i64::from(u32::MAX) => -t,
+            _ => 0,
+        };
+        self.tau_b != 0
+    }
+
+    /// τ(ρ) (ρ Q16), Q40 N·m per kg, signed.
+    fn tau(&self, screw: &ScrewModel, rho: i64) -> Option<i64> {
+        let r = super::pair::rho_q32(screw, self.mu_at(rho), -1)?;
+        let w = self.g_r - ((self.g_f * rho) >> 16);
+        // Q32·Q23 = Q55 → Q40.
+        Some(r.checked_mul(w)? >> 15)
+    }
+
+    /// ρ·μ(0) (ρ Q16).
+    fn mu_at(&self, rho: i64) -> Ratio {
+        Ratio::from_raw(sat32((i64::from(self.mu0.bits()) * rho) >> 16))
+    }
+
+    /// Where |τ| peaks, ρ_x Q16.
+    pub fn peak_mobilisation(&self) -> i64 {
+        self.rho_x
+    }
+
+    /// The load whose breakaway thread torque is `peak` (its magnitude, Q16 N·m):
+    /// M = |P|/|τ(1)|. `None` for a peak ≤ 0 or out of range.
+    pub fn load(&self, peak: i64) -> Option<Kilograms> {
+        if peak <= 0 || self.tau_b == 0 {
+            return None;
+        }
+        // Q16·2^28 / Q32 = Q12 kg, through |τ|'s normalised reciprocal (a 32-bit division:
+        // the creep's end runs in a control tick).
+        let m = super::pair::div_scaled(peak, self.tau_b >> 8, 28)?;
+        Some(Kilograms::from_raw(i32::try_from(m).ok()?))
+    }
+
+    /// The mean friction torque T̄_r of a stick-slipping lowering of load `load` whose mean
+    /// thread torque is `mean` (signed, Q16 N·m): the mobilisation ρ̄ where M·τ(ρ̄) = T̄ (τ falls
+    /// monotonically from ρ = 0, the load's push alone, to ρ_x: bisection, 16 steps, clamped
+    /// to its ends), and the friction torque there,
+    /// T_r = −M·r_m·ρ̄μ₀·(G_R − ρ̄·G_F)/(1 + ρ̄μ₀·tan λ) (the plant's μ_s·|N|·r_m·cos λ). A
+    /// sawtooth's wind-up runs uniformly through the thread torque and T_r is nearly linear in
+    /// it between the slip's trough and the breakaway, so the mean T_r is T_r at the mean
+    /// torque. `None` out of range. At the status, not in the tick.
+    #[inline(never)]
+    pub fn friction(&self, screw: &ScrewModel, load: Kilograms, mean: i64) -> Option<NewtonMetres> {
+        let m = i64::from(load.bits());
+        if m <= 0 {
+            return None;
+        }
+        // T̄ per kilogram, Q16·2^36 / Q12 = Q40.
+        let per_kg = mean.checked_mul(1 << 36)?.checked_div(m)?;
+        let (mut lo, mut hi) = (0i64, self.rho_x);
+        for _ in 0..16 {
+            let mid = (lo + hi) >> 1;
+            if self.tau(screw, mid)? > per_kg {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let rho = (lo + hi) >> 1;
+        // r_m·μ/(1 + μ·tan λ): Q24·Q28 → Q32 (>> 20), over the Q28 denominator.
+        let mu = i64::from(self.mu_at(rho).bits());
+        let t = i64::from(screw.tan_lambda().bits());
+        let r = i64::from(screw.pitch_radius().bits());
+        let den = (1i64 << 28) + ((mu * t) >> 28);
+        let f = ((r * mu) >> 20).checked_mul(1 << 28)?.checked_div(den)?;
+        let w = self.g_r - ((self.g_f * rho) >> 16);
+        // Q32·Q23 → Q40 per kg; ·M (Q12) → Q52 → Q16.
+        let per_kg = f.checked_mul(w)? >> 15;
+        let tr = per_kg.checked_mul(m)? >> 36;
+        Some(NewtonMetres::from_raw(sat32(-tr)))
+    }
+}
+
+/// Q16 one (a mobilisation of 1).
+const ONE: i64 = 1 << 16;

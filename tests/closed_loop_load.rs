@@ -697,3 +697,56 @@ fn a_fresh_board_lowering_a_dry_thread_weighs_the_car_while_it_creeps() {
         "T_r {core:.3} against {plant:.3}"
     );
 }
+
+/// An overloaded dry lowering after power-up (the car unknown, the thread's scale restored from
+/// the store, as after any pair) is refused by its weighing creep: 1.6× rated from 24° (its own
+/// seed), the overload within 0.5 s of the command, before the head came down 0.1 mm, the
+/// fault naming the creep's load within 5 %; and 1.15× rated (below the 1.25× limit) on the
+/// same thread is not refused. (A board that never measured its thread takes the driest it
+/// still assumes, 2× the law: a dry lowering's reading then trips only beyond ≈ 3× rated.)
+#[test]
+fn a_lowering_of_an_unknown_dry_car_is_refused_while_it_creeps() {
+    for (load, trips) in [(1600.0, true), (1150.0, false)] {
+        let mut s = commissioned(Lubricant::Dry, load, 24.0, 1.2);
+        s.seed = 12;
+        let g = host_sim::physics::Geometry::paper();
+        let h0 = g.height(24f64.to_radians());
+        let h = h0 - 5e-3;
+        let r = run(
+            &s,
+            Box::new(move |k: &mut Tick<'_>| {
+                if k.t < 5e-4 {
+                    k.controller.restore_friction_scale(Ratio::ONE);
+                }
+                if (k.t - 0.6).abs() < 5e-4 {
+                    k.controller
+                        .command(Command::GoTo(Metres::from_f64(h)))
+                        .unwrap();
+                }
+            }),
+        );
+        let f = faults(&r);
+        if !trips {
+            assert!(f.is_empty(), "{load} kg: {f:?}");
+            continue;
+        }
+        assert_eq!(f.first().map(|x| x.1), Some(FaultKind::Overload), "{f:?}");
+        let t = f[0].0 - 0.6;
+        assert!(t <= 0.5, "refused {t:.3} s after the command");
+        let i = r.trace.records.partition_point(|x| x.t < f[0].0);
+        let height = g.height(r.trace.records[i].alpha_deg.to_radians());
+        assert!(
+            h0 - height < 1e-4,
+            "came down {:.3} mm",
+            (h0 - height) * 1e3
+        );
+        let fault = r.controller.fault().unwrap();
+        assert!(fault.load_identified, "the prior tripped");
+        eprintln!("refused after {t:.3} s at {:.1} kg", fault.load.to_f64());
+        assert!(
+            (fault.load.to_f64() - load).abs() < 0.05 * load,
+            "{:?}",
+            fault.load
+        );
+    }
+}

@@ -17,10 +17,10 @@
 //!
 //! Cold: once at a lowering's start, a counter on the creep's ticks, once at its end.
 
-use super::{Controller, State};
+use super::{Controller, FaultKind, State};
 use crate::detect::stickslip::Reaction;
 use crate::ident::stick::StuckLowering;
-use crate::units::{Kilograms, RadiansPerSecond, Q};
+use crate::units::{Instant, Kilograms, RadiansPerSecond, Q};
 
 /// The creep's speed at the screw (at most the configured cruise): a tenth of the default
 /// cruise, where host-sim's dry wind-ups last 60…150 ms at 700…1300 kg.
@@ -140,7 +140,7 @@ impl Controller {
     /// [`CREEP_MS`].
     #[cold]
     #[inline(never)]
-    pub(super) fn creep_tick(&mut self) {
+    pub(super) fn creep_tick(&mut self, now: Instant) {
         if self.loadid.creep.pending > 0 {
             self.creep_check();
             return;
@@ -185,14 +185,14 @@ impl Controller {
             c.max = i64::MIN;
         }
         if c.count >= CREEP_BREAKAWAYS || done {
-            self.end_creep();
+            self.end_creep(now);
         }
     }
 
     /// The creep's end: the car weighed by its breakaways (if any), the lowering held at that
-    /// load, the cruise (or, after a stick-slip onset with the `speed` reaction, the escape
+    /// load (and refused above the overload limit), the cruise (or, after a stick-slip onset with the `speed` reaction, the escape
     /// speed).
-    fn end_creep(&mut self) {
+    fn end_creep(&mut self, now: Instant) {
         self.loadid.creep.on = false;
         let out = self.motion.stick_slip.output();
         let cruise = if self.derived.cfg.stick_slip.reaction == Reaction::ChangeSpeed && out.active
@@ -208,6 +208,11 @@ impl Controller {
             id.ident.hold_start();
             id.load = m;
             id.offset = id.ident.torque_offset(self.derived.cfg.rated_load);
+            // An overload is refused here, before the car has come down a tenth of a
+            // millimetre (the trip's floor: the driest thread the board still assumes).
+            if id.ident.lowering_floor(m) > id.overload && self.live.state != State::Fault {
+                self.latch(now, FaultKind::Overload);
+            }
         }
     }
 

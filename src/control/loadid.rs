@@ -44,7 +44,7 @@ pub(super) struct Identification {
     /// Stick-slip episodes at the end of the last motion.
     episodes: u32,
     /// The load limit of the overload trip.
-    overload: Kilograms,
+    pub(super) overload: Kilograms,
     /// A friction scale waiting to be stored.
     pub(super) store: Option<Ratio>,
     /// Work left for the ticks at rest ([`Controller::rest_identification`]).
@@ -152,7 +152,7 @@ impl Controller {
             // The creep's ticks are no samples: its slow stick-slip is not the cruise's.
             let creeping = self.loadid.creep.on;
             if creeping {
-                self.creep_tick();
+                self.creep_tick(now);
             }
             let driving = matches!(self.motion.last_bridge, Bridge::Drive(_)) && !creeping;
             let reference = self.motion.last_ref_rad;

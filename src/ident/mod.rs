@@ -569,6 +569,13 @@ impl LoadIdent {
         Some(qmul(load, self.floor[usize::from(self.run_dir < 0)]))
     }
 
+    /// The lower end of the interval a lowering's reading `load` leaves, with the friction scale
+    /// unknown within its band: the overload trip's floor for a load read at the law in force
+    /// (a weighing creep's breakaways, `control::creep`).
+    pub fn lowering_floor(&self, load: Kilograms) -> Kilograms {
+        qmul(load, self.floor[1])
+    }
+
     /// The lift came to rest (`fault`: a fault ended the motion, whose samples then say
     /// nothing about the load or the friction). The motion's means are kept for a pair; with
     /// both directions kept, a pair solve starts, which the ticks at rest run

@@ -636,23 +636,22 @@ fn default_current_limit() -> f64 {
         .to_f64()
 }
 
-/// A fresh board lowering a dry thread (the car unknown: the prior at boot) creeps at 0.3 rad/s
-/// until two breakaways have weighed the car, then cruises at that load (`control::creep`):
-/// the load from 0.5 s of cruise within 3 %, and the cruise's mean T_r (the stuck thread's at
-/// the mean torque, `ident::stick::StuckLowering::friction`) within 3 % of the plant's mean
-/// over stick and slip. A pose and a car outside `host-sim estimate`'s matrix (900 kg from 22°,
-/// its own seed). Before the creep the status said the prior's 1000 kg through the cruise.
-#[test]
-fn a_fresh_board_lowering_a_dry_thread_weighs_the_car_while_it_creeps() {
+/// A fresh board (the car unknown: the prior at boot) lowers a dry thread 5 mm from `deg`,
+/// commanded at 0.6 s: whether it crept at 0.3 rad/s, and (t, load, T_r) of its status at every
+/// tick at the −3 rad/s cruise.
+fn fresh_dry_lowering(
+    load: f64,
+    deg: f64,
+    seed: u64,
+    secs: f64,
+) -> (Run, bool, Vec<(f64, f64, f64)>) {
     use std::sync::{Arc, Mutex};
-    let load = 900.0;
-    let mut s = commissioned(Lubricant::Dry, load, 22.0, 2.6);
-    s.seed = 11;
+    let mut s = commissioned(Lubricant::Dry, load, deg, secs);
+    s.seed = seed;
     let crept = Arc::new(Mutex::new(false));
     let seen = Arc::clone(&crept);
     let g = host_sim::physics::Geometry::paper();
-    let h = g.height(22f64.to_radians()) - 5e-3;
-    // (t, load, T_r) at the cruise reference.
+    let h = g.height(deg.to_radians()) - 5e-3;
     let log = Arc::new(Mutex::new(Vec::<(f64, f64, f64)>::new()));
     let sink = Arc::clone(&log);
     let r = run(
@@ -677,16 +676,34 @@ fn a_fresh_board_lowering_a_dry_thread_weighs_the_car_while_it_creeps() {
             }
         }),
     );
-    assert!(faults(&r).is_empty(), "{:?}", faults(&r));
-    assert!(*crept.lock().unwrap(), "the lowering did not creep");
+    let crept = *crept.lock().unwrap();
     let log = log.lock().unwrap().clone();
-    assert!(log.len() > 1000, "{} cruise ticks", log.len());
+    (r, crept, log)
+}
+
+/// The worst load error from 0.5 s of cruise in a `fresh_dry_lowering` log.
+fn worst_from_half_a_second(log: &[(f64, f64, f64)], load: f64) -> f64 {
     let t0 = log[0].0;
-    let worst = log
-        .iter()
+    log.iter()
         .filter(|x| x.0 >= t0 + 0.5)
         .map(|x| (x.1 - load).abs())
-        .fold(0.0, f64::max);
+        .fold(0.0, f64::max)
+}
+
+/// A fresh board lowering a dry thread creeps at 0.3 rad/s until two breakaways have weighed
+/// the car, then cruises at that load (`control::creep`): the load from 0.5 s of cruise within
+/// 3 %, and the cruise's mean T_r (the stuck thread's at the mean torque,
+/// `ident::stick::StuckLowering::friction`) within 3 % of the plant's mean over stick and slip.
+/// A pose and a car outside `host-sim estimate`'s matrix (900 kg from 22°, its own seed).
+/// Before the creep the status said the prior's 1000 kg through the cruise.
+#[test]
+fn a_fresh_board_lowering_a_dry_thread_weighs_the_car_while_it_creeps() {
+    let load = 900.0;
+    let (r, crept, log) = fresh_dry_lowering(load, 22.0, 11, 2.6);
+    assert!(faults(&r).is_empty(), "{:?}", faults(&r));
+    assert!(crept, "the lowering did not creep");
+    assert!(log.len() > 1000, "{} cruise ticks", log.len());
+    let worst = worst_from_half_a_second(&log, load);
     let n = log.len() as f64;
     let core = log.iter().map(|x| x.2).sum::<f64>() / n;
     let plant = log.iter().map(|x| plant_friction_at(&r, x.0)).sum::<f64>() / n;
@@ -696,6 +713,26 @@ fn a_fresh_board_lowering_a_dry_thread_weighs_the_car_while_it_creeps() {
         (core - plant).abs() < 0.03 * plant.abs(),
         "T_r {core:.3} against {plant:.3}"
     );
+}
+
+/// Low on the stroke a dry thread does not self-lock while it slides fast: after the creep's
+/// first breakaway the screw runs ahead and the coupling swings through zero, which the
+/// detector counted as a second "breakaway" of −7 N·m after one of 12 (host-sim estimate, dry
+/// 1300 kg from 150 mm: the creep read 992 kg). A later peak is taken only within a quarter of
+/// the first. 1250 kg from 17° (its own seed): the load within 3 % from 0.5 s of cruise.
+#[test]
+fn a_creep_low_on_the_stroke_ignores_the_coupling_s_swing_after_a_slip() {
+    let load = 1250.0;
+    let (r, crept, log) = fresh_dry_lowering(load, 17.0, 13, 2.0);
+    assert!(faults(&r).is_empty(), "{:?}", faults(&r));
+    assert!(
+        crept && log.len() > 500,
+        "crept {crept}, {} cruise ticks",
+        log.len()
+    );
+    let worst = worst_from_half_a_second(&log, load);
+    eprintln!("load worst {worst:.1} kg off");
+    assert!(worst < 0.03 * load, "load {worst} kg off");
 }
 
 /// An overloaded dry lowering after power-up (the car unknown, the thread's scale restored from

@@ -62,6 +62,8 @@ pub(super) struct Creep {
     sum: i64,
     count: u32,
     seen: u32,
+    /// The first breakaway was seen last tick: the detector's flag is due (`confirm`).
+    confirm_due: bool,
 }
 
 /// The start's pieces, one a tick: the state, the law's branch, its μ(0), G_up, G_down, the
@@ -145,6 +147,13 @@ impl Controller {
             self.creep_check();
             return;
         }
+        if self.loadid.creep.confirm_due {
+            self.loadid.creep.confirm_due = false;
+            if self.motion.stick_slip.confirm().onset {
+                self.stick_slip_onset();
+            }
+            return;
+        }
         let n = self.breakaway_totals().1;
         let limit = CREEP_MS.saturating_mul(1000) / self.derived.cfg.estimator.tick_us.max(1);
         let t = self
@@ -166,6 +175,7 @@ impl Controller {
         }
         let seen = n.wrapping_sub(c.breakaways);
         let mut done = c.ticks >= limit;
+        let mut first_breakaway = false;
         if seen > c.seen {
             // The detector saw a slip: the largest 4-tick mean since the last one is its peak
             // (the detector's own peak leaks while the current falls). The first from rest is
@@ -176,6 +186,7 @@ impl Controller {
             // after a breakaway of 12).
             c.seen = seen;
             let first = c.sum;
+            let was = c.count;
             if c.count == 0 || c.max.abs_diff(first) <= (first >> 2).unsigned_abs() {
                 c.count += 1;
                 c.sum = c.sum.saturating_add(c.max.max(0));
@@ -183,7 +194,11 @@ impl Controller {
                 done = true;
             }
             c.max = i64::MIN;
+            first_breakaway = was == 0 && c.count == 1;
         }
+        // The first breakaway: the thread stick-slips (the detector's flag on the next tick,
+        // `confirm`: this one's budget has the breakaway's bookkeeping).
+        c.confirm_due = first_breakaway;
         if c.count >= CREEP_BREAKAWAYS || done {
             self.end_creep(now);
         }

@@ -167,7 +167,7 @@ impl Controller {
     /// (once per episode).
     #[cold]
     #[inline(never)]
-    fn stick_slip_onset(&mut self) {
+    pub(super) fn stick_slip_onset(&mut self) {
         let out = self.motion.stick_slip.output();
         let (amplitude, episode) = (out.amplitude, out.episodes);
         let reaction = self.derived.cfg.stick_slip.reaction;

@@ -357,6 +357,35 @@ fn sawtooth_torque_raises_the_flag_on_the_second_slip_with_dry_friction() {
     assert!(a > 30.0 && a <= 50.5, "amplitude {a}");
 }
 
+/// A creep's first breakaway confirms stick-slip (`confirm`): the flag rises with an onset at
+/// once; a second confirmation in the same episode is no new onset; the flag then falls as
+/// after a slip (at least the minimum hold without another), and a confirmation within the
+/// chain window of that fall is the same episode again.
+#[test]
+fn a_confirmed_breakaway_raises_the_flag_once_per_episode() {
+    let l = law(FrictionLaw::DRY);
+    let mut d = StickSlipDetector::new(&cfg("0.5"), 1000);
+    let o = d.confirm();
+    assert!(o.onset && o.active && o.episodes == 1, "{o:?}");
+    let o = d.confirm();
+    assert!(!o.onset && o.active && o.episodes == 1, "{o:?}");
+    // A flat torque at a steady reference: no slip, the flag falls after the hold.
+    let mut fell = None;
+    for ms in 0..1000u32 {
+        let o = d.step(&drive(NewtonMetres::from_f64(20.0), "0.3"), &l);
+        if !o.active && fell.is_none() {
+            fell = Some(ms);
+        }
+    }
+    let fell = fell.expect("the flag fell");
+    assert!((250..=260).contains(&fell), "fell at {fell} ms");
+    let o = d.confirm();
+    assert!(
+        !o.onset && o.active && o.episodes == 1,
+        "same episode: {o:?}"
+    );
+}
+
 /// The shortest valid chain window (100 ms) is shorter than the minimum hold (250 ms): an
 /// episode must hold for the minimum, not panic (found by the golden vectors).
 #[test]

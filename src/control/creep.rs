@@ -53,10 +53,8 @@ pub(super) struct Creep {
     ticks: u32,
     /// The detector's breakaway count when it began.
     breakaways: u32,
-    /// The last four measured torques resisting the motion (Q16) and their largest mean since
-    /// the last breakaway.
-    ring: [i32; 4],
-    head: u8,
+    /// The largest 4-tick mean of the measured torque resisting the motion since the last
+    /// breakaway (Q16, the detector's mean).
     max: i64,
     /// The accepted breakaways' peaks (Σ and count), and the detector's slips seen.
     sum: i64,
@@ -156,18 +154,11 @@ impl Controller {
         }
         let n = self.breakaway_totals().1;
         let limit = CREEP_MS.saturating_mul(1000) / self.derived.cfg.estimator.tick_us.max(1);
-        let t = self
-            .live
-            .latest
-            .estimate
-            .measured_screw_torque
-            .sat_neg()
-            .bits();
+        // (The detector's step comes later in the tick: its mean and its slips are both the
+        // last tick's.)
+        let mean = i64::from(self.motion.stick_slip.mean_torque());
         let c = &mut self.loadid.creep;
         c.ticks = c.ticks.saturating_add(1);
-        c.ring[usize::from(c.head & 3)] = t;
-        c.head = c.head.wrapping_add(1);
-        let mean = c.ring.iter().map(|&v| i64::from(v)).sum::<i64>() >> 2;
         // From when the detector watches (its settling after the ramp to the creep): the
         // start's current (the rotor's acceleration) is no breakaway.
         if c.ticks >= ARMED_TICKS - u32::from(PIECES) {
@@ -240,14 +231,10 @@ impl Controller {
         if c.count == 0 || self.live.state != State::Lowering {
             return None;
         }
-        let e = &self.live.latest.estimate;
-        // Signed as the screw sees them: the measured torque −peak, the thread's −P.
-        let own = i64::from(e.model_screw_torque.bits()) - i64::from(e.thread_torque.bits());
         // A 4-tick mean of the wind-up's ramp lags its last tick by 1.5 ticks of k_c·ω.
         let lag = i64::from(self.derived.creep_lag.bits());
         // (One or two breakaways: a shift, not a division.)
-        let peak = (c.sum >> (c.count - 1).min(1)) + lag;
-        let p = peak + own + self.loadid.ident.drive_bias(-1);
+        let p = self.peak_thread_torque((c.sum >> (c.count - 1).min(1)) + lag, -1);
         c.stuck?.load(p)
     }
 }

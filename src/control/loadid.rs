@@ -392,13 +392,10 @@ impl Controller {
         if n < 2 || k == 0 {
             return None;
         }
-        let e = &self.live.latest.estimate;
-        // The peaks are the measured screw torque (4-tick means): less the model's own screw
-        // torque and the drive's no-load torque, as the samples.
-        let own = i64::from(e.model_screw_torque.bits()) - i64::from(e.thread_torque.bits());
-        let peak = sum.saturating_sub(self.loadid.breakaways.0) / i64::from(n)
-            - own
-            - self.loadid.ident.drive_bias(1);
+        let peak = self.peak_thread_torque(
+            sum.saturating_sub(self.loadid.breakaways.0) / i64::from(n),
+            1,
+        );
         let mean = t / i64::from(k);
         // Over the motion (not the last slip alone, whose outliers made the estimate come and
         // go): a linear wind-up from the trough to the breakaway has its mean half-way, so the
@@ -443,6 +440,16 @@ impl Controller {
         let rho1 = crate::ident::pair::rho_q32(screw, mu0, 1)?;
         let rho0 = crate::ident::pair::rho_q32(screw, Ratio::ZERO, 1)?;
         crate::ident::stick::lift(peak, mean, drop, rho1, rho0, g_up, g_r)
+    }
+
+    /// A peak of the measured torque resisting the motion in direction `dir` (Q16: the
+    /// stick-slip detector's 4-tick means) as the thread's torque resisting it: less the
+    /// model's own screw torque (inertia, damping, support) and the drive's no-load torque, as
+    /// the samples. The breakaway readings of a lift and of a lowering's creep.
+    pub(super) fn peak_thread_torque(&self, peak: i64, dir: i8) -> i64 {
+        let e = &self.live.latest.estimate;
+        let own = i64::from(e.model_screw_torque.bits()) - i64::from(e.thread_torque.bits());
+        peak - i64::from(dir.signum()) * (own + self.loadid.ident.drive_bias(dir))
     }
 
     /// What the status reports beside the mean torque's identification, computed once: a

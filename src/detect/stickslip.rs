@@ -509,6 +509,12 @@ impl StickSlipDetector {
         &self.out
     }
 
+    /// The 4-tick mean of the measured torque resisting the motion (Q16 N·m), as of the last
+    /// step (the weighing creep's breakaway peaks, `control::creep`).
+    pub fn mean_torque(&self) -> i32 {
+        self.ring_mean()
+    }
+
     /// Σ of the slips' peak torques (resisting the motion, Q16 N·m) and their count, since
     /// boot: each slip's peak is the breakaway torque of the stick before it.
     pub fn breakaways(&self) -> (i64, u32) {

@@ -218,7 +218,11 @@ impl Profile {
         self.v = 0;
         self.target = p;
         self.done = true;
-        self.window = [0; SMOOTH_LEN];
+        // The moving average's window (512 B) only where the S-curve uses it: a button starts a
+        // motion inside a control tick, whose budget the clearing took.
+        if self.smooth_entries() != 0 {
+            self.window = [0; SMOOTH_LEN];
+        }
         self.tick_in_entry = 0;
         self.entry_acc = 0;
         self.head = 0;

@@ -11,7 +11,7 @@
 //! boot, after the lower stop) on such a thread starts at [`CREEP_SPEED`] until the stick-slip
 //! detector has seen [`CREEP_BREAKAWAYS`] slips or [`CREEP_MS`] have passed, then ramps on to
 //! the cruise. Its breakaways weigh the car: the stuck thread's torque at the breakaway is
-//! M·τ(ρ_b) (`ident::stick::StuckLowering`). The lowering then keeps that load (a held
+//! M·|τ(1)| (`ident::stick::StuckLowering`). The lowering then keeps that load (a held
 //! lowering: its own samples, light as they read, do not set it) and its T_r is the stuck
 //! thread's at the mean torque.
 //!
@@ -196,8 +196,8 @@ impl Controller {
     }
 
     /// The creep's end: the car weighed by its breakaways (if any), the lowering held at that
-    /// load (and refused above the overload limit), the cruise (or, after a stick-slip onset with the `speed` reaction, the escape
-    /// speed).
+    /// load (and refused above the overload limit), the cruise (or, after a stick-slip onset
+    /// with the `speed` reaction, the escape speed).
     fn end_creep(&mut self, now: Instant) {
         self.loadid.creep.on = false;
         let out = self.motion.stick_slip.output();
@@ -224,8 +224,8 @@ impl Controller {
 
     /// The load the creep's breakaways give: their mean peak (the detector's, resisting the
     /// motion: the magnitude of the measured torque) less the model's own screw torque and the
-    /// drive's no-load torque is the stuck thread's breakaway |P| = M·|τ(ρ_b)|, read at this
-    /// pose with the law in force's μ(0). `None` without a breakaway.
+    /// drive's no-load torque is the stuck thread's breakaway |P| = M·|τ(1)|, read at the
+    /// creep's pose with the law in force's μ(0). `None` without a breakaway.
     fn creep_load(&self) -> Option<Kilograms> {
         let c = &self.loadid.creep;
         if c.count == 0 || self.live.state != State::Lowering {

@@ -175,6 +175,8 @@ impl Derived {
             Factor::from_raw(gear_ratio.to_bits()),
             tick_us,
         );
+        // A weighing lowering's creep speed, at most the cruise (`creep`).
+        let creep = super::creep::CREEP_SPEED.min(cfg.motion.cruise_speed);
         let inv_ke_n = Ratio::from_raw(sat32((1i64 << 44) / i64::from(gains.ke_n.bits().max(1))));
         Ok(Derived {
             cfg: *cfg,
@@ -201,16 +203,12 @@ impl Derived {
             ),
             cruise_q32: per_tick_q32(cfg.motion.cruise_speed),
             escape_q32: per_tick_q32(cfg.stick_slip.escape_speed),
-            creep_q32: per_tick_q32(super::creep::CREEP_SPEED.min(cfg.motion.cruise_speed)),
+            creep_q32: per_tick_q32(creep),
             // k_c (Q16 N·m/rad)·ω (Q16 rad/s)·1.5 ticks (µs) → Q16 N·m; < 2^63 (k_c ≤ 10⁴,
             // ω ≤ 20, tick ≤ 10⁵ µs).
             creep_lag: NewtonMetres::from_raw(sat32(
                 (i64::from(cfg.estimator.mechanics.coupling_stiffness.bits())
-                    * i64::from(
-                        super::creep::CREEP_SPEED
-                            .min(cfg.motion.cruise_speed)
-                            .bits(),
-                    )
+                    * i64::from(creep.bits())
                     * i64::from(tick_us)
                     * 3
                     / 2_000_000)

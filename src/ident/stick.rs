@@ -68,10 +68,9 @@ pub fn lift(
 /// with G_R = (G_up + G_down)/2 the load's push and G_F = (G_up − G_down)/2 the pins' static
 /// capacity per kilogram (the nut stands: D = 0). The screw breaks away when the coupling's
 /// torque overcomes the thread and the pins at full static friction, ρ = 1:
-/// P = M·τ(1) = M·ρ_down(μ(0))·G_down, as lifting's P = M·ρ_up(μ(0))·G_up (host-sim's
-/// breakaways at a 0.3 rad/s creep: dry 700…1300 kg from 150 and 200 mm, 1.6…4 % below the
-/// largest |τ|, which lies inside, at ρ ≈ 0.9, and 0.3…1.2 % above M·|τ(1)|, the drive's
-/// lag included).
+/// P = M·τ(1) = M·ρ_down(μ(0))·G_down, as lifting's P = M·ρ_up(μ(0))·G_up (host-sim's coupling
+/// at the breakaways of a 0.3 rad/s creep: dry 700…1300 kg from 150 and 200 mm, within 0.6 % of
+/// M·|τ(1)|; the largest |τ|, inside at ρ_x < 1, is 1.5…3.9 % above it).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct StuckLowering {
     /// μ(0) of the law in force.
@@ -100,7 +99,7 @@ impl StuckLowering {
         s.finish(screw).then_some(s)
     }
 
-    /// [`Self::new`]'s first half (ρ_x: one 64-bit division), for a control tick's budget; its
+    /// [`Self::new`]'s first half (ρ_x: one 32-bit division), for a control tick's budget; its
     /// breakaway torque is 0 until [`Self::finish`].
     #[inline(never)]
     pub fn start(screw: &ScrewModel, mu0: Ratio, g_up: i64, g_down: i64) -> Option<StuckLowering> {

@@ -189,7 +189,13 @@ pub struct LoadIdent {
     /// The next sample tick evaluates the gain (after a window closed).
     gain_due: bool,
     win_g: i32,
+    /// L·g (Q16) of the sample under way: the window's L·g at its start plus `win_step` a
+    /// sample slot (the gain drifts with the pose).
     win_lg: i64,
+    /// L·g's step a sample slot over the window before (Q16), and that window's sample count
+    /// (0: none in this run, the step is 0).
+    win_step: i32,
+    win_prev: u32,
     /// The last non-zero gain (kept across motions: the status's and the torque monitor's).
     last_g: i32,
     win_gk: i32,
@@ -243,6 +249,8 @@ impl LoadIdent {
             gain_due: false,
             win_g: 0,
             win_lg: 0,
+            win_step: 0,
+            win_prev: 0,
             last_g: 0,
             win_gk: 0,
             win_d: 0,
@@ -393,8 +401,10 @@ impl LoadIdent {
             self.open_window(x, g_per_kg());
             return false;
         }
-        // e − b + L·g (Q16): L (Q12, ≤ 10 t)·g (Q24) → Q36.
+        // e − b + L·g (Q16): L (Q12, ≤ 10 t)·g (Q24) → Q36; L·g follows the pose's drift of
+        // g at the window before's rate (`open_window` corrects the window to the rate met).
         let e = i64::from(x.measured.bits()) - i64::from(x.model.bits()) - self.bias(x.dir);
+        self.win_lg += i64::from(self.win_step);
         let s = &mut self.run;
         s.n += 1;
         s.y += e + self.win_lg;
@@ -441,7 +451,8 @@ impl LoadIdent {
         self.gain_due = false;
         let w = x.axial.bits();
         let g = load_gain_q24(x.thread, x.axial, g_per_kg);
-        self.win_g = g;
+        let g_before = core::mem::replace(&mut self.win_g, g);
+        let prev = core::mem::take(&mut self.win_prev);
         if g == 0 {
             return;
         }
@@ -461,7 +472,27 @@ impl LoadIdent {
         self.run_reference = self.prev_reference;
         // L·g (Q16) at the window's gain: L is the load the tick's model runs with (the
         // rated one: the same every tick).
-        self.win_lg = (load * i64::from(g)) >> 20;
+        let lg = (load * i64::from(g)) >> 20;
+        // The tick's model torque carries g at its own pose and the samples' L·g must too
+        // (y = T − T_model(L) − b + L·g is the model at no load only then): g moves with the
+        // pose, 2.6 % over a cruise from 150 mm, and a window's L·g frozen at its start read an
+        // empty head 0.5…1 kg heavy (host-sim, dry, lifting from 150 mm). The window before
+        // (its `prev` samples, the gain evaluated `prev` + 2 sample slots apart) gives the rate
+        // a slot, L·Δg (g's change alone: a model load L that changed is no drift); its own
+        // samples took the rate predicted for them and get the difference now,
+        // Σᵢ (rate − predicted)·i. The next window is predicted at this rate.
+        let step = if prev > 0 && self.run.n > 0 && g_before != 0 {
+            let dg = i64::from(g) - i64::from(g_before);
+            // |L·Δg| over a window is far below 2^31 in Q16: a 32-bit division.
+            let rate = crate::units::sat32((load * dg) >> 20) / (prev as i32 + 2);
+            let missed = i64::from(rate.saturating_sub(self.win_step));
+            self.run.y += missed * i64::from(prev * (prev + 1) / 2);
+            rate
+        } else {
+            0
+        };
+        self.win_step = step;
+        self.win_lg = lg;
         self.win_gk = g_per_kg;
         // D = W − L·G (Q8): L (Q12)·G (Q23) → Q35.
         self.win_d = crate::units::sat32(i64::from(w) - ((load * i64::from(g_per_kg)) >> 27));
@@ -476,6 +507,7 @@ impl LoadIdent {
             return;
         }
         let n = i64::from(self.win);
+        self.win_prev = self.win;
         self.win = 0;
         self.gain_due = true;
         let s = &mut self.run;
@@ -1094,6 +1126,54 @@ mod tests {
     /// A stick-slipping lowering keeps the load the motion began with (`hold_start`): the
     /// lift's identification, or at boot the prior with its interval; a stick-slipping lift's
     /// breakaway load (`set_load`) is the next motion's start.
+    /// The load gain g moves with the pose while the tick's model (at the rated load) follows
+    /// it every tick: a window's L·g frozen at its start read a 20 kg head ≈ 1 kg off at the
+    /// drift of a cruise from 150 mm (host-sim: an empty head lifting from 150 mm, 2.6 % over
+    /// 1.5 s). Here 5 %/s either way, lifting and lowering.
+    #[test]
+    fn a_light_head_reads_true_while_the_gain_drifts_with_the_pose() {
+        let sc = screw();
+        let (tan, r) = (sc.tan_lambda().to_f64(), sc.pitch_radius().to_f64());
+        let (rated, m) = (1000.0, 20.0);
+        for dir in [1i8, -1] {
+            for drift in [-0.05, 0.05] {
+                let mut id = fresh(&sc);
+                let mus = 0.21 * f64::from(dir);
+                let rho = r * (tan + mus) / (1.0 - mus * tan);
+                let (g0, d) = (g_at_20(dir), 24.0 * f64::from(dir));
+                for k in 0..1500u32 {
+                    let g = g0 * (1.0 + drift * f64::from(k) / 1000.0);
+                    let reference = RadiansPerSecond::from_f64(
+                        f64::from(dir) * if k < 60 { 0.05 * f64::from(k) } else { 3.0 },
+                    );
+                    if !id.steady(true, false, reference) {
+                        continue;
+                    }
+                    let model_thread = rho * (rated * g + d);
+                    let measured = rho * (m * g + d) + 0.5 * f64::from(dir);
+                    id.add(
+                        &TickSample {
+                            dir,
+                            measured: NewtonMetres::from_f64(measured + 0.3),
+                            model: NewtonMetres::from_f64(model_thread + 0.3),
+                            thread: NewtonMetres::from_f64(model_thread),
+                            axial: Newtons::from_f64(rated * g + d),
+                            load: Kilograms::lit("1000"),
+                        },
+                        || (g * f64::from(1u32 << 23)) as i32,
+                    );
+                    if k >= 400 {
+                        let err = id.load().to_f64() - m;
+                        assert!(
+                            err.abs() < 0.2,
+                            "dir {dir} drift {drift} tick {k}: {err:+.3} kg"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn a_stick_slipping_lowering_keeps_the_load_it_began_with() {
         let sc = screw();

@@ -162,7 +162,13 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
     let mut t = 0.0;
     let mut ended = End::Cap;
     while t < cap {
-        t = sim.step_n(per_tick);
+        // The plant's T_r: the tick's mean over its integration steps (as `host-sim estimate`;
+        // at the tick's instant alone it aliases a thread that stick-slips in step with it).
+        let mut tr_sum = 0.0;
+        for _ in 0..per_tick {
+            t = sim.step_n(1);
+            tr_sum += sim.record(t).friction_torque;
+        }
         let r = sim.record(t);
         let mut g = lock(&shared);
         if sim.take_watchdog_reset() {
@@ -186,7 +192,7 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
             core_height: st.height.to_f64() * 1e3,
             true_speed: r.theta_dot,
             core_speed: st.screw_speed.to_f64(),
-            true_tr: r.friction_torque,
+            true_tr: tr_sum / per_tick as f64,
             core_tr: st.friction_torque.to_f64(),
             current: r.current,
             core_load: st.load.load.to_f64(),

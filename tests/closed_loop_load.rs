@@ -731,8 +731,25 @@ fn a_creep_low_on_the_stroke_ignores_the_coupling_s_swing_after_a_slip() {
         log.len()
     );
     let worst = worst_from_half_a_second(&log, load);
-    eprintln!("load worst {worst:.1} kg off");
+    // The first 120 ms of cruise, before the held lowering's first sample: the stuck thread's
+    // T_r at the low-passed measured torque. The sliding model at the weighed load had stood
+    // there, 55 % heavy this low (here −13.3 against −8.6 N·m; now −9.6: the wind-ups' mean
+    // ρ̄ is read at a torque that swings through zero, docs/model.md).
+    let early = &log[..120];
+    let core = early.iter().map(|x| x.2).sum::<f64>() / 120.0;
+    let plant = early
+        .iter()
+        .map(|x| plant_friction_at(&r, x.0))
+        .sum::<f64>()
+        / 120.0;
+    eprintln!(
+        "load worst {worst:.1} kg off; T_r over the first 120 ms {core:.3} against {plant:.3}"
+    );
     assert!(worst < 0.03 * load, "load {worst} kg off");
+    assert!(
+        (core - plant).abs() < 0.2 * plant.abs(),
+        "T_r over the first 120 ms {core:.3} against {plant:.3}"
+    );
 }
 
 /// An overloaded dry lowering after power-up (the car unknown, the thread's scale restored from

@@ -367,9 +367,7 @@ impl Controller {
         // sliding model's T_r at that load is 55 % above the stuck thread's mean there (host-sim,
         // dry 1300 kg from 150 mm: −13.9 against −8.9 N·m, 0.4 N·m of the cruise's mean).
         let mean = if k == 0 {
-            let e = &self.live.latest.estimate;
-            let own = i64::from(e.model_screw_torque.bits()) - i64::from(e.thread_torque.bits());
-            i64::from(self.motion.torque_lp.bits()) - own - id.ident.drive_bias(-1)
+            self.measured_thread_torque(-1)
         } else {
             t / i64::from(k)
         };
@@ -458,14 +456,27 @@ impl Controller {
         crate::ident::stick::lift(peak, mean, drop, rho1, rho0, g_up, g_r)
     }
 
-    /// A peak of the measured torque resisting the motion in direction `dir` (Q16: the
-    /// stick-slip detector's 4-tick means) as the thread's torque resisting it: less the
-    /// model's own screw torque (inertia, damping, support) and the drive's no-load torque, as
-    /// the samples. The breakaway readings of a lift and of a lowering's creep.
-    pub(super) fn peak_thread_torque(&self, peak: i64, dir: i8) -> i64 {
+    /// What the current carries beside the thread's torque while moving in direction `dir`
+    /// (Q16, signed): the model's own screw torque (inertia, damping, support) and the drive's
+    /// no-load torque.
+    fn own_torque(&self, dir: i8) -> i64 {
         let e = &self.live.latest.estimate;
-        let own = i64::from(e.model_screw_torque.bits()) - i64::from(e.thread_torque.bits());
-        peak - i64::from(dir.signum()) * (own + self.loadid.ident.drive_bias(dir))
+        i64::from(e.model_screw_torque.bits()) - i64::from(e.thread_torque.bits())
+            + self.loadid.ident.drive_bias(dir)
+    }
+
+    /// The thread torque the current measures while moving in direction `dir` (Q16, signed):
+    /// the low-passed measured torque less [`Self::own_torque`]. At the status, not in the tick.
+    fn measured_thread_torque(&self, dir: i8) -> i64 {
+        i64::from(self.motion.torque_lp.bits()) - self.own_torque(dir)
+    }
+
+    /// A peak of the measured torque resisting the motion in direction `dir` (Q16: the
+    /// stick-slip detector's 4-tick means) as the thread's torque resisting it: less
+    /// [`Self::own_torque`], as the samples. The breakaway readings of a lift and of a
+    /// lowering's creep.
+    pub(super) fn peak_thread_torque(&self, peak: i64, dir: i8) -> i64 {
+        peak - i64::from(dir.signum()) * self.own_torque(dir)
     }
 
     /// What the status reports beside the mean torque's identification, computed once: a
@@ -530,9 +541,7 @@ impl Controller {
             // noisy, but unbiased: the prior (the rated load) is not. Bounded by the prior's
             // stated range, ±2·T_r(L_r).
             let thread = i64::from(e.thread_torque.bits());
-            let own = i64::from(e.model_screw_torque.bits()) - thread;
-            let measured =
-                i64::from(self.motion.torque_lp.bits()) - own - self.loadid.ident.drive_bias(dir);
+            let measured = self.measured_thread_torque(dir);
             if thread.unsigned_abs() >= 1 << 12 {
                 let tr = i64::from(e.friction_torque.bits());
                 // |tr| < 2^31: 2·|tr| fits (no `clamp`: its panic path costs flash).

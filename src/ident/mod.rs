@@ -1123,9 +1123,6 @@ mod tests {
         assert_eq!(id.load(), Kilograms::lit("1000"));
     }
 
-    /// A stick-slipping lowering keeps the load the motion began with (`hold_start`): the
-    /// lift's identification, or at boot the prior with its interval; a stick-slipping lift's
-    /// breakaway load (`set_load`) is the next motion's start.
     /// The load gain g moves with the pose while the tick's model (at the rated load) follows
     /// it every tick: a window's L·g frozen at its start read a 20 kg head ≈ 1 kg off at the
     /// drift of a cruise from 150 mm (host-sim: an empty head lifting from 150 mm, 2.6 % over
@@ -1174,6 +1171,9 @@ mod tests {
         }
     }
 
+    /// A stick-slipping lowering keeps the load the motion began with (`hold_start`): the
+    /// lift's identification, or at boot the prior with its interval; a stick-slipping lift's
+    /// breakaway load (`set_load`) is the next motion's start.
     #[test]
     fn a_stick_slipping_lowering_keeps_the_load_it_began_with() {
         let sc = screw();

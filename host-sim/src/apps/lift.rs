@@ -162,13 +162,9 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
     let mut t = 0.0;
     let mut ended = End::Cap;
     while t < cap {
-        // The plant's T_r: the tick's mean over its integration steps (as `host-sim estimate`;
-        // at the tick's instant alone it aliases a thread that stick-slips in step with it).
-        let mut tr_sum = 0.0;
-        for _ in 0..per_tick {
-            t = sim.step_n(1);
-            tr_sum += sim.record(t).friction_torque;
-        }
+        // The plant's T_r: the mean over the tick's integration steps (as `host-sim estimate`).
+        let (now, true_tr) = sim.step_n_mean_friction(per_tick);
+        t = now;
         let r = sim.record(t);
         let mut g = lock(&shared);
         if sim.take_watchdog_reset() {
@@ -192,7 +188,7 @@ pub fn main(a: &LiftArgs) -> Result<LiftOutcome, String> {
             core_height: st.height.to_f64() * 1e3,
             true_speed: r.theta_dot,
             core_speed: st.screw_speed.to_f64(),
-            true_tr: tr_sum / per_tick as f64,
+            true_tr,
             core_tr: st.friction_torque.to_f64(),
             current: r.current,
             core_load: st.load.load.to_f64(),

@@ -299,15 +299,9 @@ pub fn run_case(c: &Case) -> Result<Outcome, String> {
         let mut rested = None;
         let t_start = t;
         loop {
-            // The plant's T_r is the mean over the tick's integration steps: sampled at the
-            // ticks' instants alone it aliased a thread that stick-slips in step with the control
-            // tick (lithium 250 kg lowering from 150 mm: its cruise mean read 2.3 % heavy).
-            let mut tr_sum = 0.0;
-            for _ in 0..per_tick {
-                t = sim.step_n(1);
-                tr_sum += sim.record(t).friction_torque;
-            }
-            let tr_tick = tr_sum / per_tick as f64;
+            // The plant's T_r: the mean over the tick's integration steps.
+            let (now, tr_tick) = sim.step_n_mean_friction(per_tick);
+            t = now;
             let r = sim.record(t);
             let g = lock(&shared);
             let core = &g.0;

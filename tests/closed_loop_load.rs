@@ -70,6 +70,14 @@ fn plant_friction_at(r: &Run, t: f64) -> f64 {
     r.trace.records[i.min(r.trace.records.len() - 1)].friction_torque
 }
 
+/// The core's and the plant's mean T_r over `fresh_dry_lowering`'s (t, load, T_r) ticks.
+fn tr_means(r: &Run, log: &[(f64, f64, f64)]) -> (f64, f64) {
+    let n = log.len().max(1) as f64;
+    let core = log.iter().map(|x| x.2).sum::<f64>() / n;
+    let plant = log.iter().map(|x| plant_friction_at(r, x.0)).sum::<f64>() / n;
+    (core, plant)
+}
+
 fn faults(r: &Run) -> Vec<(f64, FaultKind)> {
     r.events
         .iter()
@@ -704,9 +712,7 @@ fn a_fresh_board_lowering_a_dry_thread_weighs_the_car_while_it_creeps() {
     assert!(crept, "the lowering did not creep");
     assert!(log.len() > 1000, "{} cruise ticks", log.len());
     let worst = worst_from_half_a_second(&log, load);
-    let n = log.len() as f64;
-    let core = log.iter().map(|x| x.2).sum::<f64>() / n;
-    let plant = log.iter().map(|x| plant_friction_at(&r, x.0)).sum::<f64>() / n;
+    let (core, plant) = tr_means(&r, &log);
     eprintln!("load worst {worst:.1} kg off; T_r mean {core:.3} against the plant's {plant:.3}");
     assert!(worst < 0.03 * load, "load {worst} kg off");
     assert!(
@@ -735,13 +741,7 @@ fn a_creep_low_on_the_stroke_ignores_the_coupling_s_swing_after_a_slip() {
     // T_r at the low-passed measured torque. The sliding model at the weighed load had stood
     // there, 55 % heavy this low (here −13.3 against −8.6 N·m; now −9.6: the wind-ups' mean
     // ρ̄ is read at a torque that swings through zero, docs/model.md).
-    let early = &log[..120];
-    let core = early.iter().map(|x| x.2).sum::<f64>() / 120.0;
-    let plant = early
-        .iter()
-        .map(|x| plant_friction_at(&r, x.0))
-        .sum::<f64>()
-        / 120.0;
+    let (core, plant) = tr_means(&r, &log[..120]);
     eprintln!(
         "load worst {worst:.1} kg off; T_r over the first 120 ms {core:.3} against {plant:.3}"
     );

@@ -371,14 +371,12 @@ impl Controller {
         } else {
             t / i64::from(k)
         };
-        // The mean torque's pose: half-way along the samples' travel (as a lift's breakaways,
-        // `breakaway_lift`; read at the pose of the moment, the load gain 2.6 % above it by the
-        // end of a cruise from 150 mm, T_r read 1…2 % heavy).
-        let here = self.live.enc.position();
+        // The mean torque's pose (as a lift's breakaways; read at the pose of the moment, the
+        // load gain 2.6 % above it by the end of a cruise from 150 mm, T_r read 1…2 % heavy).
         let pos = if k == 0 {
-            here
+            self.live.enc.position()
         } else {
-            ((i64::from(here) + i64::from(id.screw_start)) >> 1) as i32
+            self.motion_mid_pose()
         };
         let (up, down) = (self.est.g_per_kg(pos, 1), self.est.g_per_kg(pos, -1));
         let mu0 = self.est.law().mu(RadiansPerSecond::ZERO);
@@ -445,8 +443,7 @@ impl Controller {
         // from its start): their means belong to the pose half-way (the load gain falls as the
         // lift rises, by ≈ 2 % over 6 mm from 17.5°: read at the pose of the moment the mean
         // breakaway read a car 33 kg heavier by the end of that travel, host-sim, dry 1300 kg).
-        let here = self.live.enc.position();
-        let pos = ((i64::from(here) + i64::from(self.loadid.screw_start)) >> 1) as i32;
+        let pos = self.motion_mid_pose();
         let g_up = i64::from(self.est.g_per_kg(pos, 1));
         let g_r = (g_up + i64::from(self.est.g_per_kg(pos, -1))) / 2;
         let screw = self.est.screw();
@@ -454,6 +451,12 @@ impl Controller {
         let rho1 = crate::ident::pair::rho_q32(screw, mu0, 1)?;
         let rho0 = crate::ident::pair::rho_q32(screw, Ratio::ZERO, 1)?;
         crate::ident::stick::lift(peak, mean, drop, rho1, rho0, g_up, g_r)
+    }
+
+    /// The pose half-way along the motion's travel so far (encoder counts): where means over
+    /// the motion's samples and breakaways belong.
+    fn motion_mid_pose(&self) -> i32 {
+        ((i64::from(self.live.enc.position()) + i64::from(self.loadid.screw_start)) >> 1) as i32
     }
 
     /// What the current carries beside the thread's torque while moving in direction `dir`

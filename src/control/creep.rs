@@ -19,6 +19,7 @@
 
 use super::{Controller, FaultKind, State};
 use crate::detect::stickslip::Reaction;
+use crate::ident::pair::Breakaway;
 use crate::ident::stick::StuckLowering;
 use crate::units::{Instant, Kilograms, RadiansPerSecond, Q};
 
@@ -49,8 +50,13 @@ pub(super) struct Creep {
     mu0: crate::units::Ratio,
     /// The stuck thread's model at the creep's pose.
     stuck: Option<StuckLowering>,
-    /// Ticks of it.
+    /// The least peak a first breakaway may have (Q16, the detector's mean): half the breakaway
+    /// of the load the last lift's breakaways read, where the creep pairs with them (the lift's
+    /// twist unwinds first, and its falls are no breakaways); else 0.
+    gate: i32,
+    /// Ticks of it, and of it since the measured torque first resisted the descent.
     ticks: u32,
+    resisting: u16,
     /// The detector's breakaway count when it began.
     breakaways: u32,
     /// The largest 4-tick mean of the measured torque resisting the motion since the last
@@ -75,7 +81,10 @@ impl Controller {
     #[cold]
     #[inline(never)]
     pub(super) fn start_creep(&mut self) {
-        let on = !self.holds_actively() && !self.loadid.ident.identified();
+        // (Or to pair its breakaways with the last lift's while the scale is not known:
+        // `Controller::breakaway_pair`.)
+        let id = &self.loadid;
+        let on = !self.holds_actively() && (!id.ident.identified() || id.lift_breakaway.is_some());
         let c = &mut self.loadid.creep;
         c.on = on;
         if on {
@@ -128,7 +137,19 @@ impl Controller {
                 c.stuck = StuckLowering::start(self.est.screw(), c.mu0, up, down);
                 c.stuck.is_some()
             }
-            _ => c.stuck.as_mut().is_some_and(|s| s.finish(self.est.screw())),
+            _ => {
+                let paired = self.loadid.lift_breakaway.is_some();
+                let load = self.loadid.load;
+                c.stuck.as_mut().is_some_and(|s| {
+                    let ok = s.finish(self.est.screw());
+                    c.gate = if paired {
+                        crate::units::sat32(s.breakaway_torque(load) >> 1)
+                    } else {
+                        0
+                    };
+                    ok
+                })
+            }
         };
         if !go {
             c.on = false;
@@ -159,13 +180,19 @@ impl Controller {
         let mean = i64::from(self.motion.stick_slip.mean_torque());
         let c = &mut self.loadid.creep;
         c.ticks = c.ticks.saturating_add(1);
+        // After a lift the coupling still holds the lift's twist: the creep unwinds it first
+        // (the torque resists the descent from when it has: host-sim, dry 1000 kg 1.5× drier,
+        // after ≈ 0.5 s at 0.3 rad/s), and the creep's time runs from there.
+        if c.resisting > 0 || mean > 0 {
+            c.resisting = c.resisting.saturating_add(1);
+        }
         // From when the detector watches (its settling after the ramp to the creep): the
         // start's current (the rotor's acceleration) is no breakaway.
         if c.ticks >= ARMED_TICKS - u32::from(PIECES) {
             c.max = c.max.max(mean);
         }
         let seen = n.wrapping_sub(c.breakaways);
-        let mut done = c.ticks >= limit;
+        let mut done = u32::from(c.resisting) >= limit || c.ticks >= limit.saturating_mul(3);
         let mut first_breakaway = false;
         if seen > c.seen {
             // The detector saw a slip: the largest 4-tick mean since the last one is its peak
@@ -178,7 +205,10 @@ impl Controller {
             c.seen = seen;
             let first = c.sum;
             let was = c.count;
-            if c.count == 0 || c.max.abs_diff(first) <= (first >> 2).unsigned_abs() {
+            if c.count == 0 && c.max <= i64::from(c.gate) {
+                // No breakaway yet: the torque did not resist the descent, or not enough (the
+                // lift's twist unwinding, its falls counted as slips).
+            } else if c.count == 0 || c.max.abs_diff(first) <= (first >> 2).unsigned_abs() {
                 c.count += 1;
                 c.sum = c.sum.saturating_add(c.max.max(0));
             } else {
@@ -208,8 +238,9 @@ impl Controller {
             self.derived.cruise_q32
         };
         self.motion.profile.set_cruise(cruise);
-        if let Some(m) = self.creep_load() {
+        if let Some((m, b)) = self.creep_load() {
             let id = &mut self.loadid;
+            id.creep_breakaway = b;
             id.ident.set_load(m);
             id.ident.hold_start();
             id.load = m;
@@ -225,8 +256,9 @@ impl Controller {
     /// The load the creep's breakaways give: their mean peak (the detector's, resisting the
     /// motion: the magnitude of the measured torque) less the model's own screw torque and the
     /// drive's no-load torque is the stuck thread's breakaway |P| = M·|τ(1)|, read at the
-    /// creep's pose with the law in force's μ(0). `None` without a breakaway.
-    fn creep_load(&self) -> Option<Kilograms> {
+    /// creep's pose with the law in force's μ(0); and, paired with the last lift's
+    /// (`Controller::breakaway_pair`), the mean breakaway. `None` without a breakaway.
+    fn creep_load(&self) -> Option<(Kilograms, Option<Breakaway>)> {
         let c = &self.loadid.creep;
         if c.count == 0 || self.live.state != State::Lowering {
             return None;
@@ -235,6 +267,10 @@ impl Controller {
         let lag = i64::from(self.derived.creep_lag.bits());
         // (One or two breakaways: a shift, not a division.)
         let p = self.peak_thread_torque((c.sum >> (c.count - 1).min(1)) + lag, -1);
-        c.stuck?.load(p)
+        let b = self.loadid.lift_breakaway.map(|_| Breakaway {
+            torque: crate::units::NewtonMetres::from_raw(crate::units::sat32(-p)),
+            g_per_kg: c.g.1,
+        });
+        Some((c.stuck?.load(p)?, b))
     }
 }

@@ -16,6 +16,7 @@ use super::config::ControlConfig;
 use super::derived::ARRIVED_COUNTS;
 use super::{Bridge, Controller, Event, FaultKind, State};
 use crate::estimator::Estimator;
+use crate::ident::pair::Breakaway;
 use crate::ident::{LoadIdent, MotionEnd, TickSample};
 use crate::units::{qmul, sat32, Kilograms, NewtonMetres, RadiansPerSecond, Ratio, Q};
 
@@ -57,6 +58,12 @@ pub(super) struct Identification {
     breakaways: (i64, u32),
     /// A lowering's weighing creep (`creep`).
     pub(super) creep: super::creep::Creep,
+    /// The last lift's mean breakaway (a stick-slipping lift read by its breakaways) and the
+    /// law's μ(0) at scale 1, while the scale is not known: the next lowering creeps to pair
+    /// them with its own (`breakaway_pair`).
+    pub(super) lift_breakaway: Option<(Breakaway, Ratio)>,
+    /// This lowering's creep's mean breakaway, for that pair.
+    pub(super) creep_breakaway: Option<Breakaway>,
 }
 
 impl Identification {
@@ -80,6 +87,8 @@ impl Identification {
             interval_left: 0,
             breakaways: (0, 0),
             creep: super::creep::Creep::default(),
+            lift_breakaway: None,
+            creep_breakaway: None,
         }
     }
 }
@@ -154,7 +163,9 @@ impl Controller {
             if creeping {
                 self.creep_tick(now);
             }
-            let driving = matches!(self.motion.last_bridge, Bridge::Drive(_)) && !creeping;
+            let driving = matches!(self.motion.last_bridge, Bridge::Drive(_))
+                && !creeping
+                && self.screw_travelled(dir);
             let reference = self.motion.last_ref_rad;
             let braking = self.motion.profile.near_target();
             let segment = self.est.pose_segment_index();
@@ -249,25 +260,33 @@ impl Controller {
         }
     }
 
+    /// The screw has moved since the motion began (its twist-corrected position,
+    /// `screw_position`, at least 64 counts the commanded way): until then no tick is steady,
+    /// and the settling runs from there. While the coupling winds up (or unwinds the last
+    /// motion's twist) against a screw that does not move (a jam, the breakaway, a lowering
+    /// after a lift) the encoder turns at the reference speed and the torque changes, which is
+    /// not sliding, and the start of the sliding overshoots (host-sim estimate, report set 66 →
+    /// 70 of 84: the samples had begun a settling after the reference became constant). Not
+    /// latched before the first sample: while the rotor decelerates into a stall its inertia's
+    /// torque leaves the current below the coupling's, the twist reads short and the screw
+    /// seems to move for a few ticks. (Later ticks where the planner waits for the screw stay in: a dry thread's stick
+    /// phases are half of its mean.)
+    #[inline]
+    fn screw_travelled(&self, dir: i8) -> bool {
+        self.loadid.travelled
+            || self
+                .screw_position()
+                .saturating_sub(self.loadid.screw_start)
+                .saturating_mul(i32::from(dir))
+                >= 64
+    }
+
     /// A steady tick's sample, and the overload trip on the identified load. Out of line:
     /// the ticks before the settling do not pay for it.
     #[inline(never)]
     fn load_sample(&mut self, now: crate::units::Instant, dir: i8) {
-        // The screw must have moved (its twist-corrected position, `screw_position`, at least
-        // 64 counts the commanded way since the motion began): while the coupling winds up
-        // against a screw that does not move (a jam, the breakaway) the encoder turns at the
-        // reference speed and the torque rises, which is not sliding. (Ticks where the planner
-        // waits for the screw stay in: a dry thread's stick phases are half of its mean.)
-        if !self.loadid.travelled {
-            let travel = self
-                .screw_position()
-                .saturating_sub(self.loadid.screw_start)
-                .saturating_mul(i32::from(dir));
-            if travel < 64 {
-                return;
-            }
-            self.loadid.travelled = true;
-        }
+        // (The first sample: the screw has moved, `screw_travelled`, for a settling.)
+        self.loadid.travelled = true;
         let e = &self.live.latest.estimate;
         let rated = self.derived.cfg.rated_load;
         let sample = TickSample {
@@ -313,23 +332,50 @@ impl Controller {
         let slipped = self.motion_slipped();
         self.loadid.episodes = self.motion.stick_slip.output().episodes;
         let fault = self.live.state == State::Fault;
+        let dir = self.loadid.ident.direction();
         // A stick-slipping lift's load is its breakaways' (the status said so while it ran):
         // the load at rest and the next motion's start (a lowering that stick-slips keeps it).
-        let breakaway = if slipped && !fault && !at_lower && self.loadid.ident.direction() > 0 {
-            self.breakaway_lift(self.loadid.ident.reference())
+        let breakaway = if slipped && !fault && !at_lower && dir > 0 {
+            self.lift_breakaways(self.loadid.ident.reference())
         } else {
             None
         };
         self.loadid
             .ident
             .end_motion(self.est.screw(), self.est.law(), at_lower, fault, slipped);
-        if let Some((m, _)) = breakaway {
+        if let Some((m, _, _)) = breakaway {
             self.loadid.ident.set_load(m);
         }
+        let lift = breakaway.map(|b| (b.2, self.unscaled_mu0()));
+        self.breakaway_pair(dir, lift, at_lower || fault);
         let id = &mut self.loadid;
         id.rest_work |= id.ident.solving();
         id.load = id.ident.load();
         id.offset = id.ident.torque_offset(self.derived.cfg.rated_load);
+    }
+
+    /// A motion in direction `dir` ended (`lost`: at the lower stop, where the car may change,
+    /// or by a fault): a lift's breakaways `lift` are kept while the scale is not known; a
+    /// lowering whose creep weighed the same car by its own makes a pair of them, which the
+    /// ticks at rest solve for the scale (`ident::LoadIdent::breakaway_pair`).
+    fn breakaway_pair(&mut self, dir: i8, lift: Option<(Breakaway, Ratio)>, lost: bool) {
+        let id = &mut self.loadid;
+        let down = id.creep_breakaway.take();
+        if lost || id.ident.scale_known() {
+            id.lift_breakaway = None;
+        } else if dir > 0 {
+            id.lift_breakaway = lift;
+        } else if let (Some((up, mu0)), Some(down)) = (id.lift_breakaway, down) {
+            id.ident.breakaway_pair(self.est.screw(), up, down, mu0);
+            id.rest_work = true;
+        }
+    }
+
+    /// The law's μ(0) at scale 1 (the scale in force taken out): a breakaway pair's μ.
+    fn unscaled_mu0(&self) -> Ratio {
+        let mu = i64::from(self.est.law().mu(RadiansPerSecond::ZERO).bits());
+        let scale = i64::from(self.loadid.ident.scale().bits()).max(1);
+        Ratio::from_raw(sat32((mu << 28) / scale))
     }
 
     /// A stick-slipping lift (a stick-slip episode in this motion, two breakaways or more,
@@ -396,8 +442,16 @@ impl Controller {
 
     /// [`Self::stick_slip_lift`]'s reading of this lift's breakaways at the cruise reference
     /// `reference` (also at its end, at rest: `end_load_motion`).
-    #[inline(never)]
     fn breakaway_lift(&self, reference: RadiansPerSecond) -> Option<(Kilograms, NewtonMetres)> {
+        self.lift_breakaways(reference).map(|(m, tr, _)| (m, tr))
+    }
+
+    /// [`Self::breakaway_lift`], and the mean breakaway (`ident::LoadIdent::breakaway_pair`).
+    #[inline(never)]
+    fn lift_breakaways(
+        &self,
+        reference: RadiansPerSecond,
+    ) -> Option<(Kilograms, NewtonMetres, Breakaway)> {
         let (sum, n) = self.breakaway_totals();
         let n = n.wrapping_sub(self.loadid.breakaways.1);
         let (t, k) = self.loadid.ident.thread_sum();
@@ -450,7 +504,12 @@ impl Controller {
         let mu0 = self.est.law().mu(crate::units::RadiansPerSecond::ZERO);
         let rho1 = crate::ident::pair::rho_q32(screw, mu0, 1)?;
         let rho0 = crate::ident::pair::rho_q32(screw, Ratio::ZERO, 1)?;
-        crate::ident::stick::lift(peak, mean, drop, rho1, rho0, g_up, g_r)
+        let (m, tr) = crate::ident::stick::lift(peak, mean, drop, rho1, rho0, g_up, g_r)?;
+        let b = Breakaway {
+            torque: NewtonMetres::from_raw(sat32(peak)),
+            g_per_kg: sat32(g_up),
+        };
+        Some((m, tr, b))
     }
 
     /// The pose half-way along the motion's travel so far (encoder counts): where means over

@@ -435,21 +435,17 @@ impl Controller {
         Ok(())
     }
 
-    /// Screw position estimate: the encoder less the coupling twist while driving. The twist
-    /// comes from the *measured* torque (low-passed), not the model's: the model assumes the
-    /// rated load, and with an empty lift it would over-correct by the whole rated twist.
+    /// Screw position estimate: the encoder less the coupling twist. The twist comes from the
+    /// *measured* torque (low-passed), not the model's: the model assumes the rated load, and
+    /// with an empty lift it would over-correct by the whole rated twist. At rest, the twist the
+    /// last motion left, less what has unwound since (`step`).
     #[inline(always)]
     fn screw_position(&self) -> i32 {
-        let here = self.live.enc.position();
-        if self.live.moving() {
-            let twist = self
-                .derived
-                .twist_scale
-                .apply32(self.motion.torque_lp.bits());
-            here.saturating_sub(twist)
-        } else {
-            here
-        }
+        let twist = self
+            .derived
+            .twist_scale
+            .apply32(self.motion.torque_lp.bits());
+        self.live.enc.position().saturating_sub(twist)
     }
 
     /// One control tick. Never panics, whatever the inputs.
@@ -491,12 +487,22 @@ impl Controller {
             estimate,
         };
         self.live.latest.set(&x);
+        let active_hold = self.holds_actively();
         let m = &mut self.motion;
         if moving {
             let d = x.estimate.measured_screw_torque.sat_sub(m.torque_lp);
             m.torque_lp = m.torque_lp.sat_add(NewtonMetres::from_raw(d.bits() >> 3));
-        } else {
+        } else if active_hold {
             m.torque_lp = NewtonMetres::ZERO;
+        } else {
+            // At rest the coupling keeps the twist the motion left it (the thread self-locks),
+            // less what unwinds back through the motor: the encoder's travel, while the screw
+            // stands, is the twist's. The screw's position is the encoder less it (the next
+            // start's reference begins there: it had begun at the encoder, and a lowering after
+            // a lift then drove the motor up until the reference caught up with the twist).
+            let t = m.torque_lp.bits();
+            let u = t.saturating_add(delta.saturating_mul(self.derived.torque_per_count.bits()));
+            m.torque_lp = NewtonMetres::from_raw(if t > 0 { u.clamp(0, t) } else { u.clamp(t, 0) });
         }
 
         // 3. Protections.

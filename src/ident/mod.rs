@@ -351,6 +351,30 @@ impl LoadIdent {
         self.scale
     }
 
+    /// The friction scale was measured (a pair, or the store's), not assumed.
+    pub fn scale_known(&self) -> bool {
+        self.scale_known
+    }
+
+    /// A stick-slipping lift's and lowering's breakaways as a pair, for the law's μ(0) at
+    /// scale 1 `mu0`: P_up/P_down is a function of the scale alone (docs/model.md "A
+    /// breakaway pair"). After the lowering's [`Self::end_motion`]: it takes the place of the
+    /// means' pair (a stick-slipping thread's mean torques are no measure of its law). Out of
+    /// line: once per pair.
+    #[inline(never)]
+    pub fn breakaway_pair(
+        &mut self,
+        screw: &ScrewModel,
+        up: pair::Breakaway,
+        down: pair::Breakaway,
+        mu0: Ratio,
+    ) {
+        let (up, down) = (up.means(1, mu0), down.means(-1, mu0));
+        self.up = Some(up);
+        self.down = Some(down);
+        self.search = PairSearch::new(screw, &up, &down);
+    }
+
     /// One control tick while moving: whether the motion is steady enough for a sample:
     /// driving, not braking toward the target (`braking`), at a reference of at least
     /// [`MIN_SPEED`] that has been constant for [`SETTLE_MS`] since the start's ramp. After
@@ -373,6 +397,12 @@ impl LoadIdent {
         }
         // One steady tick in [`DECIMATE`] is a sample.
         self.steady > self.settle && self.steady.is_multiple_of(DECIMATE)
+    }
+
+    /// The motion is not steady yet after all (the screw has not moved): [`Self::steady`]'s
+    /// settling starts over.
+    pub fn restart_settle(&mut self) {
+        self.steady = 0;
     }
 
     /// Add a steady tick's sample (after [`Self::steady`]). Per sample only sums; the load
@@ -714,16 +744,22 @@ impl LoadIdent {
     /// `Some` when it finished with a pair the board takes.
     #[inline]
     pub fn rest_step(&mut self, screw: &ScrewModel) -> Option<MotionEnd> {
-        let (Some(up), Some(down)) = (&self.up, &self.down) else {
+        let (Some(up), Some(down)) = (self.up, self.down) else {
             self.search = None;
             return None;
         };
-        let step = self.search.as_mut()?.step(screw, up, down);
+        let step = self.search.as_mut()?.step(screw, &up, &down);
         let SearchStep::Done(sol) = step else {
             return None;
         };
         self.search = None;
-        self.take_pair(sol?)
+        let breakaway = up.n == 0 || down.n == 0;
+        if breakaway {
+            // A breakaway pair's (no samples): a later motion's means must not pair with them.
+            self.up = None;
+            self.down = None;
+        }
+        self.take_pair(sol?, breakaway)
     }
 
     /// Keep `up` and `down` as a lift's and a lowering's means and start their pair solve (the
@@ -791,12 +827,17 @@ impl LoadIdent {
     /// A solved pair: the scale in force, the load, the warning, the store request. Out of
     /// line: once per pair.
     #[inline(never)]
-    fn take_pair(&mut self, sol: PairSolution) -> Option<MotionEnd> {
+    fn take_pair(&mut self, sol: PairSolution, breakaway: bool) -> Option<MotionEnd> {
         let slipped = self.up.is_some_and(|m| m.slipped) || self.down.is_some_and(|m| m.slipped);
         // A stick-slipping thread's mean friction is below the law's sliding friction: a dry
         // thread's pair read it as 0.6…0.9× the law, and the next lift then as a heavier car
         // (an overload trip at the rated load). Such a pair is not used.
         if slipped && sol.scale < Ratio::ONE {
+            return None;
+        }
+        // A breakaway pair (`breakaway_pair`) wetter than the board's own band is no reading
+        // of the thread (a breakaway taken from the lift's twist unwinding read 0.26).
+        if breakaway && sol.scale < WET_MIN {
             return None;
         }
         self.pairs = self.pairs.saturating_add(1);

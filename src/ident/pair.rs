@@ -34,11 +34,39 @@ pub struct MotionMeans {
     pub free: Newtons,
     /// Mean friction coefficient of the configured law (scale 1) over the samples.
     pub mu: Ratio,
-    /// Number of samples.
+    /// Number of samples (0: a breakaway's, `LoadIdent::breakaway_pair`).
     pub n: u32,
     /// The motion stick-slipped (its mean friction over stick and slip is below the law's
     /// sliding friction): a pair with it may not conclude a wetter thread than configured.
     pub slipped: bool,
+}
+
+/// A motion's mean breakaway: the thread torque P (signed, as the motor drives the screw) when
+/// the stuck thread broke away, and the axial force per kilogram G_d (Q23 N/kg) at its pose.
+/// The nut stands (D = 0), so P = M·ρ_d(μ(0))·G_d: a lift's and a lowering's make a pair
+/// (`LoadIdent::breakaway_pair`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Breakaway {
+    /// P, Q16 N·m.
+    pub torque: NewtonMetres,
+    /// G_d, Q23 N/kg.
+    pub g_per_kg: i32,
+}
+
+impl Breakaway {
+    /// As a pair's means in direction `dir`, for the law's μ(0) at scale 1 `mu0` (no samples:
+    /// `n` = 0).
+    pub fn means(self, dir: i8, mu0: Ratio) -> MotionMeans {
+        MotionMeans {
+            dir,
+            torque: self.torque,
+            g_per_kg: self.g_per_kg,
+            free: Newtons::ZERO,
+            mu: mu0,
+            n: 0,
+            slipped: false,
+        }
+    }
 }
 
 /// `v·2^k/x` through x's normalised reciprocal ([`super::recip16`]: 17 significant bits,

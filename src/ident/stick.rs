@@ -158,6 +158,12 @@ impl StuckLowering {
         self.rho_x
     }
 
+    /// The breakaway thread torque |P| = M·|τ(1)| of load `load` (Q16 N·m): one product.
+    pub fn breakaway_torque(&self, load: Kilograms) -> i64 {
+        // Q32 per kg (< 2^32, `finish`) · Q12 kg (< 2^25) = Q44 → Q16.
+        ((self.tau_b >> 8).saturating_mul(i64::from(load.bits().max(0)))) >> 28
+    }
+
     /// The load whose breakaway thread torque is `peak` (its magnitude, Q16 N·m):
     /// M = |P|/|τ(1)|. `None` for a peak ≤ 0 or out of range.
     pub fn load(&self, peak: i64) -> Option<Kilograms> {

@@ -377,6 +377,12 @@ fn score(ticks: &[Tick], up: bool, truth: f64) -> MoveScore {
     m
 }
 
+/// The default overload limit, kg: (1 + `protect.overload_margin`) × the rated load.
+fn overload_limit_kg() -> f64 {
+    let c = ControlConfig::DEFAULT;
+    c.rated_load.to_f64() * (1.0 + c.protection.overload_margin.to_f64())
+}
+
 /// Command-line arguments.
 #[derive(Clone, Debug)]
 pub struct EstimateArgs {
@@ -536,6 +542,21 @@ pub fn report(results: &[(Case, Result<Outcome, String>)]) -> bool {
                     100.0 * (m3.tr_core - m3.tr_plant) / m3.tr_plant.abs().max(1e-9),
                     m3.load_worst,
                     if ok { "met" } else { "✗" }
+                )
+            }
+            // A car above the overload limit must be refused (overload, or a drive that cannot
+            // move it at all stalls): that is the goal there, not the estimate.
+            Ok(o)
+                if c.load > overload_limit_kg()
+                    && o.fault
+                        .as_deref()
+                        .is_some_and(|f| f.starts_with("overload") || f.starts_with("stall")) =>
+            {
+                format!(
+                    "refused: {} ({:.0} kg > the {:.0} kg limit) | | | met |",
+                    o.fault.as_deref().unwrap_or_default(),
+                    c.load,
+                    overload_limit_kg()
                 )
             }
             Ok(o) => {

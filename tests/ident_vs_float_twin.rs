@@ -487,6 +487,9 @@ proptest! {
         let p = -m * twin_tau(1.0, mu0, g_up, g_dn);
         let got = s.load((p * 65536.0).round() as i64).unwrap().to_f64();
         prop_assert!((got - m).abs() <= 2e-3 * m + 0.5, "M {} vs {}", got, m);
+        // And back: the breakaway torque of that load (the creep's gate).
+        let pb = s.breakaway_torque(liftfw::units::Kilograms::from_f64(m)) as f64 / 65536.0;
+        prop_assert!((pb - p).abs() <= 2e-3 * p + 1e-3, "P {} vs {}", pb, p);
         // |τ|'s peak within 1 % of ρ (where it is flat).
         let px = s.peak_mobilisation() as f64 / 65536.0;
         prop_assert!((px - rx).abs() <= 0.01, "ρ_x {} vs {}", px, rx);
@@ -496,5 +499,47 @@ proptest! {
         let load = liftfw::units::Kilograms::from_f64(m);
         let got = s.friction(&sc, load, (mean * 65536.0).round() as i64).unwrap().to_f64();
         prop_assert!((got - want).abs() <= 2e-3 * want.abs() + 2e-3, "T_r {} vs {}", got, want);
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 1000, ..ProptestConfig::default() })]
+
+    /// A breakaway pair (`LoadIdent::breakaway_pair`: a lift's mean breakaway and a lowering's
+    /// creep's, the nut standing, D = 0) solved by the pair search: within 0.2 % (scale) and
+    /// 0.3 % + 0.5 kg (load) of the twin's bisection, and within 1 % of the truth the
+    /// breakaways were made from (P_d = M·ρ_d(s·μ(0))·G_d), over α 16…40°, loads 100…2000 kg,
+    /// a static μ(0) 0.15…0.35 (the dry law's 0.238) and scales 0.8…2.2.
+    #[test]
+    fn a_breakaway_pair_follows_the_twin(
+        alpha in 16.0f64..40.0,
+        m in 100.0f64..2000.0,
+        mu0 in 0.15f64..0.35,
+        s in 0.8f64..2.2,
+    ) {
+        let (_, tan) = twin_screw();
+        prop_assume!(mu0 * s > 1.1 * tan && mu0 * s < 0.55);
+        let gu = g_per_kg(alpha, 1.0, 0.3);
+        let gd = g_per_kg(alpha, -1.0, 0.3);
+        prop_assume!(gd >= gu / 7.5);
+        let b = |dir: f64, g: f64| pair::Breakaway {
+            torque: NewtonMetres::from_f64(rho(dir, mu0 * s) * m * g),
+            g_per_kg: (g * f64::from(1u32 << 23)).round() as i32,
+        };
+        let mu = Ratio::from_f64(mu0);
+        let (up, dn) = (b(1.0, gu).means(1, mu), b(-1.0, gd).means(-1, mu));
+        prop_assert!(up.free == Newtons::ZERO && dn.n == 0 && dn.dir == -1);
+        let q = |x: &MotionMeans| (x.torque.to_f64(), f64::from(x.g_per_kg) / f64::from(1u32 << 23), 0.0, x.mu.to_f64());
+        let twin = twin_solve(q(&up), q(&dn));
+        let got = pair::solve(&screw(), &up, &dn);
+        match (twin, got) {
+            (Some((ts, tm)), Some(sol)) => {
+                prop_assert!((sol.scale.to_f64() - ts).abs() <= 2e-3 * ts, "{:?} vs {}", sol, ts);
+                prop_assert!((sol.load.to_f64() - tm).abs() <= 3e-3 * tm + 0.5, "{:?} vs {}", sol, tm);
+                prop_assert!((sol.scale.to_f64() - s).abs() <= 1e-2 * s, "{:?} vs truth {}", sol, s);
+                prop_assert!((sol.load.to_f64() - m).abs() <= 1e-2 * m + 0.5, "{:?} vs truth {}", sol, m);
+            }
+            (t, g) => prop_assert!(false, "twin {:?}, core {:?}", t, g),
+        }
     }
 }

@@ -74,6 +74,12 @@ impl ClipTracker {
         self.state != 0
     }
 
+    /// The current stands at the limit now (a plateau under way).
+    #[inline(always)]
+    pub fn at_limit(&self) -> bool {
+        self.state == 1
+    }
+
     /// Σ of the excesses the current limit clipped off the detector's peaks, since boot.
     pub fn extra(&self) -> i64 {
         self.extra

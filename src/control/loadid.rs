@@ -163,9 +163,11 @@ impl Controller {
             if creeping {
                 self.creep_tick(now);
             }
+            // (Lowering, the settling waits for the screw to move, `screw_travelled`; a lift's
+            // samples wait for it in `load_sample`.)
             let driving = matches!(self.motion.last_bridge, Bridge::Drive(_))
                 && !creeping
-                && self.screw_travelled(dir);
+                && (dir > 0 || self.screw_travelled(dir));
             let reference = self.motion.last_ref_rad;
             let braking = self.motion.profile.near_target();
             let segment = self.est.pose_segment_index();
@@ -261,32 +263,40 @@ impl Controller {
     }
 
     /// The screw has moved since the motion began (its twist-corrected position,
-    /// `screw_position`, at least 64 counts the commanded way): until then no tick is steady,
-    /// and the settling runs from there. While the coupling winds up (or unwinds the last
+    /// `screw_position`, at least 64 counts the commanded way). Lowering, until then no tick is
+    /// steady, and the settling runs from there. While the coupling winds up (or unwinds the last
     /// motion's twist) against a screw that does not move (a jam, the breakaway, a lowering
     /// after a lift) the encoder turns at the reference speed and the torque changes, which is
     /// not sliding, and the start of the sliding overshoots (host-sim estimate, report set 66 →
     /// 70 of 84: the samples had begun a settling after the reference became constant). Not
-    /// latched before the first sample: while the rotor decelerates into a stall its inertia's
-    /// torque leaves the current below the coupling's, the twist reads short and the screw
-    /// seems to move for a few ticks. (Later ticks where the planner waits for the screw stay in: a dry thread's stick
-    /// phases are half of its mean.)
+    /// counted while the current stands at its limit (`control::clip`): the rotor's momentum
+    /// then winds the coupling on at a current that no longer grows, the twist reads short
+    /// and a screw that never broke away seems to move (140 counts in host-sim, 1300 kg on a
+    /// thread twice as dry as configured). (Later ticks where the planner waits for the screw
+    /// stay in: a dry thread's stick phases are half of its mean.)
     #[inline]
-    fn screw_travelled(&self, dir: i8) -> bool {
-        self.loadid.travelled
-            || self
+    fn screw_travelled(&mut self, dir: i8) -> bool {
+        if !self.loadid.travelled && !self.motion.clip.at_limit() {
+            self.loadid.travelled = self
                 .screw_position()
                 .saturating_sub(self.loadid.screw_start)
                 .saturating_mul(i32::from(dir))
-                >= 64
+                >= 64;
+        }
+        self.loadid.travelled
     }
 
     /// A steady tick's sample, and the overload trip on the identified load. Out of line:
     /// the ticks before the settling do not pay for it.
     #[inline(never)]
     fn load_sample(&mut self, now: crate::units::Instant, dir: i8) {
-        // (The first sample: the screw has moved, `screw_travelled`, for a settling.)
-        self.loadid.travelled = true;
+        // A lift's samples begin once its screw has moved (`screw_travelled`) after the
+        // settling from the reference's cruise: a stick-slipping lift's breakaways count from
+        // the motion's start and its samples should too (its settling from the screw's first
+        // travel put the dry 700 kg lift's T_r at +5.0 % from +3.0 %, 200 mm).
+        if !self.screw_travelled(dir) {
+            return;
+        }
         let e = &self.live.latest.estimate;
         let rated = self.derived.cfg.rated_load;
         let sample = TickSample {

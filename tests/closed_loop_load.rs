@@ -65,6 +65,43 @@ fn commissioned(lub: Lubricant, load: f64, deg: f64, duration: f64) -> Scenario 
     s
 }
 
+/// From `deg`: GoTo `mm` above the start at 20 ms, then back to the start 0.3 s after the lift
+/// came to rest; `observe` sees every tick of a motion.
+fn lift_then_lower(
+    s: &Scenario,
+    deg: f64,
+    mm: f64,
+    mut observe: impl FnMut(&mut Tick<'_>) + Send + 'static,
+) -> Run {
+    let g = host_sim::physics::Geometry::paper();
+    let h0 = g.height(deg.to_radians());
+    let mut next = 0;
+    let mut rest_since: Option<f64> = None;
+    run(
+        s,
+        Box::new(move |k: &mut Tick<'_>| {
+            if k.controller.fault().is_some() || k.t < 0.02 {
+                return;
+            }
+            let state = k.controller.state();
+            if state == liftfw::control::State::Lifting || state == liftfw::control::State::Lowering
+            {
+                rest_since = None;
+                observe(k);
+                return;
+            }
+            let since = *rest_since.get_or_insert(k.t);
+            if next < 2 && (next == 0 || k.t - since > 0.3) {
+                let h = if next == 0 { h0 + mm * 1e-3 } else { h0 };
+                next += 1;
+                k.controller
+                    .command(Command::GoTo(Metres::from_f64(h)))
+                    .unwrap();
+            }
+        }),
+    )
+}
+
 /// The plant's T_r at time `t` (the trace's record at or after it; records at 1 kHz).
 fn plant_friction_at(r: &Run, t: f64) -> f64 {
     let i = r.trace.records.partition_point(|x| x.t < t);
@@ -557,44 +594,18 @@ fn a_stick_slipping_lowering_keeps_the_load_its_lift_identified() {
     let load = 700.0;
     let mut s = commissioned(Lubricant::Dry, load, 20.0, 5.0);
     s.seed = 5;
-    let g = host_sim::physics::Geometry::paper();
-    let h0 = g.height(20f64.to_radians());
     // (t, lowering, load, stick-slip flag) at the cruise reference.
     let log = Arc::new(Mutex::new(Vec::<(f64, bool, f64, bool)>::new()));
     let sink = Arc::clone(&log);
-    let mut next = 0;
-    let mut rest_since: Option<f64> = None;
-    let r = run(
-        &s,
-        Box::new(move |k: &mut Tick<'_>| {
-            if k.controller.fault().is_some() || k.t < 0.02 {
-                return;
-            }
-            let state = k.controller.state();
-            let lowering = state == liftfw::control::State::Lowering;
-            if lowering || state == liftfw::control::State::Lifting {
-                rest_since = None;
-                if (k.controller.reference().to_f64().abs() - 3.0).abs() < 1e-3 {
-                    let st = k.controller.status();
-                    sink.lock().unwrap().push((
-                        k.t,
-                        lowering,
-                        st.load.load.to_f64(),
-                        st.stick_slip,
-                    ));
-                }
-                return;
-            }
-            let since = *rest_since.get_or_insert(k.t);
-            if next < 2 && (next == 0 || k.t - since > 0.3) {
-                let h = if next == 0 { h0 + 4e-3 } else { h0 };
-                next += 1;
-                k.controller
-                    .command(Command::GoTo(Metres::from_f64(h)))
-                    .unwrap();
-            }
-        }),
-    );
+    let r = lift_then_lower(&s, 20.0, 4.0, move |k: &mut Tick<'_>| {
+        if (k.controller.reference().to_f64().abs() - 3.0).abs() < 1e-3 {
+            let st = k.controller.status();
+            let lowering = k.controller.state() == liftfw::control::State::Lowering;
+            sink.lock()
+                .unwrap()
+                .push((k.t, lowering, st.load.load.to_f64(), st.stick_slip));
+        }
+    });
     assert!(faults(&r).is_empty(), "{:?}", faults(&r));
     let log = log.lock().unwrap().clone();
     let lift: Vec<_> = log.iter().filter(|x| !x.1).collect();
@@ -860,42 +871,18 @@ fn a_lowering_after_a_lift_never_drives_the_motor_up() {
     for (factor, load) in [(2.0, 700.0), (1.5, 1000.0)] {
         let mut s = commissioned(Lubricant::Dry, load, 20.0, 4.0);
         s.thread_friction_factor = factor;
+        // (the encoder when the lowering began, its largest rise since, whether it crept)
         let up = Arc::new(Mutex::new((None::<i32>, 0i32, false)));
         let seen = Arc::clone(&up);
-        let g = host_sim::physics::Geometry::paper();
-        let h0 = g.height(20f64.to_radians());
-        let mut next = 0;
-        let mut rest_since: Option<f64> = None;
-        let r = run(
-            &s,
-            Box::new(move |k: &mut Tick<'_>| {
-                if k.controller.fault().is_some() || k.t < 0.02 {
-                    return;
-                }
-                let state = k.controller.state();
-                if state == liftfw::control::State::Lowering {
-                    let mut g = seen.lock().unwrap();
-                    let p = k.controller.position_counts();
-                    let start = *g.0.get_or_insert(p);
-                    g.1 = g.1.max(p - start);
-                    g.2 |= k.controller.reference().to_f64().abs() < 0.31;
-                }
-                if state == liftfw::control::State::Lifting
-                    || state == liftfw::control::State::Lowering
-                {
-                    rest_since = None;
-                    return;
-                }
-                let since = *rest_since.get_or_insert(k.t);
-                if next < 2 && (next == 0 || k.t - since > 0.3) {
-                    let h = if next == 0 { h0 + 3e-3 } else { h0 };
-                    next += 1;
-                    k.controller
-                        .command(Command::GoTo(Metres::from_f64(h)))
-                        .unwrap();
-                }
-            }),
-        );
+        let r = lift_then_lower(&s, 20.0, 3.0, move |k: &mut Tick<'_>| {
+            if k.controller.state() == liftfw::control::State::Lowering {
+                let mut g = seen.lock().unwrap();
+                let p = k.controller.position_counts();
+                let start = *g.0.get_or_insert(p);
+                g.1 = g.1.max(p - start);
+                g.2 |= k.controller.reference().to_f64().abs() < 0.31;
+            }
+        });
         assert!(
             faults(&r).is_empty(),
             "{factor}×, {load} kg: {:?}",

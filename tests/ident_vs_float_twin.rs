@@ -101,6 +101,40 @@ fn twin_solve(up: (f64, f64, f64, f64), dn: (f64, f64, f64, f64)) -> Option<(f64
     Some((lo, m))
 }
 
+/// A pair's solution within 0.2 % (scale) and 0.3 % + 0.5 kg (load) of the twin's `ts`, `tm`.
+fn near_twin(sol: &pair::PairSolution, ts: f64, tm: f64) -> Result<(), TestCaseError> {
+    prop_assert!(
+        (sol.scale.to_f64() - ts).abs() <= 2e-3 * ts,
+        "{:?} vs {}",
+        sol,
+        ts
+    );
+    prop_assert!(
+        (sol.load.to_f64() - tm).abs() <= 3e-3 * tm + 0.5,
+        "{:?} vs {}",
+        sol,
+        tm
+    );
+    Ok(())
+}
+
+/// A pair's solution within 1 % (+0.5 kg) of the truth `s`, `m` its means were made from.
+fn near_truth(sol: &pair::PairSolution, s: f64, m: f64) -> Result<(), TestCaseError> {
+    prop_assert!(
+        (sol.scale.to_f64() - s).abs() <= 1e-2 * s,
+        "{:?} vs truth {}",
+        sol,
+        s
+    );
+    prop_assert!(
+        (sol.load.to_f64() - m).abs() <= 1e-2 * m + 0.5,
+        "{:?} vs truth {}",
+        sol,
+        m
+    );
+    Ok(())
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
 
@@ -264,11 +298,9 @@ proptest! {
         let got = pair::solve(&screw(), &up, &dn);
         match (twin, got) {
             (Some((ts, tm)), Some(sol)) => {
-                prop_assert!((sol.scale.to_f64() - ts).abs() <= 2e-3 * ts, "{:?} vs {}", sol, ts);
-                prop_assert!((sol.load.to_f64() - tm).abs() <= 3e-3 * tm + 0.5, "{:?} vs {}", sol, tm);
+                near_twin(&sol, ts, tm)?;
                 if m * gd >= 8.0 * d {
-                    prop_assert!((sol.scale.to_f64() - s).abs() <= 1e-2 * s, "{:?} vs truth {}", sol, s);
-                    prop_assert!((sol.load.to_f64() - m).abs() <= 1e-2 * m + 0.5, "{:?} vs truth {}", sol, m);
+                    near_truth(&sol, s, m)?;
                 }
             }
             (None, None) => {
@@ -534,10 +566,8 @@ proptest! {
         let got = pair::solve(&screw(), &up, &dn);
         match (twin, got) {
             (Some((ts, tm)), Some(sol)) => {
-                prop_assert!((sol.scale.to_f64() - ts).abs() <= 2e-3 * ts, "{:?} vs {}", sol, ts);
-                prop_assert!((sol.load.to_f64() - tm).abs() <= 3e-3 * tm + 0.5, "{:?} vs {}", sol, tm);
-                prop_assert!((sol.scale.to_f64() - s).abs() <= 1e-2 * s, "{:?} vs truth {}", sol, s);
-                prop_assert!((sol.load.to_f64() - m).abs() <= 1e-2 * m + 0.5, "{:?} vs truth {}", sol, m);
+                near_twin(&sol, ts, tm)?;
+                near_truth(&sol, s, m)?;
             }
             (t, g) => prop_assert!(false, "twin {:?}, core {:?}", t, g),
         }

@@ -116,8 +116,12 @@ impl Controller {
 
     /// The law's μ at the cruise speed, at scale 1 (the interval's factors take it).
     fn cruise_mu(cfg: &ControlConfig, est: &Estimator, id: &LoadIdent) -> Ratio {
-        // μ of the law in force at cruise, back to scale 1.
-        let mu_s = est.law().mu(cfg.motion.cruise_speed);
+        Self::unscaled_mu(est, id, cfg.motion.cruise_speed)
+    }
+
+    /// μ of the law in force at `speed`, back to scale 1 (the scale in force taken out).
+    fn unscaled_mu(est: &Estimator, id: &LoadIdent, speed: RadiansPerSecond) -> Ratio {
+        let mu_s = est.law().mu(speed);
         let scale = id.scale().bits().max(1);
         Ratio::from_raw(sat32((i64::from(mu_s.bits()) << 28) / i64::from(scale)))
     }
@@ -356,7 +360,10 @@ impl Controller {
         if let Some((m, _, _)) = breakaway {
             self.loadid.ident.set_load(m);
         }
-        let lift = breakaway.map(|b| (b.2, self.unscaled_mu0()));
+        let lift = breakaway.map(|b| {
+            let mu0 = Self::unscaled_mu(&self.est, &self.loadid.ident, RadiansPerSecond::ZERO);
+            (b.2, mu0)
+        });
         self.breakaway_pair(dir, lift, at_lower || fault);
         let id = &mut self.loadid;
         id.rest_work |= id.ident.solving();
@@ -379,13 +386,6 @@ impl Controller {
             id.ident.breakaway_pair(self.est.screw(), up, down, mu0);
             id.rest_work = true;
         }
-    }
-
-    /// The law's μ(0) at scale 1 (the scale in force taken out): a breakaway pair's μ.
-    fn unscaled_mu0(&self) -> Ratio {
-        let mu = i64::from(self.est.law().mu(RadiansPerSecond::ZERO).bits());
-        let scale = i64::from(self.loadid.ident.scale().bits()).max(1);
-        Ratio::from_raw(sat32((mu << 28) / scale))
     }
 
     /// A stick-slipping lift (a stick-slip episode in this motion, two breakaways or more,

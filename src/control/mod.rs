@@ -502,7 +502,12 @@ impl Controller {
             // a lift then drove the motor up until the reference caught up with the twist).
             let t = m.torque_lp.bits();
             let u = t.saturating_add(delta.saturating_mul(self.derived.torque_per_count.bits()));
-            m.torque_lp = NewtonMetres::from_raw(if t > 0 { u.clamp(0, t) } else { u.clamp(t, 0) });
+            // (Toward 0, never past it; no `clamp`: its panic path costs flash.)
+            m.torque_lp = NewtonMetres::from_raw(if t > 0 {
+                u.min(t).max(0)
+            } else {
+                u.max(t).min(0)
+            });
         }
 
         // 3. Protections.

@@ -433,6 +433,33 @@ mod tests {
         assert!((58..=63).contains(&braking), "{braking}");
     }
 
+    /// The S-curve's window is not cleared at a reset (a button's start tick could not pay
+    /// for it): a motion after a reset mid-move (its window full of the old motion's speeds)
+    /// runs exactly as the same motion on a fresh profile.
+    #[test]
+    fn an_s_curve_after_a_reset_mid_move_runs_as_on_a_fresh_profile() {
+        let cruise = (1.375 * ONE as f64) as i64;
+        for ramp in [4u32, 60, 130, 600] {
+            let mut used = Profile::new(0, cruise, ramp, RampShape::SCurve);
+            used.set_target(40_000);
+            for _ in 0..(ramp + 500) {
+                used.step();
+            }
+            assert!(used.sum != 0, "the window holds the old motion");
+            used.reset(9_000);
+            used.set_target(-2_000);
+            let mut fresh = Profile::new(9_000, cruise, ramp, RampShape::SCurve);
+            fresh.set_target(-2_000);
+            loop {
+                let (a, b) = (used.step(), fresh.step());
+                assert_eq!(a, b, "ramp {ramp}");
+                if a.done {
+                    break;
+                }
+            }
+        }
+    }
+
     #[test]
     fn s_curve_ends_on_the_same_target_with_no_acceleration_step() {
         let refs = run(RampShape::SCurve, 0, 50_000, 1.375, 60);

@@ -65,6 +65,13 @@ fn commissioned(lub: Lubricant, load: f64, deg: f64, duration: f64) -> Scenario 
     s
 }
 
+/// The run raised the lubrication warning (`Event::ThreadDry`).
+fn warned(r: &Run) -> bool {
+    r.events
+        .iter()
+        .any(|(_, e)| matches!(e, Event::ThreadDry(_)))
+}
+
 /// From `deg`: GoTo `mm` above the start at 20 ms, then back to the start 0.3 s after the lift
 /// came to rest; `observe` sees every tick of a motion.
 fn lift_then_lower(
@@ -254,12 +261,8 @@ fn a_lift_and_lowering_on_a_drier_thread_identify_it_and_warn() {
         s.thread_friction_factor = 2.0;
         let r = moves(s, vec![2.5, -2.5, 2.5], false);
         assert!(faults(&r).is_empty(), "{lub:?}: {:?}", faults(&r));
-        let warned = r
-            .events
-            .iter()
-            .any(|(_, e)| matches!(e, Event::ThreadDry(_)));
         let l = r.controller.status().load;
-        assert!(warned, "{lub:?}: no lubrication warning, {l:?}");
+        assert!(warned(&r), "{lub:?}: no lubrication warning, {l:?}");
         // Measured: PTFE 2.13 and 953 kg, from one pair at 30° (the lowering's torque is
         // small against the drive's own there).
         assert!((l.scale.to_f64() - 2.0).abs() < 0.15, "{lub:?}: {l:?}");
@@ -281,10 +284,7 @@ fn a_lift_and_lowering_on_a_drier_thread_identify_it_and_warn() {
             r.controller.fault(),
             r.controller.status().load
         );
-        assert!(!r
-            .events
-            .iter()
-            .any(|(_, e)| matches!(e, Event::ThreadDry(_))));
+        assert!(!warned(&r));
     }
 }
 
@@ -298,13 +298,9 @@ fn a_dry_thread_drier_than_configured_is_found_by_its_breakaways() {
     s.thread_friction_factor = 1.5;
     let r = moves(s, vec![3.0, -3.0, 3.0], false);
     assert!(faults(&r).is_empty(), "{:?}", faults(&r));
-    let warned = r
-        .events
-        .iter()
-        .any(|(_, e)| matches!(e, Event::ThreadDry(_)));
     let l = r.controller.status().load;
     eprintln!("dry 1.5× drier, 1000 kg: {l:?}");
-    assert!(warned && l.scale_known && l.pairs == 1, "{l:?}");
+    assert!(warned(&r) && l.scale_known && l.pairs == 1, "{l:?}");
     // Measured: scale 1.446, 1041 kg (+4.1 %; interval 967…1119) after the third move; read
     // with the configured law the lift had said 1.4× the car.
     assert!((l.scale.to_f64() - 1.5).abs() < 0.1, "{l:?}");

@@ -1064,6 +1064,25 @@ mod tests {
     }
 
     /// Feed one steady motion whose measured torque is the model's at load `m` and scale `s`.
+    /// A tick's sample: the measured thread torque and the model's (both with the model's own
+    /// screw torque, 0.3 N·m, on top), the model's axial demand and the load it ran with.
+    fn sample(
+        dir: i8,
+        measured: f64,
+        model_thread: f64,
+        axial: f64,
+        load: Kilograms,
+    ) -> TickSample {
+        TickSample {
+            dir,
+            measured: NewtonMetres::from_f64(measured + 0.3),
+            model: NewtonMetres::from_f64(model_thread + 0.3),
+            thread: NewtonMetres::from_f64(model_thread),
+            axial: Newtons::from_f64(axial),
+            load,
+        }
+    }
+
     fn motion(id: &mut LoadIdent, sc: &ScrewModel, dir: i8, m: f64, s: f64, ticks: u32) {
         let g = g_at_20(dir);
         let (tan, r) = (sc.tan_lambda().to_f64(), sc.pitch_radius().to_f64());
@@ -1087,17 +1106,8 @@ mod tests {
             if !id.steady(true, false, reference) {
                 continue;
             }
-            id.add(
-                &TickSample {
-                    dir,
-                    measured: NewtonMetres::from_f64(measured + 0.3),
-                    model: NewtonMetres::from_f64(model_thread + 0.3),
-                    thread: NewtonMetres::from_f64(model_thread),
-                    axial: Newtons::from_f64(l * g + d),
-                    load: id.load(),
-                },
-                || (g * f64::from(1u32 << 23)) as i32,
-            );
+            let x = sample(dir, measured, model_thread, l * g + d, id.load());
+            id.add(&x, || (g * f64::from(1u32 << 23)) as i32);
         }
     }
 
@@ -1191,17 +1201,14 @@ mod tests {
             }
             let model_thread = rho * (rated * g + d);
             let measured = rho * (m * g + d) + 0.5 * f64::from(dir);
-            id.add(
-                &TickSample {
-                    dir,
-                    measured: NewtonMetres::from_f64(measured + 0.3),
-                    model: NewtonMetres::from_f64(model_thread + 0.3),
-                    thread: NewtonMetres::from_f64(model_thread),
-                    axial: Newtons::from_f64(rated * g + d),
-                    load: Kilograms::lit("1000"),
-                },
-                || (seen * f64::from(1u32 << 23)) as i32,
+            let x = sample(
+                dir,
+                measured,
+                model_thread,
+                rated * g + d,
+                Kilograms::lit("1000"),
             );
+            id.add(&x, || (seen * f64::from(1u32 << 23)) as i32);
             each(k, id);
         }
     }

@@ -8,11 +8,13 @@
 //!
 //! Braking: the reference may move at most `√(2·a·d)` when `d` counts remain, so it always
 //! has room to stop at `a`; the last step snaps onto the target, so the reference never
-//! passes it. The S-curve shape runs the trapezoid with half the ramp time through a moving
-//! average of the other half: the same end position (a moving average keeps the area under
-//! the speed curve; its entries in Q16 counts, truncated toward zero, leave the output at most
-//! a count behind, and it snaps onto the target once the window has drained), no
-//! acceleration step, twice the trapezoid's peak acceleration.
+//! passes it. The S-curve shape runs the trapezoid over `ramp − n` ticks through a moving
+//! average of `n`, the power of two nearest half the ramp (`s_curve_window`): the configured
+//! ramp time, the same end position (a moving average keeps the area under the speed curve;
+//! its entries in Q16 counts, each remainder carried into the next, keep the output within
+//! 0.001 count of the exact average, and it snaps onto the target once the window has
+//! drained), no acceleration step (where an entry spans several ticks, ramps above 64 ticks
+//! a half, the speed steps once an entry), at most twice the trapezoid's peak acceleration.
 
 use super::config::RampShape;
 use crate::math::div_pow2_i64;
@@ -70,6 +72,9 @@ pub struct Profile {
     // every configuration: cruise ≤ 64 counts a tick, ≤ 157 ticks an entry at a 2 s ramp and
     // 10 kHz): 256 B of RAM instead of 512.
     window: [i32; SMOOTH_LEN],
+    /// Entries in use (a power of two ≤ SMOOTH_LEN) and log2 of the window's ticks.
+    entries: u8,
+    shift: u8,
     ticks_per_entry: u32,
     tick_in_entry: u32,
     entry_acc: i64,
@@ -143,17 +148,38 @@ fn cruise_room(cruise: i64, accel: i64) -> i64 {
     i64::try_from(room).unwrap_or(i64::MAX)
 }
 
+/// The S-curve's moving-average window for a ramp of `ramp` ticks (≥ 2): the power of two
+/// nearest half the ramp (the lower on a tie), at most `ramp` − 1, so that the trapezoid's
+/// `ramp − n` ticks through the window's `n` take the configured ramp time. (Half and half had
+/// been meant, but a fixed 64-tick window made the default 60 ms ramp take 93 ms and a 10 ms
+/// one 68 ms.)
+fn s_curve_window(ramp: u32) -> u32 {
+    let half = (ramp / 2).max(1);
+    let lo = 1u32 << (31 - half.leading_zeros());
+    let hi = lo << 1;
+    if hi - half < half - lo && hi < ramp {
+        hi
+    } else {
+        lo
+    }
+}
+
 impl Profile {
     /// A planner at rest at `position` counts. `cruise_q32` is the cruise speed in Q32 counts per
     /// tick and `ramp_ticks` the ramp time in ticks (≥ 1).
     pub fn new(position: i32, cruise_q32: i64, ramp_ticks: u32, shape: RampShape) -> Profile {
         let ramp_ticks = ramp_ticks.max(2);
         let cruise = cruise_q32.clamp(1, 64 * ONE);
-        let (trap_ticks, smooth_ticks) = match shape {
-            RampShape::Trapezoid => (ramp_ticks, 0),
-            RampShape::SCurve => (ramp_ticks / 2, ramp_ticks - ramp_ticks / 2),
+        let (trap_ticks, window_ticks) = match shape {
+            RampShape::Trapezoid => (ramp_ticks, 1),
+            RampShape::SCurve => {
+                let n = s_curve_window(ramp_ticks);
+                (ramp_ticks - n, n)
+            }
         };
-        let ticks_per_entry = smooth_ticks.div_ceil(SMOOTH_LEN as u32).max(1);
+        // n = entries × ticks a entry, both powers of two (≤ SMOOTH_LEN entries).
+        let entries = window_ticks.min(SMOOTH_LEN as u32);
+        let ticks_per_entry = window_ticks / entries;
         let p = i64::from(position) << 32;
         let accel = (cruise / i64::from(trap_ticks.max(1))).max(1);
         Profile {
@@ -174,6 +200,9 @@ impl Profile {
             near_target: false,
             filled: 0,
             window: [0; SMOOTH_LEN],
+            // (≤ 64 and ≤ 2^14: both fit u8.)
+            entries: entries as u8,
+            shift: window_ticks.trailing_zeros() as u8,
             ticks_per_entry,
             tick_in_entry: 0,
             entry_acc: 0,
@@ -339,10 +368,9 @@ impl Profile {
         // output ends exactly where the trapezoid ends.
         self.entry_acc += self.v;
         self.tick_in_entry += 1;
-        let n = SMOOTH_LEN as i64 * i64::from(self.ticks_per_entry);
         if self.tick_in_entry >= self.ticks_per_entry {
             // An entry not written since the reset is 0 (the window is not cleared).
-            let old = if usize::from(self.filled) < SMOOTH_LEN {
+            let old = if self.filled < self.entries {
                 self.filled += 1;
                 0
             } else {
@@ -355,7 +383,11 @@ impl Profile {
             self.window[self.head] = e;
             self.sum += i64::from(e) - i64::from(old);
             self.carry = a & 0xFFFF;
-            self.head = (self.head + 1) % SMOOTH_LEN;
+            self.head = if self.head + 1 >= usize::from(self.entries) {
+                0
+            } else {
+                self.head + 1
+            };
             self.tick_in_entry = 0;
             self.entry_acc = self.carry;
         }
@@ -364,16 +396,11 @@ impl Profile {
         // the partial entry as well counted each speed (n + ticks_per_entry)/n times: with one
         // tick per entry the reference ran 65/64 fast and ended 37 counts past a 5000-count
         // move's target before snapping back).
-        // A power-of-two window (ramps up to 128 ticks) divides by a shift rounded toward
-        // zero, exactly as `/` does, instead of a 64-bit division routine.
-        // (|Σ| < 2^36 in Q16: in Q32 < 2^52.)
+        // The window's ticks are a power of two: a shift rounded toward zero, exactly as `/`
+        // does, instead of a 64-bit division routine. (|Σ| < 2^36 in Q16: in Q32 < 2^52.)
         let total = self.sum << 16;
-        let out_v = if n.count_ones() == 1 {
-            let k = n.trailing_zeros();
-            (total + ((total >> 63) & (n - 1))) >> k
-        } else {
-            total / n
-        };
+        let k = u32::from(self.shift);
+        let out_v = (total + ((total >> 63) & ((1i64 << k) - 1))) >> k;
         self.out_v = out_v;
         self.out_p = self.out_p.saturating_add(out_v);
         // Rounding leaves the output a few LSB off the trapezoid at rest: snap once both rest.
@@ -476,6 +503,44 @@ mod tests {
         }
     }
 
+    /// The S-curve takes the configured ramp time (to the tick) from rest to cruise, as the
+    /// trapezoid does, over the whole range of ramps (2…20 000 ticks: 10…2000 ms at up to
+    /// 10 kHz), and its acceleration peaks at most twice the trapezoid's. (A fixed 64-tick
+    /// window had made the default 60-tick ramp take 93 ticks and a 10-tick one 68.)
+    #[test]
+    fn an_s_curve_takes_the_configured_ramp_time() {
+        let c = (1.375 * ONE as f64) as i64;
+        let mut ramps: Vec<u32> = (2..=300).collect();
+        ramps.extend([511, 512, 513, 600, 1000, 2000, 5000, 20_000]);
+        for ramp in ramps {
+            let mut p = Profile::new(0, c, ramp, RampShape::SCurve);
+            p.set_target(i32::MAX / 2);
+            let (mut k, mut last, mut max_dv) = (0u32, 0i64, 0i64);
+            while last < c {
+                let r = p.step();
+                k += 1;
+                max_dv = max_dv.max(r.speed - last);
+                last = r.speed;
+                assert!(k <= 2 * ramp + 2, "ramp {ramp}: no cruise");
+            }
+            // The trapezoid reaches cruise on tick `ramp` + 1; the S-curve on `ramp` − 1 or
+            // `ramp`, or (its output moving once an entry) within the entry after.
+            let late = ramp + p.ticks_per_entry.max(2) - 1;
+            assert!(
+                k + 1 >= ramp && k <= late,
+                "ramp {ramp}: cruise after {k} ticks"
+            );
+            // One tick's step at most twice the trapezoid's a tick, and where an entry spans
+            // several ticks, one entry's (the output steps once an entry).
+            let trap = c as f64 / ramp as f64;
+            let allowed = 2.0 * trap * f64::from(p.ticks_per_entry) * 1.01;
+            assert!(
+                max_dv as f64 <= allowed,
+                "ramp {ramp}: step {max_dv} vs {trap}"
+            );
+        }
+    }
+
     #[test]
     fn s_curve_ends_on_the_same_target_with_no_acceleration_step() {
         let refs = run(RampShape::SCurve, 0, 50_000, 1.375, 60);
@@ -507,11 +572,12 @@ mod tests {
         ] {
             let c = (cruise * ONE as f64) as i64;
             let mut p = Profile::new(0, c, ramp, RampShape::SCurve);
-            let mut trap = Profile::new(0, c, ramp / 2, RampShape::Trapezoid);
+            let mut trap = Profile::new(0, c, ramp - s_curve_window(ramp), RampShape::Trapezoid);
             p.set_target(to);
             trap.set_target(to);
-            let n = SMOOTH_LEN * p.ticks_per_entry as usize;
-            let mut entries = std::collections::VecDeque::from(vec![0.0f64; SMOOTH_LEN]);
+            let n = usize::from(p.entries) * p.ticks_per_entry as usize;
+            let mut entries =
+                std::collections::VecDeque::from(vec![0.0f64; usize::from(p.entries)]);
             let (mut acc, mut k, mut pos) = (0.0f64, 0u32, 0.0f64);
             let mut worst: f64 = 0.0;
             loop {

@@ -26,6 +26,9 @@ const _: () = assert!(
     "`Profile::filled` counts entries in a u8"
 );
 
+/// The longest ramp, ticks: `motion.ramp_ms` ≤ 2000 at `control.tick_us` ≥ 100.
+const MAX_RAMP_TICKS: u32 = 20_000;
+
 /// Reference position and speed for one tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Reference {
@@ -168,7 +171,9 @@ impl Profile {
     /// A planner at rest at `position` counts. `cruise_q32` is the cruise speed in Q32 counts per
     /// tick and `ramp_ticks` the ramp time in ticks (≥ 1).
     pub fn new(position: i32, cruise_q32: i64, ramp_ticks: u32, shape: RampShape) -> Profile {
-        let ramp_ticks = ramp_ticks.max(2);
+        // (At most the configuration's longest ramp, 2 s at 10 kHz: the S-curve's Q16 entries
+        // then stay below 2^30.)
+        let ramp_ticks = ramp_ticks.clamp(2, MAX_RAMP_TICKS);
         let cruise = cruise_q32.clamp(1, 64 * ONE);
         let (trap_ticks, window_ticks) = match shape {
             RampShape::Trapezoid => (ramp_ticks, 1),
@@ -568,6 +573,7 @@ mod tests {
             (60u32, 1.375, 200_000),
             (60, 0.05, -20_000),
             (2000, 64.0, -2_000_000),
+            (20_000, 64.0, 4_000_000),
             (400, 7.3, 90_000),
         ] {
             let c = (cruise * ONE as f64) as i64;

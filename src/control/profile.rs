@@ -68,12 +68,12 @@ pub struct Profile {
     /// The last step was within braking reach of the target (the braking root was taken):
     /// the load identification samples no braking tick.
     near_target: bool,
-    /// Window entries written since the last reset (≤ `SMOOTH_LEN`): the others count as 0.
+    /// Window entries written since the last reset (≤ `entries`): the others count as 0.
     filled: u8,
     // S-curve smoothing: a moving average of the trapezoid's speed. Entries and their sum in
-    // Q16 counts (an entry: Σ of a Q32 speed over its ticks, truncated toward zero; < 2^30 for
-    // every configuration: cruise ≤ 64 counts a tick, ≤ 157 ticks an entry at a 2 s ramp and
-    // 10 kHz): 256 B of RAM instead of 512.
+    // Q16 counts (an entry: Σ of a Q32 speed over its ticks, floored, the remainder carried;
+    // < 2^30: cruise ≤ 64 counts a tick, ≤ 128 ticks an entry at the longest ramp,
+    // `MAX_RAMP_TICKS`): 256 B of RAM instead of 512.
     window: [i32; SMOOTH_LEN],
     /// Entries in use (a power of two ≤ SMOOTH_LEN) and log2 of the window's ticks.
     entries: u8,
@@ -182,7 +182,7 @@ impl Profile {
                 (ramp_ticks - n, n)
             }
         };
-        // n = entries × ticks a entry, both powers of two (≤ SMOOTH_LEN entries).
+        // n = entries × ticks an entry, both powers of two (≤ SMOOTH_LEN entries).
         let entries = window_ticks.min(SMOOTH_LEN as u32);
         let ticks_per_entry = window_ticks / entries;
         let p = i64::from(position) << 32;
@@ -205,7 +205,7 @@ impl Profile {
             near_target: false,
             filled: 0,
             window: [0; SMOOTH_LEN],
-            // (≤ 64 and ≤ 2^14: both fit u8.)
+            // (≤ 64 entries, n ≤ 2^13: both fit u8.)
             entries: entries as u8,
             shift: window_ticks.trailing_zeros() as u8,
             ticks_per_entry,
@@ -508,8 +508,8 @@ mod tests {
         }
     }
 
-    /// The S-curve takes the configured ramp time (to the tick) from rest to cruise, as the
-    /// trapezoid does, over the whole range of ramps (2…20 000 ticks: 10…2000 ms at up to
+    /// The S-curve takes the configured ramp time (to the tick; to the entry where an entry
+    /// spans several ticks) from rest to cruise, as the trapezoid does, over the whole range of ramps (2…20 000 ticks: 10…2000 ms at up to
     /// 10 kHz), and its acceleration peaks at most twice the trapezoid's. (A fixed 64-tick
     /// window had made the default 60-tick ramp take 93 ticks and a 10-tick one 68.)
     #[test]

@@ -105,6 +105,7 @@ keys! {
     MOTOR_KT = "motor.kt", "0.001..1 Nm/A";
     MOTOR_GEAR_EFFICIENCY = "motor.gear_efficiency", "0.1..1";
     MOTOR_RESISTANCE = "motor.resistance", "0.001..4 ohm";
+    MOTOR_INERTIA = "motor.inertia", "0..100000 ukgm2";
 
     CONTROL_TICK_US = "control.tick_us", "100..10000 us";
     CONTROL_SPEED_BANDWIDTH = "control.speed_bandwidth", "1..tick rate/10 Hz";

@@ -354,17 +354,17 @@ fn encoded(cfg: &ControlConfig) -> Vec<u8> {
 #[test]
 fn record_of_another_version_is_not_used_and_says_why() {
     let mut rec = encoded(&ControlConfig::DEFAULT);
-    // Version 5: a future format (this firmware writes 4 and also reads 1 to 3).
-    rec[4..6].copy_from_slice(&5u16.to_le_bytes());
+    // Version 6: a future format (this firmware writes 5 and also reads 1 to 4).
+    rec[4..6].copy_from_slice(&6u16.to_le_bytes());
     let (loaded, _) = load(store_raw(&with_crc(rec)));
     assert_eq!(
         loaded.source,
-        Source::Incompatible(DecodeError::Version { found: 5 })
+        Source::Incompatible(DecodeError::Version { found: 6 })
     );
     assert_eq!(loaded.config, ValidatedConfig::factory());
     let msg = format!("{}", loaded.source);
     assert!(msg.contains("version mismatch"), "{msg}");
-    assert!(msg.contains("version 5"), "{msg}");
+    assert!(msg.contains("version 6"), "{msg}");
 }
 
 #[test]

@@ -33,12 +33,12 @@ type Flash = SimFlash<SIZE>;
 fn this_build_is_the_lead_screw_variant() {
     const { assert!(!cfg!(feature = "ball-screw")) };
     assert_eq!(OPAQUE_COUNT, 15);
-    assert_eq!(SETTINGS.len(), 57);
+    assert_eq!(SETTINGS.len(), 58);
     for k in BALL_KEYS {
         assert!(settings::find(k).is_none(), "{k}");
     }
     // The record is as long as the ball-screw build's: same format, same version.
-    assert_eq!(record::record_len(), HEADER_LEN + 8 * 71 + 4);
+    assert_eq!(record::record_len(), HEADER_LEN + 8 * 72 + 4);
 }
 
 /// A ball screw's configuration with some ball-screw values changed from the factory's (as the

@@ -24,9 +24,10 @@ use crate::keys;
 /// Record magic, "LFCF".
 pub const MAGIC: [u8; 4] = *b"LFCF";
 /// Format version written by this firmware. 2: `drive.screw` added; 3: the ball screw's
-/// `ballscrew.*` settings added; 4: the holding brake's `drive.brake`, `drive.brake_ms`. Older records are read with their own key list, the settings
+/// `ballscrew.*` settings added; 4: the holding brake's `drive.brake`, `drive.brake_ms`; 5: the
+/// drive's inertia `motor.inertia`. Older records are read with their own key list, the settings
 /// they lack keep their factory value (see docs/config-store.md).
-pub const VERSION: u16 = 4;
+pub const VERSION: u16 = 5;
 /// Bytes before the settings.
 pub const HEADER_LEN: usize = 16;
 
@@ -90,6 +91,8 @@ const fn added_in(key: &str) -> u16 {
         3
     } else if starts_with(key, "drive.brake") {
         4
+    } else if starts_with(key, keys::MOTOR_INERTIA.name) {
+        5
     } else {
         1
     }
@@ -401,18 +404,22 @@ mod tests {
         assert_eq!(added_in("drive.screwdriver"), 1);
         assert_eq!(added_in("ballscrew.lead"), 3);
         assert_eq!(added_in("drive.brake_ms"), 4);
+        assert_eq!(added_in("motor.inertia"), 5);
         assert_eq!(added_in("limits.upper"), 1);
     }
 
-    /// The format both builds write: version 4 with 71 values and the schema word of main
-    /// 3062e48's registry (computed from its key list), whether the ball screw's 15 values are
-    /// settings (`ball-screw`) or opaque words (without it).
+    /// The format both builds write: version 5 with 72 values (version 4's 71 and
+    /// `motor.inertia`), whether the ball screw's 15 values are settings (`ball-screw`) or opaque
+    /// words (without it); version 4 keeps the schema word of main 3062e48's registry (computed
+    /// from its key list), so the records saved before still read.
     #[test]
     fn both_builds_write_the_same_format() {
-        assert_eq!(VERSION, 4);
-        assert_eq!(layout(VERSION), Some((71, 0x2AD0_4F24)));
-        assert_eq!(record_len(), HEADER_LEN + 8 * 71 + 4);
-        assert_eq!(record_keys(VERSION)[56..], BALL_KEYS);
+        assert_eq!(VERSION, 5);
+        assert_eq!(layout(4), Some((71, 0x2AD0_4F24)));
+        assert_eq!(layout(VERSION).map(|l| l.0), Some(72));
+        assert_eq!(record_len(), HEADER_LEN + 8 * 72 + 4);
+        assert_eq!(record_keys(VERSION)[57..], BALL_KEYS);
+        assert_eq!(record_keys(4)[56..], BALL_KEYS);
     }
 
     #[test]
@@ -451,8 +458,8 @@ mod tests {
         let len = old_record(&cfg, 1, &mut b);
         assert_eq!(
             len,
-            record_len() - 8 * 18,
-            "v1 lacks drive.screw, ballscrew.* and drive.brake*"
+            record_len() - 8 * 19,
+            "v1 lacks drive.screw, ballscrew.*, drive.brake* and motor.inertia"
         );
         assert_eq!(decode(&b[..len]), Ok((cfg, 3)));
         // The same bytes labelled version 2 are refused: the key list differs.
@@ -473,7 +480,7 @@ mod tests {
         cfg.protection.runaway_travel = crate::units::Metres::lit("0.001");
         let mut b = [0u8; MAX_RECORD_LEN];
         let len = old_record(&cfg, 2, &mut b);
-        assert_eq!(len, record_len() - 8 * 17);
+        assert_eq!(len, record_len() - 8 * 18);
         assert_eq!(decode(&b[..len]), Ok((cfg, 3)));
     }
 
@@ -487,7 +494,7 @@ mod tests {
         cfg.lube.band = crate::units::Ratio::lit("0.3");
         let mut b = [0u8; MAX_RECORD_LEN];
         let len = old_record(&cfg, 3, &mut b);
-        assert_eq!(len, record_len() - 8 * 2);
+        assert_eq!(len, record_len() - 8 * 3);
         assert_eq!(decode(&b[..len]), Ok((cfg, 3)));
         // The same bytes labelled version 4 are refused: the key list differs.
         b[4..6].copy_from_slice(&4u16.to_le_bytes());
@@ -498,9 +505,30 @@ mod tests {
         cfg.brake.delay_ms = 120;
         let len = encode(&cfg, 4, &mut b).unwrap();
         assert_eq!(decode(&b[..len]), Ok((cfg, 4)));
+        b[4..6].copy_from_slice(&6u16.to_le_bytes());
+        let crc = crc32(&b[..len - 4]);
+        b[len - 4..len].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(decode(&b[..len]), Err(DecodeError::Version { found: 6 }));
+    }
+
+    /// A version-4 record (before `motor.inertia`): every setting it holds is kept and the
+    /// drive's inertia takes its factory value; the same bytes labelled version 5 are refused.
+    #[test]
+    fn version_4_record_keeps_its_settings_and_gets_the_factory_inertia() {
+        let mut cfg = ControlConfig::DEFAULT;
+        cfg.motion.ramp_ms = 90;
+        cfg.estimator.motor.resistance = crate::units::Ratio::lit("0.12");
+        let mut b = [0u8; MAX_RECORD_LEN];
+        let len = old_record(&cfg, 4, &mut b);
+        assert_eq!(len, record_len() - 8);
+        assert_eq!(decode(&b[..len]), Ok((cfg, 3)));
         b[4..6].copy_from_slice(&5u16.to_le_bytes());
         let crc = crc32(&b[..len - 4]);
         b[len - 4..len].copy_from_slice(&crc.to_le_bytes());
-        assert_eq!(decode(&b[..len]), Err(DecodeError::Version { found: 5 }));
+        assert_eq!(decode(&b[..len]), Err(DecodeError::Schema));
+        // A changed inertia round-trips in the current format.
+        cfg.estimator.motor.inertia_ukgm2 = 75;
+        let len = encode(&cfg, 9, &mut b).unwrap();
+        assert_eq!(decode(&b[..len]), Ok((cfg, 9)));
     }
 }

@@ -109,6 +109,12 @@ impl Controller {
         let at_screw = NewtonMetres::from_raw(sat32((i64::from(t_motor.bits()) * n) >> 16));
         let bias: NewtonMetres = qmul(at_screw, m.gear_efficiency);
         let mut id = LoadIdent::new(cfg.rated_load, bias, stored, cfg.estimator.tick_us);
+        id.set_drive_inertia(super::derived::sample_inertia_q8(
+            m.inertia_ukgm2,
+            cfg.estimator.drive.gear_ratio.to_bits(),
+            m.gear_efficiency.bits(),
+            cfg.estimator.tick_us,
+        ));
         let mu = Self::cruise_mu(cfg, est, &id);
         id.set_interval(est.screw(), mu);
         id
@@ -312,6 +318,9 @@ impl Controller {
             model: e.model_screw_torque,
             thread: e.thread_torque,
             axial: e.axial,
+            speed: e.screw_speed.bits(),
+            now_us: now.0,
+            slipping: self.motion.stick_slip.output().active,
         };
         let (est, position) = (&self.est, self.live.enc.position());
         let id = &mut self.loadid;

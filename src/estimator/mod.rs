@@ -44,6 +44,10 @@ pub struct MotorConfig {
     /// Resistance of the motor loop (armature + bridge + battery + leads), Ω, 0.001…4: the
     /// speed loop's feed-forward needs it to turn a torque into a voltage.
     pub resistance: Ratio,
+    /// Inertia of the rotor and the gearbox's input stage at the motor shaft, µkg·m²
+    /// (0…100 000): n²·η times it at the screw, where the current's acceleration torque is
+    /// taken out of the load identification's samples (`control::loadid`).
+    pub inertia_ukgm2: i32,
 }
 
 impl MotorConfig {
@@ -54,6 +58,8 @@ impl MotorConfig {
         torque_constant: Ratio::lit("0.04"),
         gear_efficiency: Ratio::lit("0.85"),
         resistance: Ratio::lit("0.091"),
+        // Rotor 50 + gearbox input 10 µkg·m² (host-sim's drive).
+        inertia_ukgm2: 60,
     };
 }
 
@@ -293,6 +299,9 @@ impl Estimator {
             && m.resistance <= const { Ratio::lit("4") })
         {
             return Err(keys::MOTOR_RESISTANCE.out_of_range());
+        }
+        if !(0..=100_000).contains(&m.inertia_ukgm2) {
+            return Err(keys::MOTOR_INERTIA.out_of_range());
         }
         if !(100..=10_000).contains(&cfg.tick_us) {
             return Err(keys::CONTROL_TICK_US.out_of_range());

@@ -311,71 +311,74 @@ registry! {
     49 => MOTOR_RESISTANCE, num(28, OHMS),
         "motor loop resistance (armature, bridge, battery)",
         [q32 estimator.motor.resistance];
-    50 => CONTROL_TICK_US, num(0, MICROS),
+    50 => MOTOR_INERTIA, num(0, MICRO_KGM2),
+        "inertia of the motor's rotor and gearbox input, at the motor shaft",
+        [int i32, estimator.motor.inertia_ukgm2];
+    51 => CONTROL_TICK_US, num(0, MICROS),
         "control tick period",
         [int u32, estimator.tick_us];
-    51 => CONTROL_SPEED_BANDWIDTH, num(0, HERTZ),
+    52 => CONTROL_SPEED_BANDWIDTH, num(0, HERTZ),
         "speed filter bandwidth",
         [int u32, estimator.speed_bandwidth_hz];
-    52 => CONTROL_REST_SPEED, num(16, RAD_PER_S),
+    53 => CONTROL_REST_SPEED, num(16, RAD_PER_S),
         "screw speed below which the screw counts as at rest",
         [q32 estimator.rest_speed];
-    53 => STICKSLIP_REACTION, Kind::Choice(ChoiceId(6)),
+    54 => STICKSLIP_REACTION, Kind::Choice(ChoiceId(6)),
         "on stick-slip: log it, also warn on the console, or also change to the escape speed",
         [choice stick_slip.reaction];
-    54 => STICKSLIP_DROP, num(16, NEWTON_METRES),
+    55 => STICKSLIP_DROP, num(16, NEWTON_METRES),
         "smallest fall of the measured screw torque that counts as a slip",
         [q32 stick_slip.drop_threshold];
-    55 => STICKSLIP_WINDOW_MS, num(0, MILLIS),
+    56 => STICKSLIP_WINDOW_MS, num(0, MILLIS),
         "slips further apart start a new chain",
         [int u32, stick_slip.window_ms];
-    56 => STICKSLIP_ESCAPE_SPEED, num(16, RAD_PER_S),
+    57 => STICKSLIP_ESCAPE_SPEED, num(16, RAD_PER_S),
         "cruise speed for the rest of a motion after stick-slip (reaction speed)",
         [q32 stick_slip.escape_speed];
     ball_screw:
-    57 => BALLSCREW_R_M, LEN,
+    58 => BALLSCREW_R_M, LEN,
         "ball screw: ball-centre circle radius r_m",
         [q32 ball_screw.r_m];
-    58 => BALLSCREW_R_B, LEN,
+    59 => BALLSCREW_R_B, LEN,
         "ball screw: ball radius r_b (less than r_m)",
         [q32 ball_screw.r_b];
-    59 => BALLSCREW_CONTACT_ANGLE, num(16, DEGREES),
+    60 => BALLSCREW_CONTACT_ANGLE, num(16, DEGREES),
         "ball screw: contact angle alpha",
         [q32 ball_screw.contact_angle_deg];
-    60 => BALLSCREW_LEAD, LEN,
+    61 => BALLSCREW_LEAD, LEN,
         "ball screw: lead (nut travel per screw turn)",
         [q32 ball_screw.lead];
-    61 => BALLSCREW_BALLS, num(0, COUNTS),
+    62 => BALLSCREW_BALLS, num(0, COUNTS),
         "ball screw: number of loaded balls M",
         [int u16, ball_screw.loaded_balls];
-    62 => BALLSCREW_PRELOAD, num(8, NEWTONS),
+    63 => BALLSCREW_PRELOAD, num(8, NEWTONS),
         "ball screw: preload F_p",
         [q32 ball_screw.preload];
-    63 => BALLSCREW_VISCOSITY, num(32, PASCAL_SECONDS),
+    64 => BALLSCREW_VISCOSITY, num(32, PASCAL_SECONDS),
         "ball screw: lubricant dynamic viscosity eta0",
         [q64 ball_screw.viscosity];
-    64 => BALLSCREW_F_BASE, num(28, RATIO),
+    65 => BALLSCREW_F_BASE, num(28, RATIO),
         "ball screw f(tau): constant term",
         [q32 ball_screw.law.base];
-    65 => BALLSCREW_F_AMP, num(28, RATIO),
+    66 => BALLSCREW_F_AMP, num(28, RATIO),
         "ball screw f(tau): exponential amplitude",
         [q32 ball_screw.law.amp];
-    66 => BALLSCREW_F_RATE, num(32, NUMBER),
+    67 => BALLSCREW_F_RATE, num(32, NUMBER),
         "ball screw f(tau): exponential rate per unit of tau",
         [q64 ball_screw.law.rate];
-    67 => BALLSCREW_F_SLOPE, num(32, NUMBER),
+    68 => BALLSCREW_F_SLOPE, num(32, NUMBER),
         "ball screw f(tau): slope per unit of tau",
         [q64 ball_screw.law.slope];
-    68 => BALLSCREW_F_S_MAX, Kind::Number { frac: 32, pow10: 0, unit: NUMBER, none_at_max: true },
+    69 => BALLSCREW_F_S_MAX, Kind::Number { frac: 32, pow10: 0, unit: NUMBER, none_at_max: true },
         "ball screw f(tau): flat beyond this tau (none: never)",
         [q64 ball_screw.law.s_max];
-    69 => BALLSCREW_LUBE_BAND, num(28, RATIO),
+    70 => BALLSCREW_LUBE_BAND, num(28, RATIO),
         "warn when the identified f leaves law*(1 +- band)",
         [q32 lube.band];
-    70 => BALLSCREW_IDENT_MIN_SPEED, num(16, RAD_PER_S),
+    71 => BALLSCREW_IDENT_MIN_SPEED, num(16, RAD_PER_S),
         "slowest cruise whose motor current identifies f",
         [q32 lube.min_speed];
-    71 => BALLSCREW_NO_LOAD_CURRENT, num(16, AMPS),
+    72 => BALLSCREW_NO_LOAD_CURRENT, num(16, AMPS),
         "motor current at cruise speed with the gearbox output free (drive friction)",
         [q32 lube.no_load_current];
 }
@@ -449,6 +452,7 @@ mod tests {
                             torque_constant: _,
                             gear_efficiency: _,
                             resistance: _,
+                            inertia_ukgm2: _,
                         },
                     tick_us: _,
                     speed_bandwidth_hz: _,
@@ -529,12 +533,12 @@ mod tests {
                     delay_ms: _,
                 },
         } = ControlConfig::DEFAULT;
-        // 71 fields above, one key each (the ball screw's law variable is fixed), plus the
+        // 72 fields above, one key each (the ball screw's law variable is fixed), plus the
         // `friction.law` preset selector.
         // (Without the `ball-screw` feature the ball screw's 15 are opaque record words.)
         assert_eq!(
             SETTINGS.iter().filter(|s| s.stored()).count() + OPAQUE_COUNT,
-            71
+            72
         );
     }
 

@@ -254,3 +254,75 @@ fn s_curve_ramp_halts_within_half_a_millimetre_for_every_lubricant_either_way() 
         }
     }
 }
+
+/// The gear output's speed against the reference over the start's ramp and the 100 ms after
+/// it (the plant's truth, each tick): the worst excess over the reference after the ramp, and
+/// the worst lag behind it during the ramp, rad/s at the screw.
+fn start_tracking(lub: Lubricant, load: f64, up: bool) -> (f64, f64) {
+    let mut s = Scenario::new(lub, load, 20.0, 0.6);
+    s.seed = 3;
+    let refs = std::sync::Arc::new(std::sync::Mutex::new(Vec::<(f64, f64)>::new()));
+    let log = std::sync::Arc::clone(&refs);
+    let mut go = command_at(0.02, if up { Command::Up } else { Command::Down });
+    let r = run(
+        &s,
+        Box::new(move |k: &mut Tick<'_>| {
+            go(k);
+            let w = k.controller.reference().to_f64();
+            log.lock().expect("log").push((k.t, w));
+        }),
+    );
+    let refs = refs.lock().expect("log").clone();
+    let dir = if up { 1.0 } else { -1.0 };
+    // The ramp: from the first moving reference to the first at cruise.
+    let start = refs.iter().position(|&(_, w)| w != 0.0).expect("moved");
+    let cruise = refs
+        .iter()
+        .position(|&(_, w)| (w * dir - 3.0).abs() < 1e-3)
+        .expect("cruised");
+    let t_cruise = refs[cruise].0;
+    let mut lag: f64 = 0.0;
+    let mut excess: f64 = 0.0;
+    for w in r.trace.records.windows(2) {
+        let t = w[1].t;
+        let i = match refs.iter().rposition(|&(tr, _)| tr <= t) {
+            Some(i) if i >= start => i,
+            _ => continue,
+        };
+        let speed = (w[1].theta_i - w[0].theta_i) / (w[1].t - w[0].t) * dir;
+        let reference = refs[i].1 * dir;
+        if t < t_cruise {
+            lag = lag.max(reference - speed);
+        } else if t < t_cruise + 0.1 {
+            excess = excess.max(speed - reference);
+        }
+    }
+    (lag, excess)
+}
+
+#[test]
+fn the_rotor_follows_the_start_ramp() {
+    // With the drive's acceleration torque in the speed loop's feed-forward
+    // (`motor.inertia`), the rotor follows the ramp instead of lagging it until the
+    // integrator has wound up. Measured without it: lowering lagged 0.117 (PTFE) and
+    // 0.068 rad/s (lithium), and overshot the cruise by 0.34…0.42 rad/s; with it 0.045 and
+    // 0.037, overshooting by 0.28…0.35. (Dry threads stick-slip at the start and creep down:
+    // not this test's.)
+    for lub in [Lubricant::Ptfe, Lubricant::Lithium] {
+        for (load, up) in [
+            (1000.0, true),
+            (250.0, true),
+            (1000.0, false),
+            (250.0, false),
+            (0.0, false),
+        ] {
+            let (lag, excess) = start_tracking(lub, load, up);
+            let way = if up { "up" } else { "down" };
+            println!("{lub:?} {load} kg {way}: ramp lag {lag:.3} rad/s, then over the cruise by {excess:.3} rad/s");
+            assert!(
+                lag < 0.05,
+                "{lub:?} {load} kg {way}: the rotor lagged the ramp by {lag} rad/s"
+            );
+        }
+    }
+}

@@ -21,7 +21,7 @@ use super::{Controller, FaultKind, State};
 use crate::detect::stickslip::Reaction;
 use crate::ident::pair::Breakaway;
 use crate::ident::stick::StuckLowering;
-use crate::units::{Instant, Kilograms, RadiansPerSecond, Q};
+use crate::units::{Instant, Kilograms, NewtonMetres, RadiansPerSecond, Q};
 
 /// The creep's speed at the screw (at most the configured cruise): a tenth of the default
 /// cruise, where host-sim's dry wind-ups last 60…150 ms at 700…1300 kg.
@@ -36,6 +36,8 @@ pub const CREEP_MS: u32 = 600;
 /// (≤ 6 ms at the default 60 ms ramp to 3 rad/s) and the stick-slip detector's settling
 /// (`detect::stickslip::SETTLE_MS`), with room.
 const ARMED_TICKS: u32 = 32;
+/// A peak counts while the drive's acceleration torque stays within this (`creep_tick`).
+const CALM_TORQUE: NewtonMetres = NewtonMetres::lit("1");
 
 /// The creep under way.
 #[derive(Clone, Copy, Debug, Default)]
@@ -178,6 +180,18 @@ impl Controller {
         // (The detector's step comes later in the tick: its mean and its slips are both the
         // last tick's.)
         let mean = i64::from(self.motion.stick_slip.mean_torque());
+        // A peak counts only while the rotor turns down at a steady speed, as it does winding
+        // the coupling up to a breakaway: not while the current accelerates it (the drive's
+        // acceleration torque J·n²·η·θ̈ above `CALM_TORQUE`) or it turns the other way. After
+        // a lift on a dry thread the coupling may still swing the rotor to and fro when the
+        // lowering starts (host-sim, dry 1000 kg on a thread twice as dry: ±1.3 rad/s at
+        // ±150 rad/s² for 50 ms), and the current turning it around read as an 18 N·m
+        // "breakaway" (3 332 kg: the lowering refused), where the thread's was 12.7.
+        let e = &self.live.latest.estimate;
+        let inertia =
+            (i64::from(e.screw_accel.bits()) * i64::from(self.derived.drive_inertia)) >> 8;
+        let calm = inertia.unsigned_abs() <= u64::from(CALM_TORQUE.bits().unsigned_abs())
+            && e.screw_speed < RadiansPerSecond::ZERO;
         let c = &mut self.loadid.creep;
         c.ticks = c.ticks.saturating_add(1);
         // After a lift the coupling still holds the lift's twist: the creep unwinds it first
@@ -188,7 +202,7 @@ impl Controller {
         }
         // From when the detector watches (its settling after the ramp to the creep): the
         // start's current (the rotor's acceleration) is no breakaway.
-        if c.ticks >= ARMED_TICKS - u32::from(PIECES) {
+        if c.ticks >= ARMED_TICKS - u32::from(PIECES) && calm {
             c.max = c.max.max(mean);
         }
         let seen = n.wrapping_sub(c.breakaways);

@@ -88,6 +88,12 @@ pub(super) struct Derived {
     pub(super) inv_ke_n: Ratio,
     /// R·I_limit.
     pub(super) current_headroom: Volts,
+    /// The drive's acceleration torque at the motor shaft per Q16 rad/s of screw speed the
+    /// reference gains in a tick, Q16 (J·n/T): the speed loop's feed-forward.
+    pub(super) accel_ff: i32,
+    /// The drive's inertia at the screw, J·n²·η, Q16 kg·m² (`drive_inertia_q16`): the
+    /// acceleration torque the current carries beside the thread's.
+    pub(super) drive_inertia: i32,
     /// 15/16 of the current limit: above it a stick's breakaway may be clipped (`clip`).
     pub(super) clip_current: Amperes,
     /// The coupling's torque per encoder count of wind-up, k_c·rad per count (Q16 N·m).
@@ -192,6 +198,16 @@ impl Derived {
             limits,
             inv_ke_n,
             current_headroom: qmul(cfg.protection.current_limit, motor.resistance),
+            drive_inertia: drive_inertia_q16(
+                motor.inertia_ukgm2,
+                cfg.estimator.drive.gear_ratio.to_bits(),
+                motor.gear_efficiency.bits(),
+            ),
+            accel_ff: accel_ff_q16(
+                motor.inertia_ukgm2,
+                cfg.estimator.drive.gear_ratio.to_bits(),
+                cfg.estimator.tick_us,
+            ),
             clip_current: cfg
                 .protection
                 .current_limit
@@ -237,9 +253,29 @@ pub(super) fn sample_inertia_q8(j_ukgm2: i32, n_q16: i32, eta_q28: i32, tick_us:
     i32::try_from(num / den).unwrap_or(i32::MAX)
 }
 
+/// The speed loop's acceleration feed-forward: the torque at the motor shaft that turns the
+/// drive's inertia `j_ukgm2` (µkg·m² at the motor shaft) up by the gear ratio `n_q16` times a
+/// Q16 rad/s step of the screw's reference in one tick of `tick_us`, Q16: J·n/T, the µ of
+/// µkg·m² and of µs cancelling (no efficiency: the rotor is upstream of the gearbox).
+/// Saturated. Cold.
+pub(super) fn accel_ff_q16(j_ukgm2: i32, n_q16: i32, tick_us: u32) -> i32 {
+    let num = i64::from(j_ukgm2) * i64::from(n_q16);
+    sat32(num / i64::from(tick_us.max(1)))
+}
+
+/// The drive's inertia `j_ukgm2` (µkg·m² at the motor shaft) at the screw through the gear
+/// ratio `n_q16` and the efficiency `eta_q28` (the current carries J·α·n·η of it, as
+/// [`sample_inertia_q8`]), Q16 kg·m²: J·n²·η. Saturated. Cold.
+pub(super) fn drive_inertia_q16(j_ukgm2: i32, n_q16: i32, eta_q28: i32) -> i32 {
+    let n = i128::from(n_q16);
+    let num = i128::from(j_ukgm2) * n * n * i128::from(eta_q28) << 16;
+    let den = 1_000_000i128 << 60;
+    i32::try_from(num / den).unwrap_or(i32::MAX)
+}
+
 #[cfg(test)]
 mod tests {
-    use super::sample_inertia_q8;
+    use super::{accel_ff_q16, drive_inertia_q16, sample_inertia_q8};
     use crate::ident::DECIMATE;
 
     /// The default drive (60 µkg·m², n = 60, η = 0.85, 1 kHz): 0.184 kg·m² at the screw,
@@ -255,6 +291,32 @@ mod tests {
     }
 
     proptest::proptest! {
+        /// The feed-forward's and the inertia at the screw's float64 twins over the settings'
+        /// whole range (inertia 0…100 000 µkg·m², ratio 1…1000, efficiency 0.1…1, tick
+        /// 100…10 000 µs): within one LSB, or saturated exactly where the twin passes i32.
+        #[test]
+        fn accel_ff_and_drive_inertia_follow_their_twins(
+            j in 0i32..=100_000,
+            n in 1.0f64..1000.0,
+            eta in 0.1f64..=1.0,
+            tick in 100u32..=10_000,
+        ) {
+            let n_q16 = (n * 65_536.0) as i32;
+            let eta_q28 = (eta * f64::from(1 << 28)) as i32;
+            let (n, eta) = (f64::from(n_q16) / 65_536.0, f64::from(eta_q28) / f64::from(1 << 28));
+            let j_si = f64::from(j) * 1e-6;
+            for (got, twin) in [
+                (accel_ff_q16(j, n_q16, tick), j_si * n / (f64::from(tick) * 1e-6) * 65_536.0),
+                (drive_inertia_q16(j, n_q16, eta_q28), j_si * n * n * eta * 65_536.0),
+            ] {
+                if twin >= f64::from(i32::MAX) {
+                    proptest::prop_assert_eq!(got, i32::MAX);
+                } else {
+                    proptest::prop_assert!((f64::from(got) - twin).abs() <= 1.0, "{} vs {}", got, twin);
+                }
+            }
+        }
+
         /// Its float64 twin over the settings' whole range (inertia 0…100 000 µkg·m², ratio
         /// 1…1000, efficiency 0.1…1, tick 100…10 000 µs): within one Q8 LSB, or saturated
         /// exactly where the twin passes i32.

@@ -184,7 +184,7 @@ impl Controller {
             // The brake holds the screw: only the coupling winds up, so the position gain may
             // be 4× the hold's (16 /s).
             let error = target.saturating_sub(here);
-            let duty = self.speed_duty(x, RadiansPerSecond::ZERO, error.saturating_mul(4));
+            let duty = self.speed_duty(x, RadiansPerSecond::ZERO, error.saturating_mul(4), 0);
             return Bridge::Drive(duty);
         }
         self.hold_bridge(x)
@@ -217,7 +217,7 @@ impl Controller {
             .motion
             .hold_target
             .saturating_sub(self.live.enc.position());
-        Bridge::Drive(self.speed_duty(x, RadiansPerSecond::ZERO, error_counts))
+        Bridge::Drive(self.speed_duty(x, RadiansPerSecond::ZERO, error_counts, 0))
     }
 
     /// Whether the speed loop's integrator is kept across a change of state: always for a

@@ -260,6 +260,7 @@ impl Controller {
             .saturating_sub(self.screw_position())
             .saturating_mul(dir);
         let mut done = false;
+        let prev_ref = self.motion.last_ref_rad;
         // The planner holds a stuck screw's lag near `lag_counts`: past half of it, the drive
         // is pushing (the stall monitor's sign, steady while the planner steps and waits).
         let lag_counts = self.derived.lag_counts;
@@ -290,7 +291,14 @@ impl Controller {
                 return self.at_rest_bridge(x);
             }
         }
-        Bridge::Drive(self.speed_duty(x, reference, error_counts))
+        // The rotor's and the gearbox input's acceleration torque for the reference's step this
+        // tick (J·n·Δω/T at the motor shaft): the loop's feed-forward, so that the rotor follows
+        // the ramp instead of lagging it until the integrator has wound up (and overshooting
+        // once it has).
+        let accel = (i64::from(reference.bits().wrapping_sub(prev_ref.bits()))
+            * i64::from(self.derived.accel_ff))
+            >> 16;
+        Bridge::Drive(self.speed_duty(x, reference, error_counts, sat32(accel)))
     }
 
     /// The lift lags its reference by more than `lag_counts`: the motor cannot reach the
@@ -352,6 +360,7 @@ impl Controller {
         x: &Reading,
         reference: RadiansPerSecond,
         error_counts: i32,
+        accel_torque: i32,
     ) -> i16 {
         let d = &self.derived;
         self.motion.speed.step(
@@ -360,7 +369,10 @@ impl Controller {
                 reference,
                 position_error: Radians::from_raw(d.rad_per_count.apply32(error_counts)),
                 measured: x.estimate.screw_speed,
-                model_motor_torque: x.estimate.model_motor_torque,
+                model_motor_torque: x
+                    .estimate
+                    .model_motor_torque
+                    .sat_add(NewtonMetres::from_raw(accel_torque)),
                 supply: x.supply,
                 current_headroom: d.current_headroom,
                 current: x.current,

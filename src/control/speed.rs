@@ -1,6 +1,7 @@
-//! The speed loop: a PI on the encoder speed of the gear output, with the motor's steady-state
-//! voltage as feed-forward (back-EMF at the reference speed plus R·i for the model's torque),
-//! and a position term that pulls the reference onto the screw-position estimate.
+//! The speed loop: a PI on the encoder speed of the gear output, with the motor's voltage as
+//! feed-forward (back-EMF at the reference speed plus R·i for the model's torque and the
+//! drive's acceleration torque, `control::motion`), and a position term that pulls the
+//! reference onto the screw-position estimate.
 //!
 //! Gains follow from the motor constants (docs/control.md): the proportional gain is 1/8 of
 //! k_e·n (so it adds little to the encoder's quantisation noise), the integral gives a 5 Hz
@@ -63,7 +64,8 @@ pub struct SpeedInputs {
     pub position_error: Radians,
     /// Measured (filtered) screw speed.
     pub measured: RadiansPerSecond,
-    /// The model's torque at the motor shaft (feed-forward).
+    /// The model's torque at the motor shaft, and the drive's acceleration torque for the
+    /// reference's step (feed-forward).
     pub model_motor_torque: NewtonMetres,
     /// Supply voltage.
     pub supply: Volts,

@@ -326,3 +326,51 @@ fn the_rotor_follows_the_start_ramp() {
         }
     }
 }
+
+#[test]
+fn a_wrong_motor_inertia_still_halts_or_stops_safely() {
+    // `motor.inertia` feeds the speed loop's acceleration feed-forward and the load
+    // identification's acceleration torque. Set to 0 (none) or up to 10 000 µkg·m² (≈ 170× the
+    // drive's 60), the lift still halts where it was sent, without a fault (measured: within
+    // 0.09 mm). At the range's top, 100 000 (a flywheel), the identification reads a PTFE
+    // 1000 kg car as 2 637 kg and the overload trip stops the lift, naming that load: a safe
+    // state, never a move past the target.
+    for j in [0, 10_000, 100_000] {
+        for (lub, load, start, dh) in [
+            (Lubricant::Ptfe, 1000.0, 15.0, 0.008f64),
+            (Lubricant::Lithium, 0.0, 45.0, -0.003),
+            (Lubricant::Dry, 1000.0, 15.0, 0.008),
+        ] {
+            let mut s = Scenario::new(lub, load, start, 0.0);
+            s.control.estimator.motor.inertia_ukgm2 = j;
+            s.seed = 5;
+            let cot = 1.0 / f64::to_radians(start).tan();
+            s.duration = dh.abs() * 1e3 / (3.0 * 0.3 * cot.min(3.0)) + 1.2;
+            let target = height_at(start) + dh;
+            s.wide_stops();
+            let r = run(
+                &s,
+                command_at(0.02, Command::GoTo(Metres::from_f64(target))),
+            );
+            let err = (r.final_height() - target) * 1e3;
+            let over = ((r.extreme_height(dh > 0.0) - target) * dh.signum() * 1e3).max(0.0);
+            let state = r.controller.state();
+            println!("inertia {j} µkg·m², {lub:?} {load} kg from {start}°: {state:?}, error {err:+.3} mm, overshoot {over:.3} mm");
+            assert!(over <= 0.5, "inertia {j}, {lub:?}: overshoot {over} mm");
+            if j <= 10_000 {
+                assert_eq!(
+                    state,
+                    State::Holding,
+                    "inertia {j}, {lub:?}: {:?}",
+                    r.events
+                );
+                assert!(err.abs() <= 0.5, "inertia {j}, {lub:?}: error {err} mm");
+            } else {
+                assert!(
+                    state == State::Holding || state == State::Fault,
+                    "inertia {j}, {lub:?}: {state:?}"
+                );
+            }
+        }
+    }
+}

@@ -291,11 +291,12 @@ mod tests {
     }
 
     proptest::proptest! {
-        /// The feed-forward's and the inertia at the screw's float64 twins over the settings'
-        /// whole range (inertia 0…100 000 µkg·m², ratio 1…1000, efficiency 0.1…1, tick
-        /// 100…10 000 µs): within one LSB, or saturated exactly where the twin passes i32.
+        /// The drive's inertia factors against their float64 twins over the settings' whole
+        /// range (inertia 0…100 000 µkg·m², ratio 1…1000, efficiency 0.1…1, tick
+        /// 100…10 000 µs): the samples' (Q8), the feed-forward's and the inertia at the screw
+        /// (Q16), each within one LSB, or saturated exactly where its twin passes i32.
         #[test]
-        fn accel_ff_and_drive_inertia_follow_their_twins(
+        fn drive_inertia_factors_follow_their_twins(
             j in 0i32..=100_000,
             n in 1.0f64..1000.0,
             eta in 0.1f64..=1.0,
@@ -304,9 +305,13 @@ mod tests {
             let n_q16 = (n * 65_536.0) as i32;
             let eta_q28 = (eta * f64::from(1 << 28)) as i32;
             let (n, eta) = (f64::from(n_q16) / 65_536.0, f64::from(eta_q28) / f64::from(1 << 28));
-            let j_si = f64::from(j) * 1e-6;
+            let (j_si, t) = (f64::from(j) * 1e-6, f64::from(tick) * 1e-6);
             for (got, twin) in [
-                (accel_ff_q16(j, n_q16, tick), j_si * n / (f64::from(tick) * 1e-6) * 65_536.0),
+                (
+                    sample_inertia_q8(j, n_q16, eta_q28, tick),
+                    j_si * n * n * eta / (f64::from(DECIMATE) * t) * 256.0,
+                ),
+                (accel_ff_q16(j, n_q16, tick), j_si * n / t * 65_536.0),
                 (drive_inertia_q16(j, n_q16, eta_q28), j_si * n * n * eta * 65_536.0),
             ] {
                 if twin >= f64::from(i32::MAX) {
@@ -314,28 +319,6 @@ mod tests {
                 } else {
                     proptest::prop_assert!((f64::from(got) - twin).abs() <= 1.0, "{} vs {}", got, twin);
                 }
-            }
-        }
-
-        /// Its float64 twin over the settings' whole range (inertia 0…100 000 µkg·m², ratio
-        /// 1…1000, efficiency 0.1…1, tick 100…10 000 µs): within one Q8 LSB, or saturated
-        /// exactly where the twin passes i32.
-        #[test]
-        fn sample_inertia_follows_its_twin(
-            j in 0i32..=100_000,
-            n in 1.0f64..1000.0,
-            eta in 0.1f64..=1.0,
-            tick in 100u32..=10_000,
-        ) {
-            let n_q16 = (n * 65_536.0) as i32;
-            let eta_q28 = (eta * f64::from(1 << 28)) as i32;
-            let got = sample_inertia_q8(j, n_q16, eta_q28, tick);
-            let (n, eta) = (f64::from(n_q16) / 65_536.0, f64::from(eta_q28) / f64::from(1 << 28));
-            let twin = f64::from(j) * 1e-6 * n * n * eta / (f64::from(DECIMATE) * f64::from(tick) * 1e-6) * 256.0;
-            if twin >= f64::from(i32::MAX) {
-                proptest::prop_assert_eq!(got, i32::MAX);
-            } else {
-                proptest::prop_assert!((f64::from(got) - twin).abs() <= 1.0, "{} vs {}", got, twin);
             }
         }
     }

@@ -518,12 +518,14 @@ impl Controller {
         // breakaway read a car 33 kg heavier by the end of that travel, host-sim, dry 1300 kg).
         let pos = self.motion_mid_pose();
         let g_up = i64::from(self.est.g_per_kg(pos, 1));
-        let g_r = (g_up + i64::from(self.est.g_per_kg(pos, -1))) / 2;
+        let g_down = i64::from(self.est.g_per_kg(pos, -1));
+        let g_r = (g_up + g_down) / 2;
         let screw = self.est.screw();
         let mu0 = self.est.law().mu(crate::units::RadiansPerSecond::ZERO);
         let rho1 = crate::ident::pair::rho_q32(screw, mu0, 1)?;
         let rho0 = crate::ident::pair::rho_q32(screw, Ratio::ZERO, 1)?;
-        let (m, tr) = crate::ident::stick::lift(peak, mean, drop, rho1, rho0, g_up, g_r)?;
+        let m = crate::ident::stick::lift(peak, drop, rho1, rho0, g_up, g_r)?;
+        let tr = crate::ident::stick::lift_friction(screw, mu0, g_up, g_down, m, mean)?;
         let b = Breakaway {
             torque: NewtonMetres::from_raw(sat32(peak)),
             g_per_kg: sat32(g_up),

@@ -8,34 +8,28 @@
 //! P = ρ₁·M·G_d, ρ₁ = ρ_d(μ(0)) (D = 0: the nut stands), which gives the load. A slip lasts a
 //! millisecond at hundreds of rad/s, where μ is far below the law's cruise value: the mean
 //! torque says nothing about the law's sliding friction, but it says how far the sticks were
-//! mobilised on average. With ρ₀ = r_m·tan λ (the lead alone), the thread torque at ρ is, to
-//! first order, T(ρ) = T₀ + ρ·(P − T₀) with T₀ = ρ₀·M·G_R (the load's push R alone, no pin
-//! friction: G_R = (G_up + G_down)/2), and the friction torque ρ·T_cap with
-//! T_cap = P − ρ₀·M·G_d = P·(1 − ρ₀/ρ₁). Both are linear in ρ, so their means are too:
-//! T̄_r = T_cap·(T̄ − T₀)/(P − T₀), T̄ the mean measured thread torque.
+//! mobilised on average: the thread torque at ρ is τ_up(ρ) = r_m·ξ_up(ρ·μ(0))·(G_R + ρ·G_F) per
+//! kilogram (the pins resist lifting with ρ of their capacity: G_R = (G_up + G_down)/2 the load's
+//! push, G_F = (G_up − G_down)/2 the pins'), and the friction torque ρ·μ(0)·|N|·r_m·cos λ; the
+//! mean T_r is that at ρ̄ where M·τ_up(ρ̄) = T̄ ([`lift_friction`], as a lowering's
+//! [`StuckLowering::friction`]). Its first-order form, T_r linear in T between the lead's
+//! T₀ = ρ₀·M·G_R (ρ₀ = r_m·tan λ) and P, read 1…2 % heavier (host-sim, dry lifts: 1000 kg
+//! +1.6 → −1.6 %, 700 kg from 200 mm +3.0 → +1.5 %, 1.5× drier +4.2…+5.2 → +3.2…+4.3 %).
 
 use crate::model::screw::ScrewModel;
 use crate::units::{sat32, Kilograms, NewtonMetres, Ratio, Q};
 
-/// The load and the mean T_r of a stick-slipping lift, from the mean breakaway thread torque
-/// `peak` P and the mean thread torque `mean` T̄ (Q16 N·m), ρ₁ = ρ_up(μ(0)) and ρ₀ = r_m·tan λ
-/// (`rho1`, `rho0`, Q32 m, from `pair::rho_q32`), G_up and G_R (`g_d`, `g_r`, Q23 N/kg).
-/// `drop` is the slips' fall of the torque (over the motion: 2·(P − T̄)): a stick
-/// from rest unwinds the coupling from the breakaway P to about the lead's T₀ (the slip is
-/// nearly free); a fall under half the span P − T₀ is a ripple of a thread that keeps sliding
-/// (micro stick-slip, noise), whose peaks are no breakaways: `None`. `None` as well where it
-/// is undefined (P ≤ T₀, ρ₁ ≤ ρ₀, G ≤ 0) or out of range. Divisions: at the status, not in
-/// the control tick.
+/// The load of a stick-slipping lift, from the mean breakaway thread torque `peak` P (Q16
+/// N·m): M = P/(ρ₁·G_up), ρ₁ = ρ_up(μ(0)) and ρ₀ = r_m·tan λ (`rho1`, `rho0`, Q32 m, from
+/// `pair::rho_q32`), G_up and G_R (`g_d`, `g_r`, Q23 N/kg). `drop` is the slips' fall of the
+/// torque (over the motion: 2·(P − T̄)): a stick from rest unwinds the coupling from the
+/// breakaway P to about the lead's T₀ = P·(ρ₀/ρ₁)·(G_R/G_up) (the slip is nearly free); a fall
+/// under half the span P − T₀ is a ripple of a thread that keeps sliding (micro stick-slip,
+/// noise), whose peaks are no breakaways: `None`. `None` as well where it is undefined
+/// (P ≤ T₀, ρ₁ ≤ ρ₀, G ≤ 0) or out of range. Divisions: at the status, not in the control
+/// tick.
 #[inline(never)]
-pub fn lift(
-    peak: i64,
-    mean: i64,
-    drop: i64,
-    rho1: i64,
-    rho0: i64,
-    g_d: i64,
-    g_r: i64,
-) -> Option<(Kilograms, NewtonMetres)> {
+pub fn lift(peak: i64, drop: i64, rho1: i64, rho0: i64, g_d: i64, g_r: i64) -> Option<Kilograms> {
     if rho1 <= rho0 || rho0 < 0 || g_d <= 0 || g_r <= 0 || peak <= 0 {
         return None;
     }
@@ -46,16 +40,58 @@ pub fn lift(
     // P·ρ₀/ρ₁ (Q16): the lead's share of the breakaway torque; T₀ = P·(ρ₀/ρ₁)·(G_R/G_d).
     let lead = peak.checked_mul(rho0)?.checked_div(rho1)?;
     let t0 = lead.checked_mul(g_r)?.checked_div(g_d)?;
-    let cap = peak - lead;
     let span = peak - t0;
     if span <= 0 || drop.saturating_mul(2) < span {
         return None;
     }
-    let tr = (mean - t0).checked_mul(cap)?.checked_div(span)?;
-    Some((
-        Kilograms::from_raw(i32::try_from(m).ok()?),
-        NewtonMetres::from_raw(sat32(tr)),
-    ))
+    Some(Kilograms::from_raw(i32::try_from(m).ok()?))
+}
+
+/// The mean T_r of a stick-slipping lift of load `load` whose mean thread torque is `mean`
+/// (Q16 N·m), at a pose whose axial force per kilogram lifting and lowering is `g_up`,
+/// `g_down` (Q23 N/kg), for the law in force's μ(0) `mu0`: the mobilisation ρ̄ where
+/// M·τ_up(ρ̄) = T̄, τ_up(ρ) = r_m·ξ_up(ρ·μ(0))·(G_R + ρ·G_F) (the pins resist lifting; τ_up
+/// rises with ρ: bisection, 16 steps, clamped to [0, 1]), and the friction torque there,
+/// T_r = M·r_m·ρ̄μ₀·(G_R + ρ̄·G_F)/(1 − ρ̄μ₀·tan λ) (the plant's μ_s·|N|·r_m·cos λ), as the
+/// lowering's [`StuckLowering::friction`]. `None` out of range. At the status, not in the tick.
+#[inline(never)]
+pub fn lift_friction(
+    screw: &ScrewModel,
+    mu0: Ratio,
+    g_up: i64,
+    g_down: i64,
+    load: Kilograms,
+    mean: i64,
+) -> Option<NewtonMetres> {
+    let (g_r, g_f) = ((g_up + g_down) / 2, (g_up - g_down) / 2);
+    let (m, mu) = (i64::from(load.bits()), i64::from(mu0.bits()));
+    if m <= 0 || mu <= 0 || g_r <= 0 || g_f < 0 {
+        return None;
+    }
+    let mu_at = |rho: i64| Ratio::from_raw(sat32((mu * rho) >> 16));
+    let w_at = |rho: i64| g_r + ((g_f * rho) >> 16);
+    // T̄ per kilogram, Q16·2^36 / Q12 = Q40; τ(ρ) Q32·Q23 = Q55 → Q40.
+    let per_kg = mean.checked_mul(1 << 36)?.checked_div(m)?;
+    let (mut lo, mut hi) = (0i64, ONE);
+    for _ in 0..16 {
+        let mid = (lo + hi) >> 1;
+        let tau = super::pair::rho_q32(screw, mu_at(mid), 1)?.checked_mul(w_at(mid))? >> 15;
+        if tau < per_kg {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let rho = (lo + hi) >> 1;
+    // r_m·μ/(1 − μ·tan λ): Q24·Q28 → Q32 (>> 20), over the Q28 denominator.
+    let mu_r = i64::from(mu_at(rho).bits());
+    let t = i64::from(screw.tan_lambda().bits());
+    let r = i64::from(screw.pitch_radius().bits());
+    let den = (1i64 << 28) - ((mu_r * t) >> 28);
+    let f = ((r * mu_r) >> 20).checked_mul(1 << 28)?.checked_div(den)?;
+    // Q32·Q23 → Q40 per kg; ·M (Q12) → Q52 → Q16.
+    let tr = (f.checked_mul(w_at(rho))? >> 15).checked_mul(m)? >> 36;
+    Some(NewtonMetres::from_raw(sat32(tr)))
 }
 
 /// A stuck lowering (docs/model.md "A stick-slipping lowering"): the thread torque per

@@ -15,29 +15,18 @@ fn height_at(deg: f64) -> f64 {
 
 /// Go to `start + dh` and return (final error, overshoot beyond the target), mm.
 fn goto(lub: Lubricant, load: f64, start_deg: f64, dh: f64, seed: u64) -> (f64, f64) {
-    goto_with(lub, load, start_deg, dh, seed, |_| {})
+    held(goto_ending(lub, load, start_deg, dh, seed, |_| {}))
 }
 
-/// [`goto`] with the scenario adjusted by `adjust` (e.g. another ramp shape).
-fn goto_with(
-    lub: Lubricant,
-    load: f64,
-    start_deg: f64,
-    dh: f64,
-    seed: u64,
-    adjust: impl Fn(&mut Scenario),
-) -> (f64, f64) {
-    let (state, err, over, events) = goto_ending(lub, load, start_deg, dh, seed, adjust);
-    assert_eq!(
-        state,
-        State::Holding,
-        "{lub:?} {load} kg {start_deg}°: {events:?}"
-    );
+/// A [`goto_ending`] that must end holding: (final error, overshoot), mm.
+fn held((state, err, over, events): (State, f64, f64, Vec<(f64, Event)>)) -> (f64, f64) {
+    assert_eq!(state, State::Holding, "{events:?}");
     (err, over)
 }
 
-/// [`goto_with`] however the move ends: the state it ends in, the final error and the
-/// overshoot beyond the target (mm), and the core's events.
+/// Go to `start + dh` with the scenario adjusted by `adjust` (e.g. another ramp shape), however
+/// the move ends: the state it ends in, the final error and the overshoot beyond the target
+/// (mm), and the core's events.
 fn goto_ending(
     lub: Lubricant,
     load: f64,
@@ -260,7 +249,7 @@ fn s_curve_ramp_halts_within_half_a_millimetre_for_every_lubricant_either_way() 
     };
     for lub in [Lubricant::Dry, Lubricant::Ptfe, Lubricant::Lithium] {
         for (load, start, dh) in [(1000.0, 15.0, 0.006), (1000.0, 45.0, -0.003)] {
-            let (err, over) = goto_with(lub, load, start, dh, 3, scurve);
+            let (err, over) = held(goto_ending(lub, load, start, dh, 3, scurve));
             println!("S-curve {lub:?} {load} kg from {start}° by {dh} m: error {err:+.3} mm, overshoot {over:.3} mm");
             assert!(err.abs() <= 0.5, "{lub:?} {start}: error {err} mm");
             assert!(over <= 0.5, "{lub:?} {start}: overshoot {over} mm");

@@ -399,6 +399,20 @@ fn fixed_stick(p: f64, drop: f64, mu0: f64, g_up: f64, g_r: f64) -> Option<f64> 
         .map(|m| m.to_f64())
 }
 
+/// The mobilisation in [0, `hi`] where `below` turns false (bisection to f64 precision).
+fn twin_bisect(hi: f64, below: impl Fn(f64) -> bool) -> f64 {
+    let (mut lo, mut hi) = (0.0, hi);
+    for _ in 0..60 {
+        let mid = (lo + hi) / 2.0;
+        if below(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    (lo + hi) / 2.0
+}
+
 /// A stuck lift's thread torque per kilogram at mobilisation ρ: r_m·ξ_up(ρ·μ(0))·(G_R + ρ·G_F).
 fn twin_tau_up(rho_: f64, mu0: f64, g_up: f64, g_dn: f64) -> f64 {
     let (g_r, g_f) = ((g_up + g_dn) / 2.0, (g_up - g_dn) / 2.0);
@@ -408,16 +422,7 @@ fn twin_tau_up(rho_: f64, mu0: f64, g_up: f64, g_dn: f64) -> f64 {
 /// The twin of `ident::stick::lift_friction`: ρ̄ where M·τ_up(ρ̄) = T̄ on [0, 1], then
 /// T_r = M·r_m·ρ̄μ₀·(G_R + ρ̄G_F)/(1 − ρ̄μ₀·tan λ).
 fn twin_lift_friction(m: f64, mean: f64, mu0: f64, g_up: f64, g_dn: f64) -> f64 {
-    let (mut lo, mut hi) = (0.0, 1.0);
-    for _ in 0..60 {
-        let mid = (lo + hi) / 2.0;
-        if m * twin_tau_up(mid, mu0, g_up, g_dn) < mean {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    let r = (lo + hi) / 2.0;
+    let r = twin_bisect(1.0, |mid| m * twin_tau_up(mid, mu0, g_up, g_dn) < mean);
     let (rm, tan) = twin_screw();
     let (g_r, g_f) = ((g_up + g_dn) / 2.0, (g_up - g_dn) / 2.0);
     m * rm * r * mu0 * (g_r + r * g_f) / (1.0 - r * mu0 * tan)
@@ -507,16 +512,7 @@ fn twin_peak(mu0: f64, g_up: f64, g_dn: f64) -> (f64, f64) {
 /// T_r = −M·r_m·ρ̄μ₀·(G_R − ρ̄G_F)/(1 + ρ̄μ₀·tan λ).
 fn twin_lower_friction(m: f64, mean: f64, mu0: f64, g_up: f64, g_dn: f64) -> f64 {
     let (rx, _) = twin_peak(mu0, g_up, g_dn);
-    let (mut lo, mut hi) = (0.0, rx);
-    for _ in 0..60 {
-        let mid = (lo + hi) / 2.0;
-        if m * twin_tau(mid, mu0, g_up, g_dn) > mean {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    let r = (lo + hi) / 2.0;
+    let r = twin_bisect(rx, |mid| m * twin_tau(mid, mu0, g_up, g_dn) > mean);
     let (rm, tan) = twin_screw();
     let (g_r, g_f) = ((g_up + g_dn) / 2.0, (g_up - g_dn) / 2.0);
     -m * rm * r * mu0 * (g_r - r * g_f) / (1.0 + r * mu0 * tan)

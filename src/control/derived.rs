@@ -247,10 +247,16 @@ impl Derived {
 /// `tick_us`, Q8: J·n²·η·2^8 / (DECIMATE·tick) with the µ of µkg·m² and of µs cancelling.
 /// Saturated (a drive whose inertia the configuration allows but no lift has). Cold.
 pub(super) fn sample_inertia_q8(j_ukgm2: i32, n_q16: i32, eta_q28: i32, tick_us: u32) -> i32 {
+    let per = i128::from(crate::ident::DECIMATE) * i128::from(tick_us.max(1));
+    j_n2_eta(j_ukgm2, n_q16, eta_q28, 8, per)
+}
+
+/// J·n²·η·2^`shift` / `per` (J in µkg·m², n Q16, η Q28; `per` in the µ units that cancel J's
+/// µ), saturated at i32::MAX: the two factors at the screw below.
+fn j_n2_eta(j_ukgm2: i32, n_q16: i32, eta_q28: i32, shift: u32, per: i128) -> i32 {
     let n = i128::from(n_q16);
-    let num = i128::from(j_ukgm2) * n * n * i128::from(eta_q28) << 8;
-    let den = (i128::from(crate::ident::DECIMATE) * i128::from(tick_us.max(1))) << 60;
-    i32::try_from(num / den).unwrap_or(i32::MAX)
+    let num = (i128::from(j_ukgm2) * n * n * i128::from(eta_q28)) << shift;
+    i32::try_from(num / (per << 60)).unwrap_or(i32::MAX)
 }
 
 /// The speed loop's acceleration feed-forward: the torque at the motor shaft that turns the
@@ -267,10 +273,7 @@ pub(super) fn accel_ff_q16(j_ukgm2: i32, n_q16: i32, tick_us: u32) -> i32 {
 /// ratio `n_q16` and the efficiency `eta_q28` (the current carries J·α·n·η of it, as
 /// [`sample_inertia_q8`]), Q16 kg·m²: J·n²·η. Saturated. Cold.
 pub(super) fn drive_inertia_q16(j_ukgm2: i32, n_q16: i32, eta_q28: i32) -> i32 {
-    let n = i128::from(n_q16);
-    let num = i128::from(j_ukgm2) * n * n * i128::from(eta_q28) << 16;
-    let den = 1_000_000i128 << 60;
-    i32::try_from(num / den).unwrap_or(i32::MAX)
+    j_n2_eta(j_ukgm2, n_q16, eta_q28, 16, 1_000_000)
 }
 
 #[cfg(test)]

@@ -72,26 +72,41 @@ pub fn lift_friction(
     let w_at = |rho: i64| g_r + ((g_f * rho) >> 16);
     // T̄ per kilogram, Q16·2^36 / Q12 = Q40; τ(ρ) Q32·Q23 = Q55 → Q40.
     let per_kg = mean.checked_mul(1 << 36)?.checked_div(m)?;
-    let (mut lo, mut hi) = (0i64, ONE);
+    let rho = bisect_mobilisation(ONE, |mid| {
+        Some(super::pair::rho_q32(screw, mu_at(mid), 1)?.checked_mul(w_at(mid))? >> 15 < per_kg)
+    })?;
+    let tr = stuck_friction(screw, mu_at(rho), w_at(rho), m, 1)?;
+    Some(NewtonMetres::from_raw(sat32(tr)))
+}
+
+/// The mobilisation ρ (Q16) in [0, `hi`] where `below(ρ)` (the thread torque short of the
+/// mean's on the monotone branch) turns false: 16 bisection steps. `None` where `below` is.
+fn bisect_mobilisation(hi: i64, below: impl Fn(i64) -> Option<bool>) -> Option<i64> {
+    let (mut lo, mut hi) = (0i64, hi);
     for _ in 0..16 {
         let mid = (lo + hi) >> 1;
-        let tau = super::pair::rho_q32(screw, mu_at(mid), 1)?.checked_mul(w_at(mid))? >> 15;
-        if tau < per_kg {
+        if below(mid)? {
             lo = mid;
         } else {
             hi = mid;
         }
     }
-    let rho = (lo + hi) >> 1;
-    // r_m·μ/(1 − μ·tan λ): Q24·Q28 → Q32 (>> 20), over the Q28 denominator.
-    let mu_r = i64::from(mu_at(rho).bits());
+    Some((lo + hi) >> 1)
+}
+
+/// The stuck thread's friction torque, Q16 N·m (its magnitude): load `m` (Q12 kg) at the
+/// mobilised coefficient `mu` = ρ·μ(0) under the axial force per kilogram `w` (Q23 N/kg),
+/// lifting (`dir` +1) or lowering (−1): M·r_m·μ·w/(1 − dir·μ·tan λ), the plant's
+/// μ_s·|N|·r_m·cos λ.
+fn stuck_friction(screw: &ScrewModel, mu: Ratio, w: i64, m: i64, dir: i64) -> Option<i64> {
+    // r_m·μ/(1 ∓ μ·tan λ): Q24·Q28 → Q32 (>> 20), over the Q28 denominator.
+    let mu = i64::from(mu.bits());
     let t = i64::from(screw.tan_lambda().bits());
     let r = i64::from(screw.pitch_radius().bits());
-    let den = (1i64 << 28) - ((mu_r * t) >> 28);
-    let f = ((r * mu_r) >> 20).checked_mul(1 << 28)?.checked_div(den)?;
+    let den = (1i64 << 28) - dir * ((mu * t) >> 28);
+    let f = ((r * mu) >> 20).checked_mul(1 << 28)?.checked_div(den)?;
     // Q32·Q23 → Q40 per kg; ·M (Q12) → Q52 → Q16.
-    let tr = (f.checked_mul(w_at(rho))? >> 15).checked_mul(m)? >> 36;
-    Some(NewtonMetres::from_raw(sat32(tr)))
+    Some((f.checked_mul(w)? >> 15).checked_mul(m)? >> 36)
 }
 
 /// A stuck lowering (docs/model.md "A stick-slipping lowering"): the thread torque per
@@ -228,26 +243,9 @@ impl StuckLowering {
         }
         // T̄ per kilogram, Q16·2^36 / Q12 = Q40.
         let per_kg = mean.checked_mul(1 << 36)?.checked_div(m)?;
-        let (mut lo, mut hi) = (0i64, self.rho_x);
-        for _ in 0..16 {
-            let mid = (lo + hi) >> 1;
-            if self.tau(screw, mid)? > per_kg {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        let rho = (lo + hi) >> 1;
-        // r_m·μ/(1 + μ·tan λ): Q24·Q28 → Q32 (>> 20), over the Q28 denominator.
-        let mu = i64::from(self.mu_at(rho).bits());
-        let t = i64::from(screw.tan_lambda().bits());
-        let r = i64::from(screw.pitch_radius().bits());
-        let den = (1i64 << 28) + ((mu * t) >> 28);
-        let f = ((r * mu) >> 20).checked_mul(1 << 28)?.checked_div(den)?;
+        let rho = bisect_mobilisation(self.rho_x, |mid| Some(self.tau(screw, mid)? > per_kg))?;
         let w = self.g_r - ((self.g_f * rho) >> 16);
-        // Q32·Q23 → Q40 per kg; ·M (Q12) → Q52 → Q16.
-        let per_kg = f.checked_mul(w)? >> 15;
-        let tr = per_kg.checked_mul(m)? >> 36;
+        let tr = stuck_friction(screw, self.mu_at(rho), w, m, -1)?;
         Some(NewtonMetres::from_raw(sat32(-tr)))
     }
 }

@@ -460,6 +460,45 @@ fn a_stick_slipping_lift_reports_its_load_and_mean_t_r_from_the_breakaways() {
         (core - truth).abs() <= 0.03 * truth,
         "T_r {core} vs {truth}"
     );
+    // And tick by tick: the sticks last tens of ticks, the current follows each wind-up, and
+    // the status's T_r with it (the stuck thread's at the torque measured now, low-passed:
+    // ≈ 8 ticks behind). A constant at the mean has no spread and no correlation.
+    let p: Vec<f64> = log.iter().map(|x| plant(x.0)).collect();
+    let c: Vec<f64> = log.iter().map(|x| x.2).collect();
+    let sd = |v: &[f64]| {
+        let m = v.iter().sum::<f64>() / v.len() as f64;
+        (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len() as f64).sqrt()
+    };
+    let corr = |lag: usize| {
+        let (a, b) = (&p[..p.len() - lag], &c[lag..]);
+        let (ma, mb) = (
+            a.iter().sum::<f64>() / a.len() as f64,
+            b.iter().sum::<f64>() / b.len() as f64,
+        );
+        let cov = a
+            .iter()
+            .zip(b)
+            .map(|(x, y)| (x - ma) * (y - mb))
+            .sum::<f64>()
+            / a.len() as f64;
+        cov / (sd(a) * sd(b))
+    };
+    let (lag, best) =
+        (0..20)
+            .map(|l| (l, corr(l)))
+            .fold((0, f64::MIN), |a, b| if b.1 > a.1 { b } else { a });
+    eprintln!(
+        "T_r per tick: spread {:.3} (plant {:.3}) N·m, correlation {best:.3} at {lag} ticks",
+        sd(&c),
+        sd(&p)
+    );
+    assert!(sd(&p) > 0.1 * truth, "no wind-up to follow: {}", sd(&p));
+    assert!(
+        sd(&c) > 0.5 * sd(&p),
+        "the status's T_r does not follow the wind-up: {}",
+        sd(&c)
+    );
+    assert!(best > 0.8, "correlation {best} at {lag} ticks");
 }
 
 /// A breakaway beyond the current limit (dry, 1300 kg from 150 mm, α ≈ 17.5°: the coupling

@@ -398,8 +398,9 @@ impl Controller {
     }
 
     /// A stick-slipping lift (a stick-slip episode in this motion, two breakaways or more,
-    /// samples): its load and mean T_r from the breakaways (`ident::stick::lift`, the law in
-    /// force at rest for μ(0)), at the samples' cruise reference. From the first episode to the
+    /// samples): its load from the breakaways (`ident::stick::lift`, the law in force at rest
+    /// for μ(0)), at the samples' cruise reference, and T_r (the stuck thread's at the torque
+    /// measured now while lifting, at the motion's mean at rest: `lift_breakaways`). From the first episode to the
     /// motion's end, braking included, and on the tick the lift comes to rest before
     /// `end_load_motion` keeps the reading (`end_load_motion` takes the same motions: the
     /// status and a fault's snapshot said the mean torque's load, ≈ 30 % light, while the
@@ -525,7 +526,18 @@ impl Controller {
         let rho1 = crate::ident::pair::rho_q32(screw, mu0, 1)?;
         let rho0 = crate::ident::pair::rho_q32(screw, Ratio::ZERO, 1)?;
         let m = crate::ident::stick::lift(peak, drop, rho1, rho0, g_up, g_r)?;
-        let tr = crate::ident::stick::lift_friction(screw, mu0, g_up, g_down, m, mean)?;
+        // T_r while the lift runs: the stuck thread's at the thread torque the current
+        // measures now (low-passed), not at the motion's mean. The sticks gated above last
+        // `LAG_MAX` ticks or more, so the current follows each wind-up, and T_r with it rises
+        // from the trough to the breakaway (host-sim, dry 500 kg from 150 mm: 2.7 → 25.5 N·m
+        // over a 48 ms stick); at the mean the status read a constant, and the first windows'
+        // means, over part of a cycle, read it up to 40 % high. At rest: the mean.
+        let at = if self.live.state == State::Lifting {
+            self.measured_thread_torque(1)
+        } else {
+            mean
+        };
+        let tr = crate::ident::stick::lift_friction(screw, mu0, g_up, g_down, m, at)?;
         let b = Breakaway {
             torque: NewtonMetres::from_raw(sat32(peak)),
             g_per_kg: sat32(g_up),

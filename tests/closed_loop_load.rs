@@ -935,3 +935,75 @@ fn a_lowering_after_a_lift_never_drives_the_motor_up() {
         );
     }
 }
+
+/// A car whose lift stick-slipped is lifted again (dry 1000 kg from 20°, the thread 1.5× drier
+/// than configured: lift, lower, lift; the lowering's creep pairs its breakaways with the
+/// lift's and the law takes the scale): the second lift's status reads T_r on the stuck thread
+/// from its start, at the kept load and the torque measured now (`control::loadid`,
+/// `stick_slip_lift`), not the sliding model's until its own breakaways: its cruise-mean T_r
+/// within 3 % of the plant's, and within 10 % over its first 0.2 s.
+#[test]
+fn a_stick_slipping_car_lifted_again_reads_t_r_on_the_stuck_thread_from_the_start() {
+    let mut s = commissioned(Lubricant::Dry, 1000.0, 20.0, 7.0);
+    s.thread_friction_factor = 1.5;
+    let g = host_sim::physics::Geometry::paper();
+    let h0 = g.height(20.0f64.to_radians());
+    let log = std::sync::Arc::new(std::sync::Mutex::new(Vec::<(usize, f64, f64)>::new()));
+    let inner = std::sync::Arc::clone(&log);
+    let (mut next, mut rest_since) = (0usize, None::<f64>);
+    let r = run(
+        &s,
+        Box::new(move |k: &mut Tick<'_>| {
+            if k.controller.fault().is_some() || k.t < 0.02 {
+                return;
+            }
+            let state = k.controller.state();
+            if state == liftfw::control::State::Lifting || state == liftfw::control::State::Lowering
+            {
+                rest_since = None;
+                if (k.controller.reference().to_f64() - 3.0).abs() < 1e-3 {
+                    let tr = k.controller.status().friction_torque.to_f64();
+                    inner.lock().unwrap().push((next, k.t, tr));
+                }
+                return;
+            }
+            let since = *rest_since.get_or_insert(k.t);
+            if next < 3 && (next == 0 || k.t - since > 0.3) {
+                let h = h0 + if next == 1 { 0.0 } else { 3.0e-3 };
+                next += 1;
+                k.controller
+                    .command(Command::GoTo(Metres::from_f64(h)))
+                    .unwrap();
+            }
+        }),
+    );
+    assert!(faults(&r).is_empty(), "{:?}", faults(&r));
+    assert!(r.controller.status().load.scale_known, "no pair");
+    let log = std::mem::take(&mut *log.lock().unwrap());
+    for lift in [1usize, 3] {
+        let l: Vec<_> = log.iter().filter(|x| x.0 == lift).collect();
+        assert!(l.len() > 500, "lift {lift}: {} cruise ticks", l.len());
+        let n = l.len() as f64;
+        let core = l.iter().map(|x| x.2).sum::<f64>() / n;
+        let plant = l.iter().map(|x| plant_friction_at(&r, x.1)).sum::<f64>() / n;
+        let t0 = l[0].1;
+        let early: Vec<_> = l.iter().filter(|x| x.1 < t0 + 0.2).collect();
+        let m = early.len() as f64;
+        let core_early = early.iter().map(|x| x.2).sum::<f64>() / m;
+        let plant_early = early
+            .iter()
+            .map(|x| plant_friction_at(&r, x.1))
+            .sum::<f64>()
+            / m;
+        eprintln!(
+            "lift {lift}: T_r {core:.3} vs {plant:.3} N·m; first 0.2 s {core_early:.3} vs {plant_early:.3}"
+        );
+        if lift == 3 {
+            assert!((core - plant).abs() <= 0.03 * plant, "{core} vs {plant}");
+            assert!(
+                (core_early - plant_early).abs() <= 0.1 * plant_early,
+                "first 0.2 s: {core_early} vs {plant_early}"
+            );
+        }
+    }
+}

@@ -80,6 +80,18 @@ fn lift_then_lower(
     mm: f64,
     mut observe: impl FnMut(&mut Tick<'_>) + Send + 'static,
 ) -> Run {
+    goto_from(s, deg, vec![mm, 0.0], move |k, _| observe(k))
+}
+
+/// From `deg`: GoTo each of `mm` (above the start) in turn, the first at 20 ms, each next 0.3 s
+/// after the last came to rest; `observe` sees every tick of a motion with the motion's number
+/// (1, 2, …).
+fn goto_from(
+    s: &Scenario,
+    deg: f64,
+    mm: Vec<f64>,
+    mut observe: impl FnMut(&mut Tick<'_>, usize) + Send + 'static,
+) -> Run {
     let g = host_sim::physics::Geometry::paper();
     let h0 = g.height(deg.to_radians());
     let mut next = 0;
@@ -94,12 +106,12 @@ fn lift_then_lower(
             if state == liftfw::control::State::Lifting || state == liftfw::control::State::Lowering
             {
                 rest_since = None;
-                observe(k);
+                observe(k, next);
                 return;
             }
             let since = *rest_since.get_or_insert(k.t);
-            if next < 2 && (next == 0 || k.t - since > 0.3) {
-                let h = if next == 0 { h0 + mm * 1e-3 } else { h0 };
+            if next < mm.len() && (next == 0 || k.t - since > 0.3) {
+                let h = h0 + mm[next] * 1e-3;
                 next += 1;
                 k.controller
                     .command(Command::GoTo(Metres::from_f64(h)))
@@ -946,37 +958,14 @@ fn a_lowering_after_a_lift_never_drives_the_motor_up() {
 fn a_stick_slipping_car_lifted_again_reads_t_r_on_the_stuck_thread_from_the_start() {
     let mut s = commissioned(Lubricant::Dry, 1000.0, 20.0, 7.0);
     s.thread_friction_factor = 1.5;
-    let g = host_sim::physics::Geometry::paper();
-    let h0 = g.height(20.0f64.to_radians());
     let log = std::sync::Arc::new(std::sync::Mutex::new(Vec::<(usize, f64, f64)>::new()));
     let inner = std::sync::Arc::clone(&log);
-    let (mut next, mut rest_since) = (0usize, None::<f64>);
-    let r = run(
-        &s,
-        Box::new(move |k: &mut Tick<'_>| {
-            if k.controller.fault().is_some() || k.t < 0.02 {
-                return;
-            }
-            let state = k.controller.state();
-            if state == liftfw::control::State::Lifting || state == liftfw::control::State::Lowering
-            {
-                rest_since = None;
-                if (k.controller.reference().to_f64() - 3.0).abs() < 1e-3 {
-                    let tr = k.controller.status().friction_torque.to_f64();
-                    inner.lock().unwrap().push((next, k.t, tr));
-                }
-                return;
-            }
-            let since = *rest_since.get_or_insert(k.t);
-            if next < 3 && (next == 0 || k.t - since > 0.3) {
-                let h = h0 + if next == 1 { 0.0 } else { 3.0e-3 };
-                next += 1;
-                k.controller
-                    .command(Command::GoTo(Metres::from_f64(h)))
-                    .unwrap();
-            }
-        }),
-    );
+    let r = goto_from(&s, 20.0, vec![3.0, 0.0, 3.0], move |k, motion| {
+        if (k.controller.reference().to_f64() - 3.0).abs() < 1e-3 {
+            let tr = k.controller.status().friction_torque.to_f64();
+            inner.lock().unwrap().push((motion, k.t, tr));
+        }
+    });
     assert!(faults(&r).is_empty(), "{:?}", faults(&r));
     assert!(r.controller.status().load.scale_known, "no pair");
     let log = std::mem::take(&mut *log.lock().unwrap());

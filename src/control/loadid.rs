@@ -412,8 +412,9 @@ impl Controller {
     /// A stick-slipping lift (a stick-slip episode in this motion, two breakaways or more,
     /// samples): its load from the breakaways (`ident::stick::lift`, the law in force at rest
     /// for μ(0)), at the samples' cruise reference, and T_r (the stuck thread's at the torque
-    /// measured now while lifting, at the motion's mean at rest: `lift_breakaways`). From the first episode to the
-    /// motion's end, braking included, and on the tick the lift comes to rest before
+    /// measured now while lifting, at the motion's mean at rest: `lift_breakaways`); before
+    /// that, a lift of a car whose last lift was read so: the kept load, and T_r on the stuck
+    /// thread from the start. From the first episode to the motion's end, braking included, and on the tick the lift comes to rest before
     /// `end_load_motion` keeps the reading (`end_load_motion` takes the same motions: the
     /// status and a fault's snapshot said the mean torque's load, ≈ 30 % light, while the
     /// lift braked and on that tick). `None` otherwise. At the status, not in the tick.
@@ -434,24 +435,28 @@ impl Controller {
         // lift's own samples, its thread is stuck from rest, as each stick after, and T_r is
         // the stuck thread's at the torque measured now, at the kept load. The sliding model
         // there read 37 % high until the breakaways took over (≈ 0.15 s of cruise; host-sim,
-        // dry 1000 kg on a 1.5× drier thread, the third move after the pair: +3.9 % over the
+        // dry 1000 kg on a 1.5× drier thread, the third move after the pair: +3.6 % over the
         // cruise).
         if !id.stuck_lift || self.live.state != State::Lifting || id.ident.thread_sum().1 != 0 {
             return None;
         }
-        let pos = self.live.enc.position();
-        let (up, down) = (self.est.g_per_kg(pos, 1), self.est.g_per_kg(pos, -1));
-        let mu0 = self.est.law().mu(RadiansPerSecond::ZERO);
+        let (g_up, g_down, mu0) = self.stuck_terms(self.live.enc.position());
         let torque = self.measured_thread_torque(1);
-        let tr = crate::ident::stick::lift_friction(
-            self.est.screw(),
-            mu0,
-            i64::from(up),
-            i64::from(down),
-            id.load,
-            torque,
-        )?;
+        let screw = self.est.screw();
+        let tr = crate::ident::stick::lift_friction(screw, mu0, g_up, g_down, id.load, torque)?;
         Some((id.load, tr))
+    }
+
+    /// What a stuck lifting thread's model takes at the pose `pos` (encoder counts): the axial
+    /// force per kilogram lifting and lowering (Q23 N/kg) and the law in force's μ(0). Inlined
+    /// in its two callers (out of line it cost 68 B of flash).
+    #[inline(always)]
+    fn stuck_terms(&self, pos: i32) -> (i64, i64, Ratio) {
+        (
+            i64::from(self.est.g_per_kg(pos, 1)),
+            i64::from(self.est.g_per_kg(pos, -1)),
+            self.est.law().mu(RadiansPerSecond::ZERO),
+        )
     }
 
     /// A held lowering (one that stick-slips: `ident::LoadIdent::hold_start`, or weighed by its
@@ -556,11 +561,9 @@ impl Controller {
         // lift rises, by ≈ 2 % over 6 mm from 17.5°: read at the pose of the moment the mean
         // breakaway read a car 33 kg heavier by the end of that travel, host-sim, dry 1300 kg).
         let pos = self.motion_mid_pose();
-        let g_up = i64::from(self.est.g_per_kg(pos, 1));
-        let g_down = i64::from(self.est.g_per_kg(pos, -1));
+        let (g_up, g_down, mu0) = self.stuck_terms(pos);
         let g_r = (g_up + g_down) / 2;
         let screw = self.est.screw();
-        let mu0 = self.est.law().mu(crate::units::RadiansPerSecond::ZERO);
         let rho1 = crate::ident::pair::rho_q32(screw, mu0, 1)?;
         let rho0 = crate::ident::pair::rho_q32(screw, Ratio::ZERO, 1)?;
         let m = crate::ident::stick::lift(peak, drop, rho1, rho0, g_up, g_r)?;

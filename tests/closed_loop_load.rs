@@ -127,7 +127,7 @@ fn plant_friction_at(r: &Run, t: f64) -> f64 {
     r.trace.records[i.min(r.trace.records.len() - 1)].friction_torque
 }
 
-/// The core's and the plant's mean T_r over `fresh_dry_lowering`'s (t, load, T_r) ticks.
+/// The core's and the plant's mean T_r over a log's (t, load, T_r) ticks (`fresh_dry_lowering`'s).
 fn tr_means(r: &Run, log: &[(f64, f64, f64)]) -> (f64, f64) {
     let n = log.len().max(1) as f64;
     let core = log.iter().map(|x| x.2).sum::<f64>() / n;
@@ -970,20 +970,17 @@ fn a_stick_slipping_car_lifted_again_reads_t_r_on_the_stuck_thread_from_the_star
     assert!(r.controller.status().load.scale_known, "no pair");
     let log = std::mem::take(&mut *log.lock().unwrap());
     for lift in [1usize, 3] {
-        let l: Vec<_> = log.iter().filter(|x| x.0 == lift).collect();
-        assert!(l.len() > 500, "lift {lift}: {} cruise ticks", l.len());
-        let n = l.len() as f64;
-        let core = l.iter().map(|x| x.2).sum::<f64>() / n;
-        let plant = l.iter().map(|x| plant_friction_at(&r, x.1)).sum::<f64>() / n;
-        let t0 = l[0].1;
-        let early: Vec<_> = l.iter().filter(|x| x.1 < t0 + 0.2).collect();
-        let m = early.len() as f64;
-        let core_early = early.iter().map(|x| x.2).sum::<f64>() / m;
-        let plant_early = early
+        // As (t, load, T_r) ticks for `tr_means` (the load is not read here).
+        let l: Vec<_> = log
             .iter()
-            .map(|x| plant_friction_at(&r, x.1))
-            .sum::<f64>()
-            / m;
+            .filter(|x| x.0 == lift)
+            .map(|x| (x.1, 0.0, x.2))
+            .collect();
+        assert!(l.len() > 500, "lift {lift}: {} cruise ticks", l.len());
+        let (core, plant) = tr_means(&r, &l);
+        let t0 = l[0].0;
+        let early: Vec<_> = l.iter().copied().filter(|x| x.0 < t0 + 0.2).collect();
+        let (core_early, plant_early) = tr_means(&r, &early);
         eprintln!(
             "lift {lift}: T_r {core:.3} vs {plant:.3} N·m; first 0.2 s {core_early:.3} vs {plant_early:.3}"
         );

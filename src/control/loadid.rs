@@ -414,8 +414,8 @@ impl Controller {
     /// for μ(0)), at the samples' cruise reference, and T_r (the stuck thread's at the torque
     /// measured now while lifting, at the motion's mean at rest: `lift_breakaways`); before
     /// that, a lift of a car whose last lift was read so: the kept load, and T_r on the stuck
-    /// thread from the start. From the first episode to the motion's end, braking included, and on the tick the lift comes to rest before
-    /// `end_load_motion` keeps the reading (`end_load_motion` takes the same motions: the
+    /// thread from the start. From the first episode to the motion's end, braking included,
+    /// and on the tick the lift comes to rest before `end_load_motion` keeps the reading (`end_load_motion` takes the same motions: the
     /// status and a fault's snapshot said the mean torque's load, ≈ 30 % light, while the
     /// lift braked and on that tick). `None` otherwise. At the status, not in the tick.
     #[inline(never)]

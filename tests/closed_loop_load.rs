@@ -8,6 +8,7 @@
 
 mod support;
 use host_sim::physics::Lubricant;
+use host_sim::plant::screw_nut::Phase;
 use liftfw::control::config::ControlConfig;
 use liftfw::control::{Command, Event, FaultKind};
 use liftfw::units::{Metres, Ratio};
@@ -175,8 +176,9 @@ fn lowering(
 fn the_identified_load_converges_within_half_a_second_of_cruise() {
     for (lub, load) in [
         (Lubricant::Ptfe, 600.0),
-        // Dry lifting at 250…700 kg is 14…42 kg off (docs/control.md "Known limits"); at
-        // 1000 kg the breakaway peaks give the load (`ident::stick`).
+        // Dry lifting whose stick-slip the current does not resolve (250 kg from 150 mm,
+        // 500 kg from 260 mm) is 13…41 kg off (docs/control.md "Known limits"); at 1000 kg
+        // the breakaway peaks give the load (`ident::stick`).
         (Lubricant::Dry, 1000.0),
         (Lubricant::Lithium, 1300.0),
     ] {
@@ -511,6 +513,43 @@ fn a_stick_slipping_lift_reports_its_load_and_mean_t_r_from_the_breakaways() {
         sd(&c)
     );
     assert!(best > 0.8, "correlation {best} at {lag} ticks");
+}
+
+/// A dry lift whose stick-slip cycles are short (600 kg from 30°, between `host-sim
+/// estimate`'s heights: the thread breaks away every ≈ 25 ms). The speed loop still answers each
+/// slip when the next breakaway comes, and the rotor, slowing, hides its deceleration torque in
+/// the current; the detector's torque has the drive's acceleration torque taken out lifting
+/// (`Controller::detect_stick_slip`), so its peaks are the coupling's: the load within 3 % from
+/// 0.5 s of cruise (5 kg off). Before: the breakaways read the car 33 kg (5.5 %) light
+/// (`host-sim estimate`: 700 kg from 260 mm 33 kg light; 500 kg from 200 mm refused, its
+/// fall under half the span, and the mean torque's load 21 % light).
+#[test]
+fn a_fast_stick_slipping_lift_reads_its_breakaways_without_the_rotor_s_deceleration() {
+    let s = commissioned(Lubricant::Dry, 600.0, 30.0, 2.0);
+    let (r, log) = lift_6mm(&s, 30.0);
+    assert!(faults(&r).is_empty(), "{:?}", faults(&r));
+    // The premise: breakaways (stick → slip) every 20…35 ms over the cruise.
+    let t0 = log[0].0;
+    let starts: Vec<f64> = r
+        .trace
+        .phases
+        .windows(2)
+        .filter(|w| w[0].phase == Phase::Stick && w[1].phase != Phase::Stick && w[1].t > t0)
+        .map(|w| w[1].t)
+        .collect();
+    assert!(starts.len() > 10, "{} breakaways", starts.len());
+    let cycle = (starts[starts.len() - 1] - starts[0]) / (starts.len() - 1) as f64;
+    let worst = worst_from_half_a_second(&log, 600.0);
+    eprintln!(
+        "cycle {:.1} ms, load worst from 0.5 s {worst:.1} kg",
+        cycle * 1e3
+    );
+    assert!(
+        (0.020..0.035).contains(&cycle),
+        "cycle {:.1} ms",
+        cycle * 1e3
+    );
+    assert!(worst <= 18.0, "load {worst:.1} kg off");
 }
 
 /// A breakaway beyond the current limit (dry, 1300 kg from 150 mm, α ≈ 17.5°: the coupling

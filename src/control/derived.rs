@@ -94,6 +94,9 @@ pub(super) struct Derived {
     /// The drive's inertia at the screw, J·n²·η, Q16 kg·m² (`drive_inertia_q16`): the
     /// acceleration torque the current carries beside the thread's.
     pub(super) drive_inertia: i32,
+    /// The same, at most [`DETECTOR_INERTIA_MAX`]: the stick-slip detector's lifting torque
+    /// takes J·n²·η·θ̈ off in i32 (`Controller::detect_stick_slip`).
+    pub(super) detector_inertia: i32,
     /// 15/16 of the current limit: above it a stick's breakaway may be clipped (`clip`).
     pub(super) clip_current: Amperes,
     /// The coupling's torque per encoder count of wind-up, k_c·rad per count (Q16 N·m).
@@ -184,6 +187,11 @@ impl Derived {
         // A weighing lowering's creep speed, at most the cruise (`creep`).
         let creep = super::creep::CREEP_SPEED.min(cfg.motion.cruise_speed);
         let inv_ke_n = Ratio::from_raw(sat32((1i64 << 44) / i64::from(gains.ke_n.bits().max(1))));
+        let drive_inertia = drive_inertia_q16(
+            motor.inertia_ukgm2,
+            cfg.estimator.drive.gear_ratio.to_bits(),
+            motor.gear_efficiency.bits(),
+        );
         Ok(Derived {
             cfg: *cfg,
             adc: Adc::new(&cfg.sensing),
@@ -198,11 +206,8 @@ impl Derived {
             limits,
             inv_ke_n,
             current_headroom: qmul(cfg.protection.current_limit, motor.resistance),
-            drive_inertia: drive_inertia_q16(
-                motor.inertia_ukgm2,
-                cfg.estimator.drive.gear_ratio.to_bits(),
-                motor.gear_efficiency.bits(),
-            ),
+            drive_inertia,
+            detector_inertia: drive_inertia.clamp(0, DETECTOR_INERTIA_MAX),
             accel_ff: accel_ff_q16(
                 motor.inertia_ukgm2,
                 cfg.estimator.drive.gear_ratio.to_bits(),
@@ -268,6 +273,17 @@ pub(super) fn accel_ff_q16(j_ukgm2: i32, n_q16: i32, tick_us: u32) -> i32 {
     let num = i64::from(j_ukgm2) * i64::from(n_q16);
     sat32(num / i64::from(tick_us.max(1)))
 }
+
+/// The largest drive inertia at the screw the stick-slip detector takes the acceleration
+/// torque of, Q16 kg·m² (0.5 kg·m², 2.7× host-sim's drive): with |θ̈| ≤
+/// `estimator::ACCEL_MAX` (2^24 in Q8) the product, shifted to Q16 N·m, stays in i32 on every
+/// tick without a saturating step. A larger drive's correction is that of 0.5 kg·m²: its short
+/// stick-slip cycles' breakaways read partly low again (docs/model.md "Stick-slip").
+pub(super) const DETECTOR_INERTIA_MAX: i32 = (1 << 15) - 1;
+const _: () = assert!(
+    (crate::estimator::ACCEL_MAX.to_bits() as i64) * (DETECTOR_INERTIA_MAX as i64) >> 8
+        <= i32::MAX as i64
+);
 
 /// The drive's inertia `j_ukgm2` (µkg·m² at the motor shaft) at the screw through the gear
 /// ratio `n_q16` and the efficiency `eta_q28` (the current carries J·α·n·η of it, as

@@ -54,8 +54,10 @@ pub(super) struct Identification {
     rescaling: Option<Ratio>,
     /// Pieces of the interval's factors left to compute.
     interval_left: u8,
-    /// The stick-slip detector's breakaway sums (Σ peak, count) when the motion began.
+    /// The stick-slip detector's breakaway sums (Σ peak, count) when the motion began, and
+    /// when it began (µs).
     breakaways: (i64, u32),
+    start_us: u32,
     /// A lowering's weighing creep (`creep`).
     pub(super) creep: super::creep::Creep,
     /// The last lift's mean breakaway (a stick-slipping lift read by its breakaways) and the
@@ -90,6 +92,7 @@ impl Identification {
             rescaling: None,
             interval_left: 0,
             breakaways: (0, 0),
+            start_us: 0,
             creep: super::creep::Creep::default(),
             lift_breakaway: None,
             creep_breakaway: None,
@@ -172,6 +175,7 @@ impl Controller {
                 self.loadid.travelled = false;
                 self.loadid.screw_start = self.screw_position();
                 self.loadid.breakaways = self.breakaway_totals();
+                self.loadid.start_us = now.0;
             }
             // The creep's ticks are no samples: its slow stick-slip is not the cruise's.
             let creeping = self.loadid.creep.on;
@@ -309,7 +313,8 @@ impl Controller {
         // settling from the reference's cruise: a stick-slipping lift's breakaways count from
         // the motion's start and its samples should too (its settling from the screw's first
         // travel put the dry 700 kg lift's T_r at +5.0 % from +3.0 %, 200 mm).
-        if !self.screw_travelled(dir) {
+        // (Once travelled it stays so for the motion: the call only until then.)
+        if !self.loadid.travelled && !self.screw_travelled(dir) {
             return;
         }
         let e = &self.live.latest.estimate;
@@ -528,9 +533,15 @@ impl Controller {
         let mean = t / i64::from(k);
         // Over the motion (not the last slip alone, whose outliers made the estimate come and
         // go): a linear wind-up from the trough to the breakaway has its mean half-way, so the
-        // slips fall by 2·(P − T̄); they come every DECIMATE·samples/slips ticks.
+        // slips fall by 2·(P − T̄); they come every (time since the motion began)/slips ticks.
         let drop = peak.saturating_sub(mean).saturating_mul(2);
-        let interval = i64::from(crate::ident::DECIMATE) * i64::from(k) / i64::from(n);
+        let tick = i64::from(self.derived.cfg.estimator.tick_us);
+        let elapsed = self
+            .loadid
+            .ident
+            .last_tick_us()
+            .wrapping_sub(self.loadid.start_us);
+        let interval = i64::from(elapsed) / tick / i64::from(n);
         // A stick from rest lasts the coupling's wind-up by the slip's fall at the reference
         // speed, drop/(k_c·ω) (within 2×: the speed loop lets the motor run faster than the
         // reference right after a slip): ripples and noise fall far more rarely than that. And
@@ -549,7 +560,6 @@ impl Controller {
                 .bits(),
         );
         let w = i64::from(reference.bits()).abs();
-        let tick = i64::from(self.derived.cfg.estimator.tick_us);
         let wind = drop
             .saturating_mul(1_000_000 << 16)
             .checked_div(kc.saturating_mul(w).saturating_mul(tick))?;

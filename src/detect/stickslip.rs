@@ -555,15 +555,18 @@ impl StickSlipDetector {
             return self.out;
         }
         // Torque resisting the motion, 4-tick mean.
+        // (Negated as 0 − t, saturating: one `QSUB`.)
+        let t = x.measured_torque.to_bits();
         let p = if x.direction < 0 {
-            x.measured_torque.sat_neg()
+            0i32.saturating_sub(t)
         } else {
-            x.measured_torque
-        }
-        .to_bits();
-        self.sum += i64::from(p) - i64::from(self.ring[self.head]);
-        self.ring[self.head] = p;
-        self.head = (self.head + 1) % MEAN_LEN;
+            t
+        };
+        // (The head masked: the index needs no bounds check.)
+        let head = self.head & (MEAN_LEN - 1);
+        self.sum += i64::from(p) - i64::from(self.ring[head]);
+        self.ring[head] = p;
+        self.head = (head + 1) & (MEAN_LEN - 1);
         // Noise level from the second difference (a steady ramp — the coupling winding up while
         // stuck — has none); the first samples of a motion only fill the history.
         if self.filled >= 2 {
@@ -572,7 +575,8 @@ impl StickSlipDetector {
                 .saturating_sub(self.last[0])
                 .saturating_sub(self.last[0].saturating_sub(self.last[1]))
                 .saturating_abs();
-            let cap = times4(self.noise.max(self.threshold / 4));
+            // (threshold ≥ 1: the shift is the division.)
+            let cap = times4(self.noise.max(self.threshold >> 2));
             let d2 = d2.min(cap);
             // 0 ≤ noise, d2 < 2^31: the step stays in i32.
             self.noise = self.noise.saturating_add(

@@ -421,6 +421,11 @@ impl LoadIdent {
         self.steady = 0;
     }
 
+    /// When the identification last saw a steady tick (µs, `TickSample::now_us`).
+    pub fn last_tick_us(&self) -> u32 {
+        self.last_speed.1
+    }
+
     /// Add a steady tick's sample (after [`Self::steady`]). Per sample only sums; the load
     /// gain is evaluated at a window's first sample and the load (a ratio of sums) at its last
     /// ([`WINDOW`] samples, the first [`FIRST_WINDOWS`] shorter), each out of line. True when

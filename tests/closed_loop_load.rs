@@ -529,16 +529,7 @@ fn a_fast_stick_slipping_lift_reads_its_breakaways_without_the_rotor_s_decelerat
     let (r, log) = lift_6mm(&s, 30.0);
     assert!(faults(&r).is_empty(), "{:?}", faults(&r));
     // The premise: breakaways (stick → slip) every 20…35 ms over the cruise.
-    let t0 = log[0].0;
-    let starts: Vec<f64> = r
-        .trace
-        .phases
-        .windows(2)
-        .filter(|w| w[0].phase == Phase::Stick && w[1].phase != Phase::Stick && w[1].t > t0)
-        .map(|w| w[1].t)
-        .collect();
-    assert!(starts.len() > 10, "{} breakaways", starts.len());
-    let cycle = (starts[starts.len() - 1] - starts[0]) / (starts.len() - 1) as f64;
+    let cycle = breakaway_cycle(&r, log[0].0);
     let worst = worst_from_half_a_second(&log, 600.0);
     eprintln!(
         "cycle {:.1} ms, load worst from 0.5 s {worst:.1} kg",
@@ -1031,4 +1022,86 @@ fn a_stick_slipping_car_lifted_again_reads_t_r_on_the_stuck_thread_from_the_star
             );
         }
     }
+}
+
+/// A dry lift whose stick-slip is too fast for the current to resolve its breakaways (450 kg
+/// from 34°: every ≈ 7 ms, falls of ≈ 3.4 N·m; a pose and load outside `host-sim estimate`'s
+/// matrix): the breakaway from the cycle's period (`ident::stick::periodic_breakaway`, the
+/// detector's `Periodicity::period_q8`) gives the load within 3 % from 0.5 s of cruise (1.7 kg
+/// off), and keeps it at rest after the lift. Before: the mean torque's load, its slips'
+/// friction at tens of rad/s on the law's falling branch, 30 kg (6.7 %) light.
+#[test]
+fn a_fast_stick_slipping_lift_is_weighed_by_its_period() {
+    let s = commissioned(Lubricant::Dry, 450.0, 34.0, 2.0);
+    let (r, log) = lift_6mm(&s, 34.0);
+    assert!(faults(&r).is_empty(), "{:?}", faults(&r));
+    let cycle = breakaway_cycle(&r, log[0].0);
+    let worst = worst_from_half_a_second(&log, 450.0);
+    let (core, plant) = tr_means(&r, &log);
+    eprintln!(
+        "cycle {:.1} ms, load worst from 0.5 s {worst:.1} kg, T_r {core:.3} vs {plant:.3} N·m",
+        cycle * 1e3
+    );
+    assert!(
+        (0.005..0.016).contains(&cycle),
+        "cycle {:.1} ms",
+        cycle * 1e3
+    );
+    assert!(worst <= 13.5, "load {worst:.1} kg off");
+    assert!(
+        (core - plant).abs() <= 0.03 * plant,
+        "T_r {core} vs {plant}"
+    );
+    // And kept at rest after the lift (the next motion's start).
+    let kept = r.controller.status().load;
+    assert!(
+        kept.identified && (kept.load.to_f64() - 450.0).abs() <= 13.5,
+        "{kept:?}"
+    );
+}
+
+/// The mean interval between the plant's breakaways (stick → slip) after `t0`, s.
+fn breakaway_cycle(r: &Run, t0: f64) -> f64 {
+    let starts: Vec<f64> = r
+        .trace
+        .phases
+        .windows(2)
+        .filter(|w| w[0].phase == Phase::Stick && w[1].phase != Phase::Stick && w[1].t > t0)
+        .map(|w| w[1].t)
+        .collect();
+    if starts.len() < 3 {
+        return 0.0;
+    }
+    (starts[starts.len() - 1] - starts[0]) / (starts.len() - 1) as f64
+}
+
+/// Dry lifts of 150…650 kg from 18…42° (48 runs, none of `host-sim estimate`'s: held out
+/// from what the breakaway readings were built on), each its breakaway cycle, its load's worst
+/// error from 0.5 s of cruise and its cruise-mean T_r against the plant's (BENCHMARKS.md;
+/// `-- --nocapture` prints the table). Holds the count that met the load's 3 % when measured:
+/// 40 of 48 (24 before the fast cycles were read by their period); T_r within 3 % in all 48.
+#[test]
+fn dry_lifts_over_poses_and_loads() {
+    let (mut met, mut tr_met) = (0, 0);
+    for deg in [18.0f64, 21.0, 24.0, 28.0, 31.0, 34.0, 38.0, 42.0] {
+        for load in [150.0f64, 250.0, 350.0, 450.0, 550.0, 650.0] {
+            let s = commissioned(Lubricant::Dry, load, deg, 2.0);
+            let (r, log) = lift_6mm(&s, deg);
+            let cycle = breakaway_cycle(&r, log[0].0);
+            let worst = worst_from_half_a_second(&log, load);
+            let (core, plant) = tr_means(&r, &log);
+            met += usize::from(worst <= 0.03 * load);
+            tr_met += usize::from((core - plant).abs() <= 0.03 * plant.abs());
+            println!(
+                "{deg}° {load} kg: cycle {:.1} ms, load worst {worst:.1} kg ({:.1} %), T_r {:+.2} %, faults {}",
+                cycle * 1e3,
+                100.0 * worst / load,
+                100.0 * (core / plant - 1.0),
+                faults(&r).len()
+            );
+        }
+    }
+    println!("load within 3 % from 0.5 s of cruise: {met} of 48, T_r within 3 %: {tr_met} of 48");
+    assert!(met >= 40, "{met} of 48");
+    assert_eq!(tr_met, 48);
 }

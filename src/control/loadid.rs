@@ -520,17 +520,74 @@ impl Controller {
         &self,
         reference: RadiansPerSecond,
     ) -> Option<(Kilograms, NewtonMetres, Breakaway)> {
+        let (t, k) = self.loadid.ident.thread_sum();
+        if k == 0 {
+            return None;
+        }
+        let mean = t / i64::from(k);
+        let kc = i64::from(
+            self.derived
+                .cfg
+                .estimator
+                .mechanics
+                .coupling_stiffness
+                .bits(),
+        );
+        let w = i64::from(reference.bits()).abs();
+        // The breakaways and the samples spread over the motion's travel (the stick-slip runs
+        // from its start): their means belong to the pose half-way (the load gain falls as the
+        // lift rises, by ≈ 2 % over 6 mm from 17.5°: read at the pose of the moment the mean
+        // breakaway read a car 33 kg heavier by the end of that travel, host-sim, dry 1300 kg).
+        let pos = self.motion_mid_pose();
+        let (g_up, g_down, mu0) = self.stuck_terms(pos);
+        let g_r = (g_up + g_down) / 2;
+        let screw = self.est.screw();
+        let rho1 = crate::ident::pair::rho_q32(screw, mu0, 1)?;
+        let rho0 = crate::ident::pair::rho_q32(screw, Ratio::ZERO, 1)?;
+        let (peak, m, slow) = match self.slow_breakaways(mean, kc, w) {
+            Some((peak, drop)) => (
+                peak,
+                crate::ident::stick::lift(peak, drop, rho1, rho0, g_up, g_r),
+                true,
+            ),
+            None => {
+                let peak = self.fast_breakaway(mean, kc, w)?;
+                (peak, crate::ident::stick::load(peak, rho1, g_up), false)
+            }
+        };
+        let m = m?;
+        // T_r while the lift runs: the stuck thread's at the thread torque the current
+        // measures now (low-passed), not at the motion's mean. The slow sticks last `LAG_MAX`
+        // ticks or more, so the current follows each wind-up, and T_r with it rises from the
+        // trough to the breakaway (host-sim, dry 500 kg from 150 mm: 2.7 → 25.5 N·m over a
+        // 48 ms stick); at the mean the status read a constant, and the first windows' means,
+        // over part of a cycle, read it up to 40 % high. Fast cycles, and at rest: the mean.
+        let at = if slow && self.live.state == State::Lifting {
+            self.measured_thread_torque(1)
+        } else {
+            mean
+        };
+        let tr = crate::ident::stick::lift_friction(screw, mu0, g_up, g_down, m, at)?;
+        let b = Breakaway {
+            torque: NewtonMetres::from_raw(sat32(peak)),
+            g_per_kg: sat32(g_up),
+        };
+        Some((m, tr, b))
+    }
+
+    /// A slow stick-slip's mean breakaway P and fall (Q16 N·m) from the detector's peaks, at
+    /// the motion's mean thread torque `mean`, coupling stiffness `kc` and reference speed `w`
+    /// (Q16): `None` unless its sticks are sticks from rest whose peaks the current resolves.
+    fn slow_breakaways(&self, mean: i64, kc: i64, w: i64) -> Option<(i64, i64)> {
         let (sum, n) = self.breakaway_totals();
         let n = n.wrapping_sub(self.loadid.breakaways.1);
-        let (t, k) = self.loadid.ident.thread_sum();
-        if n < 2 || k == 0 {
+        if n < 2 {
             return None;
         }
         let peak = self.peak_thread_torque(
             sum.saturating_sub(self.loadid.breakaways.0) / i64::from(n),
             1,
         );
-        let mean = t / i64::from(k);
         // Over the motion (not the last slip alone, whose outliers made the estimate come and
         // go): a linear wind-up from the trough to the breakaway has its mean half-way, so the
         // slips fall by 2·(P − T̄); they come every (time since the motion began)/slips ticks.
@@ -547,53 +604,38 @@ impl Controller {
         // reference right after a slip): ripples and noise fall far more rarely than that. And
         // it is slow stick-slip, periods beyond `LAG_MAX` ticks, whose peaks the current
         // resolves: faster cycles reach it through the motor's electromechanical lag as a
-        // ripple (`detect::stickslip`).
+        // ripple (`detect::stickslip`; [`Self::fast_breakaway`]).
         if interval < crate::detect::stickslip::LAG_MAX as i64 {
             return None;
         }
-        let kc = i64::from(
-            self.derived
-                .cfg
-                .estimator
-                .mechanics
-                .coupling_stiffness
-                .bits(),
-        );
-        let w = i64::from(reference.bits()).abs();
         let wind = drop
             .saturating_mul(1_000_000 << 16)
             .checked_div(kc.saturating_mul(w).saturating_mul(tick))?;
         if interval > wind.saturating_mul(2) {
             return None;
         }
-        // The breakaways and the samples spread over the motion's travel (the stick-slip runs
-        // from its start): their means belong to the pose half-way (the load gain falls as the
-        // lift rises, by ≈ 2 % over 6 mm from 17.5°: read at the pose of the moment the mean
-        // breakaway read a car 33 kg heavier by the end of that travel, host-sim, dry 1300 kg).
-        let pos = self.motion_mid_pose();
-        let (g_up, g_down, mu0) = self.stuck_terms(pos);
-        let g_r = (g_up + g_down) / 2;
-        let screw = self.est.screw();
-        let rho1 = crate::ident::pair::rho_q32(screw, mu0, 1)?;
-        let rho0 = crate::ident::pair::rho_q32(screw, Ratio::ZERO, 1)?;
-        let m = crate::ident::stick::lift(peak, drop, rho1, rho0, g_up, g_r)?;
-        // T_r while the lift runs: the stuck thread's at the thread torque the current
-        // measures now (low-passed), not at the motion's mean. The sticks gated above last
-        // `LAG_MAX` ticks or more, so the current follows each wind-up, and T_r with it rises
-        // from the trough to the breakaway (host-sim, dry 500 kg from 150 mm: 2.7 → 25.5 N·m
-        // over a 48 ms stick); at the mean the status read a constant, and the first windows'
-        // means, over part of a cycle, read it up to 40 % high. At rest: the mean.
-        let at = if self.live.state == State::Lifting {
-            self.measured_thread_torque(1)
-        } else {
-            mean
-        };
-        let tr = crate::ident::stick::lift_friction(screw, mu0, g_up, g_down, m, at)?;
-        let b = Breakaway {
-            torque: NewtonMetres::from_raw(sat32(peak)),
-            g_per_kg: sat32(g_up),
-        };
-        Some((m, tr, b))
+        Some((peak, drop))
+    }
+
+    /// A fast stick-slip's breakaway P (Q16 N·m), from its period: cycles of 5…16 ticks (dry
+    /// lifts of 250 kg from 150 mm, 500 kg from 260 mm: 7 and 8.5 ms) reach the current as a
+    /// ripple whose peaks are not the breakaways, but the detector's periodicity test finds
+    /// their period T. Each stick winds the coupling at k_c·ω until the breakaway P, and the
+    /// slip, half a period of the screw on the coupling (t_s = π·√(I/k_c), ≈ 0.4 ms), lets it
+    /// fall to T₀: the torque is a sawtooth between them whose mean is the motion's T̄, and
+    /// its fall is k_c·ω·(T − t_s), so P = T̄ + k_c·ω·(T − t_s)/2. `None` while the torque is
+    /// not periodic.
+    fn fast_breakaway(&self, mean: i64, kc: i64, w: i64) -> Option<i64> {
+        let period_q8 = self.motion.stick_slip.fast_period_q8()?;
+        let cfg = &self.derived.cfg.estimator;
+        crate::ident::stick::periodic_breakaway(
+            mean,
+            period_q8,
+            kc,
+            w,
+            cfg.tick_us,
+            cfg.mechanics.inertia_ukgm2,
+        )
     }
 
     /// The pose half-way along the motion's travel so far (encoder counts): where means over

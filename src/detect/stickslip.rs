@@ -321,6 +321,51 @@ pub struct Periodicity {
 /// Length of the periodicity history ring (≥ LAG_MAX + 1, a power of two).
 const HIST_LEN: usize = 32;
 
+impl Periodicity {
+    /// The period of the torque's fast cycles, Q8 ticks, while the test finds it periodic: the
+    /// best of lags LAG_MIN…LAG_MAX, or a lag three or two of whose cycles are within a lag of
+    /// it correlate positively, at least two fifths as well (the best of them; a cycle of P ticks
+    /// correlates at 2P and 3P as well, up to 16, and better where they are nearer a whole lag:
+    /// 5.6 ticks correlated at 11 twice as well as at 5; half a period correlates negatively),
+    /// refined by the parabola through it and its neighbours. `None` when not periodic. At the status, not in
+    /// the tick (a division).
+    pub fn period_q8(&self) -> Option<i32> {
+        if !self.periodic {
+            return None;
+        }
+        let c = &self.c;
+        // The best of lags LAG_MIN… (index 1…; index 0 is the veto's lag).
+        let (kb, best) = (1..LAGS).map(|k| (k, c[k])).max_by_key(|&(_, v)| v)?;
+        let lb = LAG_FAST + kb;
+        // The strongest lag, positive and of at least two fifths of the best, whose `d` cycles are
+        // within a lag of the best's.
+        let strong = |d: usize| {
+            (1..LAGS - 1)
+                .filter(|&k| {
+                    ((LAG_FAST + k) * d).abs_diff(lb) <= 1
+                        && c[k] > 0
+                        && i64::from(c[k]) * 5 >= i64::from(best) * 2
+                })
+                .max_by_key(|&k| c[k])
+        };
+        let k = [3, 2]
+            .iter()
+            .filter(|&&d| lb >= d * LAG_MIN)
+            .find_map(|&d| strong(d))
+            .unwrap_or(kb);
+        let lag = (LAG_FAST + k) as i64;
+        if k + 1 >= LAGS {
+            // The last lag: the edge of a cycle as long or longer (the slow reading's).
+            return None;
+        }
+        let (a, b, d) = (i64::from(c[k - 1]), i64::from(c[k]), i64::from(c[k + 1]));
+        // Vertex of the parabola: δ = (a − d)/(2·(a − 2b + d)) ∈ [−½, ½] at a local maximum.
+        let den = 2 * (a - 2 * b + d);
+        let delta_q8 = if den < 0 { ((a - d) << 8) / den } else { 0 };
+        i32::try_from((lag << 8) + delta_q8.clamp(-128, 128)).ok()
+    }
+}
+
 impl Default for Periodicity {
     fn default() -> Self {
         Periodicity::new()
@@ -519,6 +564,16 @@ impl StickSlipDetector {
     /// boot: each slip's peak is the breakaway torque of the stick before it.
     pub fn breakaways(&self) -> (i64, u32) {
         (self.breakaway_sum, self.breakaways)
+    }
+
+    /// The fast stick-slip's period, Q8 ticks, while the periodicity test finds the torque
+    /// periodic ([`Periodicity::period_q8`]): a stick-slipping lift too fast for its peaks
+    /// (`Controller::stick_slip_lift`).
+    pub fn fast_period_q8(&self) -> Option<i32> {
+        if self.periodic_run < PER_TICKS {
+            return None;
+        }
+        self.periodicity.period_q8()
     }
 
     /// Forget the motion (keeps the episode counter and the last amplitude).

@@ -30,13 +30,10 @@ use crate::units::{sat32, Kilograms, NewtonMetres, Ratio, Q};
 /// tick.
 #[inline(never)]
 pub fn lift(peak: i64, drop: i64, rho1: i64, rho0: i64, g_d: i64, g_r: i64) -> Option<Kilograms> {
-    if rho1 <= rho0 || rho0 < 0 || g_d <= 0 || g_r <= 0 || peak <= 0 {
+    if rho1 <= rho0 || rho0 < 0 || g_r <= 0 {
         return None;
     }
-    // W = P/ρ₁ in Q8 N: P (Q16, < 2^31)·2^24 / ρ₁ (Q32).
-    let w = (peak << 24).checked_div(rho1)?;
-    // M = W/G_d in Q12 kg: W (Q8)·2^27 / G (Q23).
-    let m = w.checked_mul(1 << 27)?.checked_div(g_d)?;
+    let m = load(peak, rho1, g_d)?;
     // P·ρ₀/ρ₁ (Q16): the lead's share of the breakaway torque; T₀ = P·(ρ₀/ρ₁)·(G_R/G_d).
     let lead = peak.checked_mul(rho0)?.checked_div(rho1)?;
     let t0 = lead.checked_mul(g_r)?.checked_div(g_d)?;
@@ -44,7 +41,54 @@ pub fn lift(peak: i64, drop: i64, rho1: i64, rho0: i64, g_d: i64, g_r: i64) -> O
     if span <= 0 || drop.saturating_mul(2) < span {
         return None;
     }
+    Some(m)
+}
+
+/// The load whose breakaway thread torque is `peak` P (Q16 N·m): M = P/(ρ₁·G_up), `rho1` Q32 m
+/// and `g_d` Q23 N/kg as [`lift`]'s, without its test of the fall (a fast stick-slip's
+/// breakaway from its period, `Controller::stick_slip_lift`). `None` where undefined or out
+/// of range.
+pub fn load(peak: i64, rho1: i64, g_d: i64) -> Option<Kilograms> {
+    if rho1 <= 0 || g_d <= 0 || peak <= 0 {
+        return None;
+    }
+    // W = P/ρ₁ in Q8 N: P (Q16, < 2^31)·2^24 / ρ₁ (Q32).
+    let w = peak.checked_mul(1 << 24)?.checked_div(rho1)?;
+    // M = W/G_d in Q12 kg: W (Q8)·2^27 / G (Q23).
+    let m = w.checked_mul(1 << 27)?.checked_div(g_d)?;
     Some(Kilograms::from_raw(i32::try_from(m).ok()?))
+}
+
+/// A fast stick-slip's breakaway thread torque P (Q16 N·m; `Controller::stick_slip_lift`): the
+/// torque is a sawtooth whose mean is the motion's `mean` T̄ (Q16 N·m) and whose period is
+/// `period_q8` (Q8 ticks of `tick_us` µs). Each stick winds the coupling (`kc`, Q16 N·m/rad)
+/// at the reference speed `w` (Q16 rad/s) until the breakaway; the slip, half a period of the
+/// screw (`inertia_ukgm2`, µkg·m²) on the coupling, t_s = π·√(I/k_c), lets it fall. The fall
+/// is k_c·ω·(T − t_s) and P = T̄ + k_c·ω·(T − t_s)/2. `None` where undefined (k_c ≤ 0, a
+/// negative inertia) or out of range. At the status, not in the tick (divisions, a root).
+pub fn periodic_breakaway(
+    mean: i64,
+    period_q8: i32,
+    kc: i64,
+    w: i64,
+    tick_us: u32,
+    inertia_ukgm2: i32,
+) -> Option<i64> {
+    if kc <= 0 || inertia_ukgm2 < 0 || tick_us == 0 {
+        return None;
+    }
+    let tick = i64::from(tick_us);
+    // √(I/k_c) in ms is √(I[µkg·m²]/k_c[N·m/rad]): the ratio in Q24 (I ≤ 2^17 ·2^40 / k_c's
+    // Q16), its root in Q12 ms.
+    let ratio_q24 = i64::from(inertia_ukgm2).checked_mul(1 << 40)? / kc;
+    let root_q12 = i64::from(crate::math::isqrt_u64(u64::try_from(ratio_q24).ok()?));
+    // t_s = π·root (π ≈ 355/113), in Q16 ticks: Q12 ms · 1000 / tick µs · 2^4 (one division).
+    let slip_q16 = root_q12.checked_mul(355 * 1000 * 16)? / (113 * tick);
+    let stuck_q16 = (i64::from(period_q8) << 8).saturating_sub(slip_q16).max(0);
+    // k_c·ω per tick (Q16 N·m): Q16·Q16 → Q32 · µs / 10^6 → >> 16.
+    let per_tick = kc.checked_mul(w.abs())?.checked_mul(tick)? / (1_000_000i64 << 16);
+    let fall = per_tick.checked_mul(stuck_q16)? >> 16;
+    Some(mean.saturating_add(fall / 2))
 }
 
 /// The mean T_r of a stick-slipping lift of load `load` whose mean thread torque is `mean`

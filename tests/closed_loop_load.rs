@@ -525,21 +525,8 @@ fn a_stick_slipping_lift_reports_its_load_and_mean_t_r_from_the_breakaways() {
 /// fall under half the span, and the mean torque's load 21 % light).
 #[test]
 fn a_fast_stick_slipping_lift_reads_its_breakaways_without_the_rotor_s_deceleration() {
-    let s = commissioned(Lubricant::Dry, 600.0, 30.0, 2.0);
-    let (r, log) = lift_6mm(&s, 30.0);
-    assert!(faults(&r).is_empty(), "{:?}", faults(&r));
     // The premise: breakaways (stick → slip) every 20…35 ms over the cruise.
-    let cycle = breakaway_cycle(&r, log[0].0);
-    let worst = worst_from_half_a_second(&log, 600.0);
-    eprintln!(
-        "cycle {:.1} ms, load worst from 0.5 s {worst:.1} kg",
-        cycle * 1e3
-    );
-    assert!(
-        (0.020..0.035).contains(&cycle),
-        "cycle {:.1} ms",
-        cycle * 1e3
-    );
+    let (_, _, _, worst) = dry_lift(600.0, 30.0, 0.020..0.035);
     assert!(worst <= 18.0, "load {worst:.1} kg off");
 }
 
@@ -1032,21 +1019,8 @@ fn a_stick_slipping_car_lifted_again_reads_t_r_on_the_stuck_thread_from_the_star
 /// friction at tens of rad/s on the law's falling branch, 30 kg (6.7 %) light.
 #[test]
 fn a_fast_stick_slipping_lift_is_weighed_by_its_period() {
-    let s = commissioned(Lubricant::Dry, 450.0, 34.0, 2.0);
-    let (r, log) = lift_6mm(&s, 34.0);
-    assert!(faults(&r).is_empty(), "{:?}", faults(&r));
-    let cycle = breakaway_cycle(&r, log[0].0);
-    let worst = worst_from_half_a_second(&log, 450.0);
+    let (r, log, _, worst) = dry_lift(450.0, 34.0, 0.005..0.016);
     let (core, plant) = tr_means(&r, &log);
-    eprintln!(
-        "cycle {:.1} ms, load worst from 0.5 s {worst:.1} kg, T_r {core:.3} vs {plant:.3} N·m",
-        cycle * 1e3
-    );
-    assert!(
-        (0.005..0.016).contains(&cycle),
-        "cycle {:.1} ms",
-        cycle * 1e3
-    );
     assert!(worst <= 13.5, "load {worst:.1} kg off");
     assert!(
         (core - plant).abs() <= 0.03 * plant,
@@ -1058,6 +1032,28 @@ fn a_fast_stick_slipping_lift_is_weighed_by_its_period() {
         kept.identified && (kept.load.to_f64() - 450.0).abs() <= 13.5,
         "{kept:?}"
     );
+}
+
+/// A dry lift of `load` kg 6 mm up from `deg`° (`lift_6mm`, commissioned), without a fault
+/// and with the plant's breakaways over the cruise every `cycles` s (the premise): the run, its
+/// cruise log (t, load, T_r), the cycle (s) and the load's worst error from 0.5 s of cruise
+/// (kg).
+fn dry_lift(
+    load: f64,
+    deg: f64,
+    cycles: std::ops::Range<f64>,
+) -> (Run, Vec<(f64, f64, f64)>, f64, f64) {
+    let s = commissioned(Lubricant::Dry, load, deg, 2.0);
+    let (r, log) = lift_6mm(&s, deg);
+    assert!(faults(&r).is_empty(), "{load} kg, {deg}°: {:?}", faults(&r));
+    let cycle = breakaway_cycle(&r, log[0].0);
+    let worst = worst_from_half_a_second(&log, load);
+    eprintln!(
+        "{load} kg, {deg}°: cycle {:.1} ms, load worst from 0.5 s {worst:.1} kg",
+        cycle * 1e3
+    );
+    assert!(cycles.contains(&cycle), "cycle {:.1} ms", cycle * 1e3);
+    (r, log, cycle, worst)
 }
 
 /// The mean interval between the plant's breakaways (stick → slip) after `t0`, s.
@@ -1085,19 +1081,15 @@ fn dry_lifts_over_poses_and_loads() {
     let (mut met, mut tr_met) = (0, 0);
     for deg in [18.0f64, 21.0, 24.0, 28.0, 31.0, 34.0, 38.0, 42.0] {
         for load in [150.0f64, 250.0, 350.0, 450.0, 550.0, 650.0] {
-            let s = commissioned(Lubricant::Dry, load, deg, 2.0);
-            let (r, log) = lift_6mm(&s, deg);
-            let cycle = breakaway_cycle(&r, log[0].0);
-            let worst = worst_from_half_a_second(&log, load);
+            let (r, log, cycle, worst) = dry_lift(load, deg, 0.0..1.0);
             let (core, plant) = tr_means(&r, &log);
             met += usize::from(worst <= 0.03 * load);
             tr_met += usize::from((core - plant).abs() <= 0.03 * plant.abs());
             println!(
-                "{deg}° {load} kg: cycle {:.1} ms, load worst {worst:.1} kg ({:.1} %), T_r {:+.2} %, faults {}",
+                "{deg}° {load} kg: cycle {:.1} ms, load worst {worst:.1} kg ({:.1} %), T_r {:+.2} %",
                 cycle * 1e3,
                 100.0 * worst / load,
-                100.0 * (core / plant - 1.0),
-                faults(&r).len()
+                100.0 * (core / plant - 1.0)
             );
         }
     }

@@ -334,7 +334,8 @@ impl Controller {
             load.load = m;
             // The interval holds the reading ± 1/32 (3.1 %): the breakaways read the dry lifts
             // of `host-sim estimate` within −0.7…+1.7 % (docs/model.md "Stick-slip"); the
-            // mean torque's own interval alone had missed a rated car read 0.6 % light.
+            // mean torque's own interval alone had missed a rated car read 0.6 % light. (An
+            // empty head's lowering reading, a few kg, widens it by a fraction of a kilogram.)
             let band = Kilograms::from_raw(m.bits() >> 5);
             load.load_lo = load.load_lo.min(m.sat_sub(band));
             load.load_hi = load.load_hi.max(m.sat_add(band));

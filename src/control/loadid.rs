@@ -101,6 +101,18 @@ impl Identification {
     }
 }
 
+/// `range` widened to hold a stuck reading's T_r (`Controller::friction_range`), itself
+/// widened by the model's own accuracy (`ident::MODEL_BAND`), as the identification's. Out of
+/// line: one copy for its three calls.
+#[inline(never)]
+fn widen(range: &mut (NewtonMetres, NewtonMetres), reading: Option<(Kilograms, NewtonMetres)>) {
+    if let Some((_, t)) = reading {
+        let m: NewtonMetres = qmul(t.sat_abs(), crate::ident::MODEL_BAND);
+        range.0 = range.0.min(t.sat_sub(m));
+        range.1 = range.1.max(t.sat_add(m));
+    }
+}
+
 impl Controller {
     /// The identification for a (validated) controller: the rated load as the prior, the
     /// drive's no-load torque at the screw from `ballscrew.no_load_current` (k_t·I₀·n·η), the
@@ -454,7 +466,7 @@ impl Controller {
 
     /// What a stuck lifting thread's model takes at the pose `pos` (encoder counts): the axial
     /// force per kilogram lifting and lowering (Q23 N/kg) and the law in force's μ(0). Inlined
-    /// in its two callers (out of line it cost 68 B of flash).
+    /// in its three callers (out of line it cost 68 B of flash, with the third 216 B).
     #[inline(always)]
     fn stuck_terms(&self, pos: i32) -> (i64, i64, Ratio) {
         (
@@ -469,10 +481,22 @@ impl Controller {
     /// torque of its samples (`ident::stick::StuckLowering::friction`; the sliding model's
     /// T_r at that load is 17…27 % off the plant's mean over stick and slip). `None`
     /// otherwise, or before its first sample. At the status, not in the tick.
-    #[inline(never)]
     fn stick_slip_lower(&self) -> Option<(Kilograms, NewtonMetres)> {
+        if !self.loadid.ident.held() {
+            return None;
+        }
+        self.stuck_lowering(Ratio::ONE, self.loadid.load)
+    }
+
+    /// A lowering's load and mean T_r read as a stuck thread's (`stick_slip_lower`), for the
+    /// load `load` at the scale in force, on a thread `f` times as dry: the stuck thread's
+    /// breakaway of that load, P = M·|τ(1)|, read at μ(0)·f for the load there, and that
+    /// load's mean T_r at the same mean torque. `None` while not lowering, or before its first
+    /// sample.
+    #[inline(never)]
+    fn stuck_lowering(&self, f: Ratio, load: Kilograms) -> Option<(Kilograms, NewtonMetres)> {
         let id = &self.loadid;
-        if self.live.state != State::Lowering || !id.ident.held() {
+        if self.live.state != State::Lowering {
             return None;
         }
         let (t, k) = id.ident.thread_sum();
@@ -492,13 +516,47 @@ impl Controller {
         } else {
             self.motion_mid_pose()
         };
-        let (up, down) = (self.est.g_per_kg(pos, 1), self.est.g_per_kg(pos, -1));
-        let mu0 = self.est.law().mu(RadiansPerSecond::ZERO);
+        let (up, down, mu0) = self.stuck_terms(pos);
         let screw = self.est.screw();
-        let s =
-            crate::ident::stick::StuckLowering::new(screw, mu0, i64::from(up), i64::from(down))?;
-        let tr = s.friction(screw, id.load, mean)?;
-        Some((id.load, tr))
+        use crate::ident::stick::StuckLowering;
+        // The breakaway of `load` at the scale in force, read at f (qmul by one is exact).
+        let p = StuckLowering::new(screw, mu0, up, down)?.breakaway_torque(load);
+        let at = StuckLowering::new(screw, qmul(mu0, f), up, down)?;
+        let load = if f == Ratio::ONE { load } else { at.load(p)? };
+        Some((load, at.friction(screw, load, mean)?))
+    }
+
+    /// The stated range of the status's T_r `tr` (the stated load interval's heavy end
+    /// `load_hi`): the identification's
+    /// (`ident::LoadIdent::friction_range`: the same thread torque explained at the ends of
+    /// the scale band, on the sliding model), widened to hold a lowering's stuck readings. A
+    /// held lowering (`stick_slip_lower`): its stuck reading at the scale band's ends, where
+    /// the sliding factors are no measure of it (host-sim, dry 1000 kg lowering on a thread
+    /// 1.5× drier, before the pair: the reading −9.52 N·m, the sliding range −10.76…−7.92,
+    /// the plant's −6.81; the stuck reading at 2× −6.02, at 0.8× −11.48). Any other lowering
+    /// on a law whose friction falls with the speed (the stick-slip detector's falling branch:
+    /// the dry law) may stick-slip unseen, in cycles too short for the current: the stuck
+    /// reading of the load interval's heaviest end (host-sim, dry 700 kg from 260 mm, the
+    /// creep counting no breakaway: the sliding model's −2.13 N·m in −2.58…−1.59, the
+    /// plant's −2.93 over a cruise the thread stands most of). At the status (up to three
+    /// stuck readings, each a bisection); out of line: inlined into the status it cost 4 B
+    /// more.
+    #[inline(never)]
+    pub(super) fn friction_range(
+        &self,
+        tr: NewtonMetres,
+        load_hi: Kilograms,
+    ) -> (NewtonMetres, NewtonMetres) {
+        let id = &self.loadid.ident;
+        let mut range = id.friction_range(tr);
+        if id.held() {
+            let (wet, dry) = id.scale_band_factors();
+            widen(&mut range, self.stuck_lowering(wet, self.loadid.load));
+            widen(&mut range, self.stuck_lowering(dry, self.loadid.load));
+        } else if self.motion.stick_slip.output().falling_branch {
+            widen(&mut range, self.stuck_lowering(Ratio::ONE, load_hi));
+        }
+        range
     }
 
     /// The motion under way (or the one just ended, until `end_load_motion` counts it) had a
@@ -592,13 +650,20 @@ impl Controller {
         // go): a linear wind-up from the trough to the breakaway has its mean half-way, so the
         // slips fall by 2·(P − T̄); they come every (time since the motion began)/slips ticks.
         let drop = peak.saturating_sub(mean).saturating_mul(2);
-        let tick = i64::from(self.derived.cfg.estimator.tick_us);
+        let tick_us = self.derived.cfg.estimator.tick_us;
+        let tick = i64::from(tick_us);
         let elapsed = self
             .loadid
             .ident
             .last_tick_us()
             .wrapping_sub(self.loadid.start_us);
-        let interval = i64::from(elapsed) / tick / i64::from(n);
+        // (In u32: native divisions, not the 64-bit runtime's.)
+        let interval = i64::from(
+            elapsed
+                .checked_div(tick_us)
+                .and_then(|t| t.checked_div(n))
+                .unwrap_or(0),
+        );
         // A stick from rest lasts the coupling's wind-up by the slip's fall at the reference
         // speed, drop/(k_c·ω) (within 2×: the speed loop lets the motor run faster than the
         // reference right after a slip): ripples and noise fall far more rarely than that. And

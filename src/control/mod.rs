@@ -354,7 +354,7 @@ impl Controller {
             position: self.live.enc.position(),
             homed: self.live.homed,
             load,
-            friction_torque_range: self.loadid.ident.friction_range(friction_torque),
+            friction_torque_range: self.friction_range(friction_torque, load.load_hi),
             cruise_limit: self.motion.cruise_limit,
             #[cfg(feature = "ball-screw")]
             lube: if self.holds_actively() {

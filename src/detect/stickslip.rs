@@ -334,25 +334,38 @@ impl Periodicity {
             return None;
         }
         let c = &self.c;
-        // The best of lags LAG_MIN… (index 1…; index 0 is the veto's lag).
-        let (kb, best) = (1..LAGS).map(|k| (k, c[k])).max_by_key(|&(_, v)| v)?;
+        // The best of lags LAG_MIN… (index 1…; index 0 is the veto's lag; the last of equals,
+        // as `max_by_key`).
+        let mut kb = 1;
+        for k in 2..LAGS {
+            if c[k] >= c[kb] {
+                kb = k;
+            }
+        }
+        let best = i64::from(c[kb]);
         let lb = LAG_FAST + kb;
-        // The strongest lag, positive and of at least two fifths of the best, whose `d` cycles are
-        // within a lag of the best's.
-        let strong = |d: usize| {
-            (1..LAGS - 1)
-                .filter(|&k| {
-                    ((LAG_FAST + k) * d).abs_diff(lb) <= 1
-                        && c[k] > 0
-                        && i64::from(c[k]) * 5 >= i64::from(best) * 2
-                })
-                .max_by_key(|&k| c[k])
-        };
-        let k = [3, 2]
-            .iter()
-            .filter(|&&d| lb >= d * LAG_MIN)
-            .find_map(|&d| strong(d))
-            .unwrap_or(kb);
+        // The strongest lag, positive and of at least two fifths of the best, whose `d` cycles
+        // are within a lag of the best's: three cycles first, then two (the last of equals).
+        let mut k = kb;
+        for d in [3, 2] {
+            if lb < d * LAG_MIN {
+                continue;
+            }
+            let mut found: Option<usize> = None;
+            for j in 1..LAGS - 1 {
+                if ((LAG_FAST + j) * d).abs_diff(lb) <= 1
+                    && c[j] > 0
+                    && i64::from(c[j]) * 5 >= best * 2
+                    && found.is_none_or(|f| c[j] >= c[f])
+                {
+                    found = Some(j);
+                }
+            }
+            if let Some(j) = found {
+                k = j;
+                break;
+            }
+        }
         let lag = (LAG_FAST + k) as i64;
         if k + 1 >= LAGS {
             // The last lag: the edge of a cycle as long or longer (the slow reading's).

@@ -348,7 +348,7 @@ impl LoadIdent {
     }
 
     /// [`Self::scale_band`] over the scale in force.
-    fn scale_band_factors(&self) -> (Ratio, Ratio) {
+    pub fn scale_band_factors(&self) -> (Ratio, Ratio) {
         if self.scale_known {
             (Ratio::ONE.sat_sub(PAIR_BAND), Ratio::ONE.sat_add(PAIR_BAND))
         } else {
@@ -890,9 +890,10 @@ impl LoadIdent {
         self.pairs = self.pairs.saturating_add(1);
         // The first measurement replaces the assumption; later ones average with it (halves).
         let scale = if self.scale_known {
-            Ratio::from_raw(
-                ((i64::from(self.scale.bits()) + i64::from(sol.scale.bits())) / 2) as i32,
-            )
+            Ratio::from_raw(crate::math::div_pow2_i64(
+                i64::from(self.scale.bits()) + i64::from(sol.scale.bits()),
+                1,
+            ) as i32)
         } else {
             sol.scale
         };

@@ -16,6 +16,7 @@
 //! T₀ = ρ₀·M·G_R (ρ₀ = r_m·tan λ) and P, read 1…2 % heavier (host-sim, dry lifts: 1000 kg
 //! +1.6 → −1.6 %, 700 kg from 200 mm +3.0 → +1.5 %, 1.5× drier +4.2…+5.2 → +3.2…+4.3 %).
 
+use crate::math::div_pow2_i64;
 use crate::model::screw::ScrewModel;
 use crate::units::{sat32, Kilograms, NewtonMetres, Ratio, Q};
 
@@ -107,7 +108,10 @@ pub fn lift_friction(
     load: Kilograms,
     mean: i64,
 ) -> Option<NewtonMetres> {
-    let (g_r, g_f) = ((g_up + g_down) / 2, (g_up - g_down) / 2);
+    let (g_r, g_f) = (
+        div_pow2_i64(g_up + g_down, 1),
+        div_pow2_i64(g_up - g_down, 1),
+    );
     let (m, mu) = (i64::from(load.bits()), i64::from(mu0.bits()));
     if m <= 0 || mu <= 0 || g_r <= 0 || g_f < 0 {
         return None;
@@ -198,7 +202,11 @@ impl StuckLowering {
     /// breakaway torque is 0 until [`Self::finish`].
     #[inline(never)]
     pub fn start(screw: &ScrewModel, mu0: Ratio, g_up: i64, g_down: i64) -> Option<StuckLowering> {
-        let (g_r, g_f) = ((g_up + g_down) / 2, (g_up - g_down) / 2);
+        // (Halved by a shift: a 64-bit `/` is a runtime call at "z", and this runs in a creep tick.)
+        let (g_r, g_f) = (
+            div_pow2_i64(g_up + g_down, 1),
+            div_pow2_i64(g_up - g_down, 1),
+        );
         let mu = i64::from(mu0.bits());
         if mu <= 0 || g_r <= 0 || g_f < 0 {
             return None;

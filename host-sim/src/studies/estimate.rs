@@ -14,7 +14,8 @@
 //! 0.05 N·m; the identified load 0.5 s after the cruise began, and its worst error from then to
 //! the end of the cruise, within 3 % or the load whose torque is 0.05 N·m at that pose
 //! (|∂T/∂M| of the plant's model: the same floor); and whether the stated intervals (load,
-//! T_r) cover the truth. **Tuning split**: the identification's constants were tuned on the
+//! T_r) cover the truth (a goal on the drier set's first two moves, before the pair: "before
+//! that, the uncertainty covers the truth"; a column on the others). **Tuning split**: the identification's constants were tuned on the
 //! 200 mm start height with seed 1; the report's verdict is on the 150 and 260 mm heights
 //! (seeds 2 and 3) and the drier set, which were not looked at while tuning.
 
@@ -424,14 +425,15 @@ pub fn main(a: &EstimateArgs) -> Result<bool, String> {
 pub fn report(results: &[(Case, Result<Outcome, String>)]) -> bool {
     let mut all_ok = true;
     println!("host-sim estimate: the core's T_r and identified load against the plant's truth");
-    println!("goals: cruise-mean T_r within 3 % (or 0.05 N·m); load within 3 % (or the 0.05 N·m load) from 0.5 s of cruise\n");
+    println!("goals: cruise-mean T_r within 3 % (or 0.05 N·m); load within 3 % (or the 0.05 N·m load) from 0.5 s of cruise");
+    println!("covered: the stated load and T_r intervals hold the truth (0.5 s into the cruise and the cruise's means, within the goal's allowance)\n");
     for (title, tuning) in [
         ("report set (150 and 260 mm, seeds 2, 3)", false),
         ("tuning set (200 mm, seed 1)", true),
     ] {
         println!("### {title}\n");
-        println!("| lubricant | load kg | dir | T_r plant N·m (range) | T_r err worst | load err worst kg (floor) | goals |");
-        println!("|---|---|---|---|---|---|---|");
+        println!("| lubricant | load kg | dir | T_r plant N·m (range) | T_r err worst | load err worst kg (floor) | goals | covered |");
+        println!("|---|---|---|---|---|---|---|---|");
         for lub in Lubricant::ALL {
             for &load in &LOADS {
                 for up in [true, false] {
@@ -452,6 +454,7 @@ pub fn report(results: &[(Case, Result<Outcome, String>)]) -> bool {
                     let mut ld_err: f64 = 0.0;
                     let mut floor: f64 = 0.0;
                     let mut met = 0;
+                    let mut covered = 0;
                     let mut fails = Vec::new();
                     for (c, r) in &rows {
                         match r {
@@ -473,6 +476,7 @@ pub fn report(results: &[(Case, Result<Outcome, String>)]) -> bool {
                                     ld_err = m.load_worst;
                                     floor = m.load_floor;
                                 }
+                                covered += usize::from(m.covers(c.load));
                                 if m.tr_ok() && m.load_ok(c.load) {
                                     met += 1;
                                 } else {
@@ -496,7 +500,7 @@ pub fn report(results: &[(Case, Result<Outcome, String>)]) -> bool {
                         "—".to_string()
                     };
                     println!(
-                        "| {} | {} | {} | {} | {} | {:.1} ({:.1}) | {}/{}{} |",
+                        "| {} | {} | {} | {} | {} | {:.1} ({:.1}) | {}/{}{} | {}/{} |",
                         lub.name(),
                         load,
                         if up { "up" } else { "down" },
@@ -510,7 +514,9 @@ pub fn report(results: &[(Case, Result<Outcome, String>)]) -> bool {
                             String::new()
                         } else {
                             format!(" ✗ {}", fails.join(", "))
-                        }
+                        },
+                        covered,
+                        rows.len()
                     );
                 }
             }
@@ -520,13 +526,15 @@ pub fn report(results: &[(Case, Result<Outcome, String>)]) -> bool {
     println!(
         "### drier set (thread 1.5× / 2× drier than configured; lift, lower, lift from 200 mm)\n"
     );
-    println!("| lubricant | dry | load kg | move 1: load (interval) / T_r err (covered) | pair: scale, warning | move 3: T_r err, load err | goals |");
+    println!("| lubricant | dry | load kg | move 1: load (interval) / T_r err (moves 1, 2 covered) | pair: scale, warning | move 3: T_r err, load err | goals |");
     println!("|---|---|---|---|---|---|---|");
     for (c, r) in results.iter().filter(|(c, _)| c.dry != 1.0) {
         let line = match r {
             Ok(o) if o.moves.len() == 3 && o.fault.is_none() => {
                 let (m1, m3) = (&o.moves[0], &o.moves[2]);
-                let ok = m1.covers(c.load) && o.warned && m3.tr_ok() && m3.load_ok(c.load);
+                // Before the pair (the lift and the lowering) the intervals must hold the truth.
+                let covers = [m1, &o.moves[1]].map(|m| m.covers(c.load));
+                let ok = covers == [true; 2] && o.warned && m3.tr_ok() && m3.load_ok(c.load);
                 if !ok {
                     all_ok = false;
                 }
@@ -536,7 +544,12 @@ pub fn report(results: &[(Case, Result<Outcome, String>)]) -> bool {
                     m1.load_lo,
                     m1.load_hi,
                     100.0 * (m1.tr_core - m1.tr_plant) / m1.tr_plant.abs().max(1e-9),
-                    if m1.covers(c.load) { "yes" } else { "no" },
+                    match covers {
+                        [true, true] => "yes",
+                        [false, true] => "no: move 1",
+                        [true, false] => "no: move 2",
+                        [false, false] => "no",
+                    },
                     o.scale,
                     if o.warned { "warned" } else { "no warning" },
                     100.0 * (m3.tr_core - m3.tr_plant) / m3.tr_plant.abs().max(1e-9),

@@ -519,10 +519,14 @@ impl Controller {
         let (up, down, mu0) = self.stuck_terms(pos);
         let screw = self.est.screw();
         use crate::ident::stick::StuckLowering;
-        // The breakaway of `load` at the scale in force, read at f (qmul by one is exact).
-        let p = StuckLowering::new(screw, mu0, up, down)?.breakaway_torque(load);
+        // (qmul by one is exact: at one, the model in force.)
         let at = StuckLowering::new(screw, qmul(mu0, f), up, down)?;
-        let load = if f == Ratio::ONE { load } else { at.load(p)? };
+        let load = if f == Ratio::ONE {
+            load
+        } else {
+            // The breakaway of `load` at the scale in force, read at f.
+            at.load(StuckLowering::new(screw, mu0, up, down)?.breakaway_torque(load))?
+        };
         Some((load, at.friction(screw, load, mean)?))
     }
 

@@ -16,6 +16,10 @@ pub struct Args {
     /// Do not draw the plot.
     #[arg(long)]
     no_plot: bool,
+    /// Seed sets: 1 is the matrix; each further set repeats the report and drier sets with
+    /// other sensor-noise seeds (held out: does a count stop moving?).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=50))]
+    seed_sets: u64,
 }
 
 /// Runs `host-sim estimate`; fails when a goal of the report sets is missed.
@@ -23,6 +27,7 @@ pub fn run(a: &Args) -> Result<(), Box<dyn Error>> {
     let ok = estimate::main(&EstimateArgs {
         jobs: a.jobs,
         plot: (!a.no_plot).then(|| a.plot.clone()),
+        seed_sets: a.seed_sets,
     })?;
     if ok {
         Ok(())

@@ -350,8 +350,10 @@ impl Controller {
             return;
         }
         // A window closed. A lowering that stick-slips keeps the load it began with from now
-        // on (`LoadIdent::hold_start`: within a window of the detector's episode).
-        if dir < 0 && self.motion.stick_slip.output().active {
+        // on (`LoadIdent::hold_start`: within a window of the detector's episode), if its car
+        // can stick-slip as the detector sees it (`LoadIdent::resists`).
+        let floor = self.derived.cfg.stick_slip.drop_threshold.bits() >> 2;
+        if dir < 0 && self.motion.stick_slip.output().active && id.ident.resists(floor) {
             id.ident.hold_start();
         }
         id.load = id.ident.load();

@@ -768,6 +768,28 @@ impl LoadIdent {
         true
     }
 
+    /// The motion's samples' mean measured thread torque resists the motion by at least
+    /// `floor` (Q16 N·m; before the first sample, a floor ≤ 0 only). What [`Self::hold_start`] asks of a
+    /// lowering's car: a slip the stick-slip detector counts falls by its drop threshold at
+    /// least, and a fast stick-slip (a period of `detect::stickslip::LAG_MIN` ticks and more)
+    /// by k_c·ω·(T − t_s), ≈ 2 N·m at the default cruise; either way the stuck car's breakaway
+    /// torque is at least the fall, and the sawtooth's mean, between the breakaway and a
+    /// trough above zero, half of it. A mean under a quarter of the drop threshold is a car
+    /// whose stick-slip the current could not show: an episode there is noise (host-sim, an
+    /// empty dry head lowering from 260 mm, seed 504: a periodicity episode on white noise put
+    /// the load back to the 1000 kg prior and its T_r at −2.25 N·m, the plant's −0.03).
+    #[inline]
+    pub fn resists(&self, floor: i32) -> bool {
+        let r = &self.run;
+        // (|Σ| ≤ 2^31·2^32: the negation cannot wrap; 32 × 32-bit product.)
+        let t = if self.run_dir < 0 {
+            r.t.wrapping_neg()
+        } else {
+            r.t
+        };
+        t >= i64::from(floor) * i64::from(r.n.max(1))
+    }
+
     /// This motion's samples no longer set the load ([`Self::hold_start`]).
     pub fn held(&self) -> bool {
         self.held
@@ -1318,6 +1340,36 @@ mod tests {
         eprintln!("worst {worst:.2} kg, at the end {end:+.3} kg");
         assert!(worst < 8.0, "worst {worst:.2} kg");
         assert!(end.abs() < 1.5, "at the end {end:+.3} kg");
+    }
+
+    /// `resists` compares the samples' mean measured thread torque, resisting the motion,
+    /// with the floor: its float twin is the model's thread torque at the motion's car
+    /// (`motion`: ρ_d(μ)·(M·G_d + D)), the drive's bias taken off as the samples take it.
+    #[test]
+    fn resists_compares_the_mean_thread_torque_resisting_the_motion() {
+        let sc = screw();
+        let (tan, r) = (sc.tan_lambda().to_f64(), sc.pitch_radius().to_f64());
+        for dir in [-1i8, 1] {
+            for m in [0.0, 5.0, 40.0, 150.0, 600.0, 1300.0] {
+                let mut id = fresh(&sc);
+                assert!(!id.resists(0x2000) && id.resists(0), "before any sample");
+                motion(&mut id, &sc, dir, m, 1.0, 300);
+                let mus = f64::from(dir) * 0.21;
+                let thread = r * (tan + mus) / (1.0 - mus * tan)
+                    * (m * g_at_20(dir) + 24.0 * f64::from(dir));
+                // The twin's resisting torque; the floor 1 % either side of it.
+                let resisting = thread * f64::from(dir);
+                for (k, expect) in [(0.99, true), (1.01, false)] {
+                    let floor = NewtonMetres::from_f64(resisting * k).bits();
+                    if resisting * k > 0.002 {
+                        assert_eq!(id.resists(floor), expect, "{dir} {m} kg: {resisting} × {k}");
+                    }
+                }
+                // Any motion resists by at least a negative floor, and none by 32 768 N·m.
+                assert!(id.resists(-1) == (resisting >= 0.0) || resisting.abs() < 1e-3);
+                assert!(!id.resists(i32::MAX), "{dir} {m}: {resisting}");
+            }
+        }
     }
 
     /// A stick-slipping lowering keeps the load the motion began with (`hold_start`): the

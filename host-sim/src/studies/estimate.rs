@@ -732,12 +732,17 @@ mod tests {
     #[test]
     fn further_seed_sets_repeat_the_report_and_drier_sets_with_new_seeds() {
         let m = matrix_with(3);
-        assert_eq!(m.len(), 7 * 3 * 2 * 3 + 2 * 3 * 4 + 2 * (7 * 3 * 2 * 2 + 2 * 3 * 4));
+        assert_eq!(
+            m.len(),
+            7 * 3 * 2 * 3 + 2 * 3 * 4 + 2 * (7 * 3 * 2 * 2 + 2 * 3 * 4)
+        );
         // The tuning set once, with its seed; no further set reuses a seed of the first.
         assert_eq!(m.iter().filter(|c| c.tuning()).count(), 7 * 3 * 2);
         let first: std::collections::BTreeSet<u64> = matrix().iter().map(|c| c.seed).collect();
         let later = &m[matrix().len()..];
-        assert!(later.iter().all(|c| !first.contains(&c.seed) && !c.tuning()));
+        assert!(later
+            .iter()
+            .all(|c| !first.contains(&c.seed) && !c.tuning()));
         assert_eq!(&m[..matrix().len()], &matrix()[..]);
     }
 }

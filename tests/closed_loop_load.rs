@@ -1236,3 +1236,31 @@ fn an_empty_dry_head_lowering_is_not_held_at_the_prior_by_a_noise_episode() {
     assert!(m.load_worst <= 10.0, "{m:?}");
     assert!(m.tr_ok() && m.load_ok(case.load), "{m:?}");
 }
+
+/// A light PTFE lowering high on the stroke read on the reversed flank (`lowering_load`: an
+/// empty head's reading) states the loaded flank's load interval beside it, and its T_r range
+/// holds T_r at that interval's heavy end (`Controller::friction_range`). Before, on
+/// `host-sim estimate`'s seed 204 (`--seed-sets 3`), 100 kg from 260 mm read 0 kg in 0…254 kg
+/// (holding the car) but T_r in −0.072…−0.004 N·m, the plant's −0.125 outside.
+#[test]
+fn a_light_lowering_read_on_the_reversed_flank_states_a_t_r_range_for_its_whole_interval() {
+    use host_sim::studies::estimate::{run_case, Case};
+    for seed in [104, 204] {
+        let case = Case {
+            lub: Lubricant::Ptfe,
+            load: 100.0,
+            up: false,
+            start_mm: 260.0,
+            dry: 1.0,
+            seed,
+        };
+        let o = run_case(&case).expect("the run");
+        assert!(o.fault.is_none(), "{:?}", o.fault);
+        let m = o.moves[0];
+        println!(
+            "PTFE 100 kg lowering from 260 mm, seed {seed}: load {:.1} kg in {:.0}…{:.0}, T_r {:.3} in {:.3}…{:.3} (plant {:.3}) N·m",
+            m.load_half, m.load_lo, m.load_hi, m.tr_core, m.tr_lo, m.tr_hi, m.tr_plant
+        );
+        assert!(m.covers(case.load), "{seed}: {m:?}");
+    }
+}

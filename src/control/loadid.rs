@@ -544,17 +544,24 @@ impl Controller {
     /// the dry law) may stick-slip unseen, in cycles too short for the current: the stuck
     /// reading of the load interval's heaviest end (host-sim, dry 700 kg from 260 mm, the
     /// creep counting no breakaway: the sliding model's −2.13 N·m in −2.58…−1.59, the
-    /// plant's −2.93 over a cruise the thread stands most of). At the status (up to three
-    /// stuck readings, each a bisection); out of line: inlined into the status it cost 4 B
-    /// more.
+    /// plant's −2.93 over a cruise the thread stands most of). A lowering read on the
+    /// reversed flank (`reversed`: `lowering_load`, an empty head) states the loaded flank's
+    /// interval beside its reading, so the range holds T_r at the interval's heavy end too
+    /// (host-sim, PTFE 100 kg lowering from 260 mm, seed 204: the reading 0 kg in 0…254 kg,
+    /// T_r −0.072…−0.004 N·m before, the plant's −0.125). At the status (up to three stuck
+    /// readings, each a bisection); out of line: inlined into the status it cost 4 B more.
     #[inline(never)]
     pub(super) fn friction_range(
         &self,
         tr: NewtonMetres,
         load_hi: Kilograms,
+        reversed: bool,
     ) -> (NewtonMetres, NewtonMetres) {
         let id = &self.loadid.ident;
         let mut range = id.friction_range(tr);
+        if reversed {
+            widen(&mut range, Some((load_hi, self.friction_at_load(load_hi))));
+        }
         if id.held() {
             let (wet, dry) = id.scale_band_factors();
             widen(&mut range, self.stuck_lowering(wet, self.loadid.load));

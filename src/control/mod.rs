@@ -354,7 +354,11 @@ impl Controller {
             position: self.live.enc.position(),
             homed: self.live.homed,
             load,
-            friction_torque_range: self.friction_range(friction_torque, load.load_hi),
+            friction_torque_range: self.friction_range(
+                friction_torque,
+                load.load_hi,
+                lowering.is_some(),
+            ),
             cruise_limit: self.motion.cruise_limit,
             #[cfg(feature = "ball-screw")]
             lube: if self.holds_actively() {

@@ -41,6 +41,10 @@ pub const ZERO_RANGE_CODES: i32 = 16;
 /// noise (≈ 7 mA, 0.012 N·m at the screw: ≈ 20 kg of a PTFE lowering's load); 16 take that to
 /// a quarter.
 pub const ZERO_BATCHES: u8 = 16;
+/// A batch farther than this from the zero in force (1/256 codes: one code, ten times a
+/// batch's scatter at host-sim's noise) is no scatter: the offset moved (a step, not a drift),
+/// and the running mean starts over from the batch, which becomes the zero at once.
+pub const ZERO_STEP_Q8: i32 = 256;
 
 /// ADC scalings, quantised once, and the current-sense zero measured at rest.
 ///
@@ -128,6 +132,9 @@ impl Adc {
         self.rest_n = 0;
         if (mean - self.configured_q8).abs() <= ZERO_RANGE_CODES << 8 {
             // (|mean − zero| ≤ 2^21: no overflow; a native 32-bit division.)
+            if (mean - self.zero_q8).abs() > ZERO_STEP_Q8 {
+                self.batches = 0;
+            }
             self.batches = self.batches.saturating_add(1).min(ZERO_BATCHES);
             self.zero_q8 += (mean - self.zero_q8) / i32::from(self.batches);
             Some(ZeroUpdate::Taken(self.zero_q8))
@@ -341,7 +348,7 @@ mod tests {
             sixteen < 0.4 * one,
             "16 batches: {sixteen} codes rms against {one}"
         );
-        // A drift of the amplifier's offset by 2 codes: the zero follows, 1/16 a batch.
+        // The amplifier's offset steps by 2 codes (a reference that moved).
         let mut adc = Adc::new(&SensingConfig::DEFAULT);
         for code in truncated_codes(2048.5, 1.5, 11, usize::from(ZERO_SAMPLES) * 16) {
             adc.rest_sample(code);
@@ -352,10 +359,24 @@ mod tests {
                 zeros.push(f64::from(z) / 256.0);
             }
         }
-        // After one batch an eighth of the way, after 64 (≈ 16 s of rest) within 0.1 code.
-        assert!((zeros[0] - 2048.125).abs() < 0.05, "{}", zeros[0]);
+        // A step of 2 codes is no scatter: the first batch after it is the zero.
+        assert!((zeros[0] - 2050.0).abs() < 0.3, "{}", zeros[0]);
         let last = zeros.last().copied().unwrap_or(0.0);
         assert!((last - 2050.0).abs() < 0.1, "{last}");
+        // A drift by half a code (within a code of the zero in force): followed 1/16 a batch.
+        let mut adc = Adc::new(&SensingConfig::DEFAULT);
+        for code in truncated_codes(2048.5, 1.5, 13, usize::from(ZERO_SAMPLES) * 16) {
+            adc.rest_sample(code);
+        }
+        let mut zeros = std::vec::Vec::new();
+        for code in truncated_codes(2049.0, 1.5, 14, usize::from(ZERO_SAMPLES) * 64) {
+            if let Some(ZeroUpdate::Taken(z)) = adc.rest_sample(code) {
+                zeros.push(f64::from(z) / 256.0);
+            }
+        }
+        assert!((zeros[0] - 2048.03).abs() < 0.05, "{}", zeros[0]);
+        let last = zeros.last().copied().unwrap_or(0.0);
+        assert!((last - 2048.5).abs() < 0.1, "{last}");
     }
 
     #[test]

@@ -348,34 +348,29 @@ mod tests {
             sixteen < 0.4 * one,
             "16 batches: {sixteen} codes rms against {one}"
         );
-        // The amplifier's offset steps by 2 codes (a reference that moved).
-        let mut adc = Adc::new(&SensingConfig::DEFAULT);
-        for code in truncated_codes(2048.5, 1.5, 11, usize::from(ZERO_SAMPLES) * 16) {
-            adc.rest_sample(code);
-        }
-        let mut zeros = std::vec::Vec::new();
-        for code in truncated_codes(2050.5, 1.5, 12, usize::from(ZERO_SAMPLES) * 64) {
-            if let Some(ZeroUpdate::Taken(z)) = adc.rest_sample(code) {
-                zeros.push(f64::from(z) / 256.0);
+        // 16 batches at `before` (codes), then the zeros 64 batches at `after` take.
+        let zeros_after = |before: f64, after: f64, seed: u64| {
+            let mut adc = Adc::new(&SensingConfig::DEFAULT);
+            for code in truncated_codes(before, 1.5, seed, usize::from(ZERO_SAMPLES) * 16) {
+                adc.rest_sample(code);
             }
-        }
-        // A step of 2 codes is no scatter: the first batch after it is the zero.
-        assert!((zeros[0] - 2050.0).abs() < 0.3, "{}", zeros[0]);
-        let last = zeros.last().copied().unwrap_or(0.0);
+            let mut zeros = std::vec::Vec::new();
+            for code in truncated_codes(after, 1.5, seed + 1, usize::from(ZERO_SAMPLES) * 64) {
+                if let Some(ZeroUpdate::Taken(z)) = adc.rest_sample(code) {
+                    zeros.push(f64::from(z) / 256.0);
+                }
+            }
+            let last = zeros.last().copied().unwrap_or(0.0);
+            (zeros.first().copied().unwrap_or(0.0), last)
+        };
+        // The amplifier's offset steps by 2 codes (a reference that moved): no scatter, the
+        // first batch after it is the zero.
+        let (first, last) = zeros_after(2048.5, 2050.5, 11);
+        assert!((first - 2050.0).abs() < 0.3, "{first}");
         assert!((last - 2050.0).abs() < 0.1, "{last}");
         // A drift by half a code (within a code of the zero in force): followed 1/16 a batch.
-        let mut adc = Adc::new(&SensingConfig::DEFAULT);
-        for code in truncated_codes(2048.5, 1.5, 13, usize::from(ZERO_SAMPLES) * 16) {
-            adc.rest_sample(code);
-        }
-        let mut zeros = std::vec::Vec::new();
-        for code in truncated_codes(2049.0, 1.5, 14, usize::from(ZERO_SAMPLES) * 64) {
-            if let Some(ZeroUpdate::Taken(z)) = adc.rest_sample(code) {
-                zeros.push(f64::from(z) / 256.0);
-            }
-        }
-        assert!((zeros[0] - 2048.03).abs() < 0.05, "{}", zeros[0]);
-        let last = zeros.last().copied().unwrap_or(0.0);
+        let (first, last) = zeros_after(2048.5, 2049.0, 13);
+        assert!((first - 2048.03).abs() < 0.05, "{first}");
         assert!((last - 2048.5).abs() < 0.1, "{last}");
     }
 

@@ -769,8 +769,8 @@ impl LoadIdent {
     }
 
     /// The motion's samples' mean measured thread torque resists the motion by at least
-    /// `floor` (Q16 N·m; before the first sample, a floor ≤ 0 only). What [`Self::hold_start`] asks of a
-    /// lowering's car: a slip the stick-slip detector counts falls by its drop threshold at
+    /// `floor` (Q16 N·m; before the first sample, a floor ≤ 0 only). What
+    /// [`Self::hold_start`] asks of a lowering's car: a slip the stick-slip detector counts falls by its drop threshold at
     /// least, and a fast stick-slip (a period of `detect::stickslip::LAG_MIN` ticks and more)
     /// by k_c·ω·(T − t_s), ≈ 2 N·m at the default cruise; either way the stuck car's breakaway
     /// torque is at least the fall, and the sawtooth's mean, between the breakaway and a

@@ -820,7 +820,7 @@ fn worst_from_half_a_second(log: &[(f64, f64, f64)], load: f64) -> f64 {
 
 /// A fresh board lowering a dry thread creeps at 0.3 rad/s until two breakaways have weighed
 /// the car, then cruises at that load (`control::creep`): the load from 0.5 s of cruise within
-/// 3 %, and the cruise's mean T_r (the stuck thread's at the mean torque,
+/// 3 %, and the cruise's mean T_r (the stuck thread's mean over the wind-up,
 /// `ident::stick::StuckLowering::friction`) within 3 % of the plant's mean over stick and slip.
 /// A pose and a car outside `host-sim estimate`'s matrix (900 kg from 22°, its own seed).
 /// Before the creep the status said the prior's 1000 kg through the cruise.
@@ -859,8 +859,8 @@ fn a_creep_low_on_the_stroke_ignores_the_coupling_s_swing_after_a_slip() {
     let worst = worst_from_half_a_second(&log, load);
     // The first 120 ms of cruise, before the held lowering's first sample: the stuck thread's
     // T_r at the low-passed measured torque. The sliding model at the weighed load had stood
-    // there, 55 % heavy this low (here −13.3 against −8.6 N·m; now −9.6: the wind-ups' mean
-    // ρ̄ is read at a torque that swings through zero, docs/model.md).
+    // there, 55 % heavy this low (here −13.3 against −8.6 N·m; now −9.3: the wind-ups' mean
+    // is read from a torque that swings through zero, docs/model.md).
     let (core, plant) = tr_means(&r, &log[..120]);
     eprintln!(
         "load worst {worst:.1} kg off; T_r over the first 120 ms {core:.3} against {plant:.3}"

@@ -533,6 +533,44 @@ fn count_instructions() {
     count_control(overhead);
     count_rest_work(overhead);
     count_rest_ticks(overhead);
+    count_stuck_reading(overhead);
+}
+
+/// A held lowering's stuck reading (`ident::stick::StuckLowering::friction`, the mean T_r over
+/// the sticks' wind-up; docs/model.md): the status builds up to three (the reading and its
+/// range's ends), inside the control task's lock on a tick that logs. The dry law's μ(0)
+/// (0.238) over the stroke (`point`'s poses), 100…1300 kg, mean torques from the breakaway's
+/// to none (the trough then far up the lifting branch: both branches swept).
+fn count_stuck_reading(overhead: u32) {
+    use liftfw::ident::stick::StuckLowering;
+    let Ok(c) = Controller::new(&ControlConfig::DEFAULT, 20_000) else {
+        return;
+    };
+    let est = c.estimator();
+    let screw = est.screw();
+    let mu0 = Ratio::lit("0.238");
+    let mut st = Stats::new("ident StuckLowering::friction (a stuck reading at the status)");
+    for k in 0..N {
+        let (m, _, _) = point(k);
+        let pos = m.position_counts;
+        let (up, down) = (est.g_per_kg(pos, 1), est.g_per_kg(pos, -1));
+        let Some(s) = StuckLowering::new(screw, mu0, i64::from(up), i64::from(down)) else {
+            continue;
+        };
+        let load = Kilograms::from_bits((100 + 100 * (k as i32 % 13)) << 12);
+        // From the breakaway P (k % 8 = 0) to a mean of 7/8 less.
+        let p = -s.breakaway_torque(load);
+        let mean = p - p * (k as i64 % 8) / 8;
+        st.push(
+            ticks((s, load, mean), |(s, l, t)| s.friction(screw, l, t)),
+            overhead,
+        );
+    }
+    st.report();
+    println!(
+        "ICOUNT-NOTE StuckLowering::friction max {} (status only, up to three a status; not in the tick's budget)",
+        st.max()
+    );
 }
 
 /// Encoder counter, current and supply codes of a lift at the default drive following the

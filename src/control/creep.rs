@@ -13,7 +13,7 @@
 //! the cruise. Its breakaways weigh the car: the stuck thread's torque at the breakaway is
 //! M·|τ(1)| (`ident::stick::StuckLowering`). The lowering then keeps that load (a held
 //! lowering: its own samples, light as they read, do not set it) and its T_r is the stuck
-//! thread's at the mean torque.
+//! thread's mean over the sticks' wind-up.
 //!
 //! Cold: once at a lowering's start, a counter on the creep's ticks, once at its end.
 

@@ -11,8 +11,9 @@
 //! mobilised on average: the thread torque at ρ is τ_up(ρ) = r_m·ξ_up(ρ·μ(0))·(G_R + ρ·G_F) per
 //! kilogram (the pins resist lifting with ρ of their capacity: G_R = (G_up + G_down)/2 the load's
 //! push, G_F = (G_up − G_down)/2 the pins'), and the friction torque ρ·μ(0)·|N|·r_m·cos λ; the
-//! mean T_r is that at ρ̄ where M·τ_up(ρ̄) = T̄ ([`lift_friction`], as a lowering's
-//! [`StuckLowering::friction`]). Its first-order form, T_r linear in T between the lead's
+//! mean T_r is that at ρ̄ where M·τ_up(ρ̄) = T̄ ([`lift_friction`]; a lowering's
+//! [`StuckLowering::friction`] averages T_r over the sticks' wind-up instead, where the pins
+//! bend T_r against T). Its first-order form, T_r linear in T between the lead's
 //! T₀ = ρ₀·M·G_R (ρ₀ = r_m·tan λ) and P, read 1…2 % heavier (host-sim, dry lifts: 1000 kg
 //! +1.6 → −1.6 %, 700 kg from 200 mm +3.0 → +1.5 %, 1.5× drier +4.2…+5.2 → +3.2…+4.3 %).
 
@@ -97,8 +98,8 @@ pub fn periodic_breakaway(
 /// `g_down` (Q23 N/kg), for the law in force's μ(0) `mu0`: the mobilisation ρ̄ where
 /// M·τ_up(ρ̄) = T̄, τ_up(ρ) = r_m·ξ_up(ρ·μ(0))·(G_R + ρ·G_F) (the pins resist lifting; τ_up
 /// rises with ρ: bisection, 16 steps, clamped to [0, 1]), and the friction torque there,
-/// T_r = M·r_m·ρ̄μ₀·(G_R + ρ̄·G_F)/(1 − ρ̄μ₀·tan λ) (the plant's μ_s·|N|·r_m·cos λ), as the
-/// lowering's [`StuckLowering::friction`]. `None` out of range. At the status, not in the tick.
+/// T_r = M·r_m·ρ̄μ₀·(G_R + ρ̄·G_F)/(1 − ρ̄μ₀·tan λ) (the plant's μ_s·|N|·r_m·cos λ). `None`
+/// out of range. At the status, not in the tick.
 #[inline(never)]
 pub fn lift_friction(
     screw: &ScrewModel,
@@ -108,23 +109,18 @@ pub fn lift_friction(
     load: Kilograms,
     mean: i64,
 ) -> Option<NewtonMetres> {
-    let (g_r, g_f) = (
-        div_pow2_i64(g_up + g_down, 1),
-        div_pow2_i64(g_up - g_down, 1),
-    );
-    let (m, mu) = (i64::from(load.bits()), i64::from(mu0.bits()));
-    if m <= 0 || mu <= 0 || g_r <= 0 || g_f < 0 {
+    let m = i64::from(load.bits());
+    if m <= 0 {
         return None;
     }
-    let mu_at = |rho: i64| Ratio::from_raw(sat32((mu * rho) >> 16));
-    let w_at = |rho: i64| g_r + ((g_f * rho) >> 16);
-    // T̄ per kilogram, Q16·2^36 / Q12 = Q40; τ(ρ) Q32·Q23 = Q55 → Q40.
+    // The lift's statics are the lowering's mirrored (ρ resists lifting): its model, d = +1
+    // (its ρ_x and breakaway are the lowering's, unused here).
+    let s = StuckLowering::start(screw, mu0, g_up, g_down)?;
+    // T̄ per kilogram, Q16·2^36 / Q12 = Q40.
     let per_kg = mean.checked_mul(1 << 36)?.checked_div(m)?;
-    let rho = bisect_mobilisation(ONE, |mid| {
-        Some(super::pair::rho_q32(screw, mu_at(mid), 1)?.checked_mul(w_at(mid))? >> 15 < per_kg)
-    })?;
-    let tr = stuck_friction(screw, mu_at(rho), w_at(rho), m, 1)?;
-    Some(NewtonMetres::from_raw(sat32(tr)))
+    let (_, tr) = s.node(screw, s.mobilisation(screw, per_kg, 1)?, 1)?;
+    // Q40 per kg · M (Q12) → Q16.
+    Some(NewtonMetres::from_raw(sat32(tr.checked_mul(m)? >> 36)))
 }
 
 /// The mobilisation ρ (Q16) in [0, `hi`] where `below(ρ)` (the thread torque short of the
@@ -142,19 +138,18 @@ fn bisect_mobilisation(hi: i64, below: impl Fn(i64) -> Option<bool>) -> Option<i
     Some((lo + hi) >> 1)
 }
 
-/// The stuck thread's friction torque, Q16 N·m (its magnitude): load `m` (Q12 kg) at the
-/// mobilised coefficient `mu` = ρ·μ(0) under the axial force per kilogram `w` (Q23 N/kg),
-/// lifting (`dir` +1) or lowering (−1): M·r_m·μ·w/(1 − dir·μ·tan λ), the plant's
-/// μ_s·|N|·r_m·cos λ.
-fn stuck_friction(screw: &ScrewModel, mu: Ratio, w: i64, m: i64, dir: i64) -> Option<i64> {
+/// The stuck thread's friction torque per kilogram, Q40 N·m (its magnitude), at the mobilised
+/// coefficient `mu` = ρ·μ(0) under the axial force per kilogram `w` (Q23 N/kg), lifting (`dir`
+/// +1) or lowering (−1): r_m·μ·w/(1 − dir·μ·tan λ), the plant's μ_s·|N|·r_m·cos λ.
+fn stuck_friction(screw: &ScrewModel, mu: Ratio, w: i64, dir: i64) -> Option<i64> {
     // r_m·μ/(1 ∓ μ·tan λ): Q24·Q28 → Q32 (>> 20), over the Q28 denominator.
     let mu = i64::from(mu.bits());
     let t = i64::from(screw.tan_lambda().bits());
     let r = i64::from(screw.pitch_radius().bits());
     let den = (1i64 << 28) - dir * ((mu * t) >> 28);
     let f = ((r * mu) >> 20).checked_mul(1 << 28)?.checked_div(den)?;
-    // Q32·Q23 → Q40 per kg; ·M (Q12) → Q52 → Q16.
-    Some((f.checked_mul(w)? >> 15).checked_mul(m)? >> 36)
+    // Q32·Q23 → Q40 per kg.
+    Some(f.checked_mul(w)? >> 15)
 }
 
 /// A stuck lowering (docs/model.md "A stick-slipping lowering"): the thread torque per
@@ -236,19 +231,73 @@ impl StuckLowering {
     #[inline(never)]
     pub fn finish(&mut self, screw: &ScrewModel) -> bool {
         // |τ(1)| in Q32 N·m per kg must fit 32 bits for `load`'s reciprocal.
-        self.tau_b = match self.tau(screw, ONE) {
+        self.tau_b = match self.torque(screw, ONE, -1) {
             Some(t) if t < 0 && (-t) >> 8 <= i64::from(u32::MAX) => -t,
             _ => 0,
         };
         self.tau_b != 0
     }
 
-    /// τ(ρ) (ρ Q16), Q40 N·m per kg, signed.
-    fn tau(&self, screw: &ScrewModel, rho: i64) -> Option<i64> {
-        let r = super::pair::rho_q32(screw, self.mu_at(rho), -1)?;
-        let w = self.g_r - ((self.g_f * rho) >> 16);
+    /// The stuck thread's torque per kilogram at mobilisation ρ (Q16) resisting the motion
+    /// `d` (−1: lowering, τ(ρ); +1: lifting, the mirror
+    /// τ_up(ρ) = r_m·ξ_up(ρ·μ(0))·(G_R + ρ·G_F)), Q40 N·m, signed. Out of line: the bisection
+    /// and the sweep's nodes share it.
+    #[inline(never)]
+    fn torque(&self, screw: &ScrewModel, rho: i64, d: i64) -> Option<i64> {
+        let r = super::pair::rho_q32(screw, self.mu_at(rho), d as i8)?;
+        let w = self.g_r + d * ((self.g_f * rho) >> 16);
         // Q32·Q23 = Q55 → Q40.
         Some(r.checked_mul(w)? >> 15)
+    }
+
+    /// [`Self::torque`] and the friction torque there, d·r_m·ρμ₀·w/(1 − d·ρμ₀·tan λ) (the
+    /// plant's μ_s·|N|·r_m·cos λ, signed as the friction resists), per kilogram, Q40 N·m.
+    #[inline(never)]
+    fn node(&self, screw: &ScrewModel, rho: i64, d: i64) -> Option<(i64, i64)> {
+        let w = self.g_r + d * ((self.g_f * rho) >> 16);
+        let tr = stuck_friction(screw, self.mu_at(rho), w, d)?;
+        Some((self.torque(screw, rho, d)?, d * tr))
+    }
+
+    /// The mobilisation ρ (Q16) where [`Self::torque`] resisting `d` is `t` (Q40 per kg), on
+    /// its monotone branch: lowering [0, ρ_x], lifting [0, 1] (τ_up rises with ρ). Bisection,
+    /// 16 steps, clamped to the branch's ends.
+    #[inline(never)]
+    fn mobilisation(&self, screw: &ScrewModel, t: i64, d: i64) -> Option<i64> {
+        let hi = if d < 0 { self.rho_x } else { ONE };
+        bisect_mobilisation(hi, |mid| Some(d * self.torque(screw, mid, d)? < d * t))
+    }
+
+    /// ∫T_r dT along the branch resisting `d` from mobilisation `from` to `to` (Q16) in
+    /// [`WINDUP_SEGMENTS`] equal steps of ρ, the trapezoid rule on the curve (τ, T_r)(ρ)
+    /// ([`Self::node`]), added to `acc`: the area (Q48: 2·T_r·|ΔT| summed, both Q24 per kg)
+    /// and the span Σ 2·|ΔT| (Q24), whose ratio is the mean T_r over the span, Q24 per
+    /// kilogram. Where nothing has spanned yet (T̄ at P), T_r at `to` over a unit span.
+    #[inline(never)]
+    fn sweep(
+        &self,
+        screw: &ScrewModel,
+        from: i64,
+        to: i64,
+        d: i64,
+        acc: (i64, i64),
+    ) -> Option<(i64, i64)> {
+        let (mut area, mut span) = acc;
+        let (mut t0, mut r0) = self.node(screw, from, d)?;
+        for k in 1..=WINDUP_SEGMENTS {
+            // (Floored: exact at the last node.)
+            let rho = from + (((to - from) * k) >> WINDUP_LOG2);
+            let (t1, r1) = self.node(screw, rho, d)?;
+            let dt = ((t1 - t0) >> 16).abs();
+            area = area.checked_add(((r0 + r1) >> 16).checked_mul(dt)?)?;
+            span = span.checked_add(2 * dt)?;
+            (t0, r0) = (t1, r1);
+        }
+        Some(if span == 0 {
+            (r0 >> 16, 1)
+        } else {
+            (area, span)
+        })
     }
 
     /// ρ·μ(0) (ρ Q16).
@@ -280,27 +329,51 @@ impl StuckLowering {
     }
 
     /// The mean friction torque T̄_r of a stick-slipping lowering of load `load` whose mean
-    /// thread torque is `mean` (signed, Q16 N·m): the mobilisation ρ̄ where M·τ(ρ̄) = T̄ (τ falls
-    /// monotonically from ρ = 0, the load's push alone, to ρ_x: bisection, 16 steps, clamped
-    /// to its ends), and the friction torque there,
-    /// T_r = −M·r_m·ρ̄μ₀·(G_R − ρ̄·G_F)/(1 + ρ̄μ₀·tan λ) (the plant's μ_s·|N|·r_m·cos λ). A
-    /// sawtooth's wind-up runs uniformly through the thread torque and T_r is nearly linear in
-    /// it between the slip's trough and the breakaway, so the mean T_r is T_r at the mean
-    /// torque. `None` out of range. At the status, not in the tick.
+    /// thread torque is `mean` T̄ (signed, Q16 N·m). Each stick winds the coupling up at the
+    /// reference speed, uniformly in time, from the slip's trough to the breakaway
+    /// P = M·τ(1) (the slip is nearly free, so the trough is 2·T̄ − P), and the mean T_r is the
+    /// mean over that span of the stuck thread's T_r at each torque: along τ's monotone branch
+    /// from the breakaway's ρ_P (τ(ρ_P) = τ(1), ρ_P ≤ ρ_x) back to the trough's ρ, where
+    /// T_r = −M·r_m·ρμ₀·(G_R − ρ·G_F)/(1 + ρμ₀·tan λ) (the plant's μ_s·|N|·r_m·cos λ); a trough
+    /// above the load's push alone (τ(0)) goes on along the lifting branch, the statics then
+    /// holding the screw against lifting (the plant's ρ < 0), and stops at its
+    /// breakaway. The integral ∫T_r dT runs over [`WINDUP_SEGMENTS`] equal steps of ρ on each
+    /// branch (the trapezoid rule on the curve (T(ρ), T_r(ρ)): no inversion but the ends').
+    /// T_r is curved in T where the pins take much of the push (ρ's slope steepens towards
+    /// ρ_x), so T_r at the mean torque is not the mean T_r (host-sim, dry 1000 kg lowering from
+    /// 150 mm, seed 102: the thread stands 98 % of the cruise, the coupling's torque spread
+    /// evenly over −9.0…+4.2 N·m; T_r at the mean torque read −9.00 N·m against the plant's
+    /// mean −8.72). A mean beyond the breakaway (noise) reads the span from P to τ's peak.
+    /// `None` out of range. At the status, not in the tick.
     #[inline(never)]
     pub fn friction(&self, screw: &ScrewModel, load: Kilograms, mean: i64) -> Option<NewtonMetres> {
         let m = i64::from(load.bits());
-        if m <= 0 {
+        if m <= 0 || self.tau_b == 0 {
             return None;
         }
-        // T̄ per kilogram, Q16·2^36 / Q12 = Q40.
-        let per_kg = mean.checked_mul(1 << 36)?.checked_div(m)?;
-        let rho = bisect_mobilisation(self.rho_x, |mid| Some(self.tau(screw, mid)? > per_kg))?;
-        let w = self.g_r - ((self.g_f * rho) >> 16);
-        let tr = stuck_friction(screw, self.mu_at(rho), w, m, -1)?;
-        Some(NewtonMetres::from_raw(sat32(-tr)))
+        // Per kilogram, Q40 N·m: T̄ (Q16·2^36 / Q12), P = −|τ(1)|, the trough 2·T̄ − P.
+        let mean = mean.checked_mul(1 << 36)?.checked_div(m)?;
+        let p = -self.tau_b;
+        let trough = mean.saturating_mul(2).saturating_sub(p);
+        // Along the lowering branch from P to the trough, or to the push alone (ρ = 0).
+        let from = self.mobilisation(screw, trough, -1)?;
+        let to = self.mobilisation(screw, p, -1)?;
+        let mut acc = self.sweep(screw, from, to, -1, (0, 0))?;
+        if trough > self.torque(screw, 0, -1)? {
+            let to = self.mobilisation(screw, trough, 1)?;
+            acc = self.sweep(screw, 0, to, 1, acc)?;
+        }
+        let (area, span) = acc;
+        // The mean T_r per kilogram (Q24) · M (Q12) → Q16.
+        let tr = (area / span).checked_mul(m)? >> 20;
+        Some(NewtonMetres::from_raw(sat32(tr)))
     }
 }
+
+/// How many equal steps of ρ [`StuckLowering::friction`] integrates each branch of a wind-up
+/// over, and its log2.
+pub const WINDUP_SEGMENTS: i64 = 1 << WINDUP_LOG2;
+const WINDUP_LOG2: u32 = 3;
 
 /// Q16 one (a mobilisation of 1).
 const ONE: i64 = 1 << 16;

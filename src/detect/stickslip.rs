@@ -602,10 +602,8 @@ impl StickSlipDetector {
         self.filled = 0;
         self.prev_reference = 0;
         self.since_fall = u32::MAX;
-        if self.periodicity.filled != 0 {
-            self.periodicity.reset();
-        }
-        self.periodic_run = 0;
+        // (The periodicity stays until the next motion's first ticks reset it: a fast
+        // stick-slip's period is read at rest, `fast_period_q8`.)
         self.last = [0; 2];
         self.steady = 0;
         self.in_event = 0;
@@ -686,10 +684,15 @@ impl StickSlipDetector {
         if self.steady < self.settle_ticks || self.filled < MEAN_LEN {
             self.peak = mean;
             self.in_event = 0;
-            if self.periodicity.filled != 0 {
-                self.periodicity.reset();
+            // A fast stick-slip's period outlasts its cruise, through the braking to the
+            // motion's end (`Controller::end_load_motion` reads the lift's breakaways then, at
+            // rest); a new motion (the ring filling) starts afresh.
+            if self.filled < MEAN_LEN || self.periodic_run < PER_TICKS {
+                if self.periodicity.filled != 0 {
+                    self.periodicity.reset();
+                }
+                self.periodic_run = 0;
             }
-            self.periodic_run = 0;
         } else {
             let periodic = self.periodicity.step(p, self.per_min);
             self.periodic_run = if periodic {

@@ -852,6 +852,52 @@ fn sawtooth_period(n: u32, period: f64, pp: f64, noise: f64, x: &mut u32, lag: &
     20.0 + *lag + noise * u
 }
 
+/// A fast stick-slipping lift's period outlasts its cruise: through the braking's ramp and at
+/// rest after it (`Controller::end_load_motion` reads the lift's breakaways from it when the
+/// lift has come to rest, and pairs them with the next lowering's: host-sim, dry 250 kg on a
+/// thread 2× drier, its 11-tick cycles' period was gone by then, no pair formed and the
+/// thread's dryness was never warned about), and the next motion starts without it.
+#[test]
+fn a_fast_stick_slip_s_period_outlasts_the_braking_and_the_rest_until_the_next_motion() {
+    let l = law(FrictionLaw::DRY);
+    let mut d = StickSlipDetector::new(&cfg("0.5"), 1000);
+    let (mut x, mut lag) = (3u32, 0.0);
+    for n in 0..1000u32 {
+        let t = fast_sawtooth(n, 2.0, 0.1, &mut x, &mut lag);
+        d.step(&drive(NewtonMetres::from_f64(t), "2"), &l);
+    }
+    let cruise = d.fast_period_q8().expect("periodic at cruise");
+    assert!((6 * 256..8 * 256).contains(&cruise), "{cruise}");
+    // Braking: the reference ramps down 0.05 rad/s a tick, the torque falls to a flat 18 N·m.
+    for k in 1..=40u32 {
+        let r = RadiansPerSecond::from_f64(2.0 - 0.05 * f64::from(k));
+        let x = DetectorInputs {
+            reference: r,
+            ..drive(NewtonMetres::from_f64(18.0), "0")
+        };
+        d.step(&x, &l);
+        assert_eq!(d.fast_period_q8(), Some(cruise), "braking tick {k}");
+    }
+    // At rest, the bridge off.
+    for k in 0..50 {
+        let rest = DetectorInputs {
+            driving: false,
+            direction: 0,
+            reference: RadiansPerSecond::ZERO,
+            measured_torque: NewtonMetres::ZERO,
+        };
+        d.step(&rest, &l);
+        assert_eq!(d.fast_period_q8(), Some(cruise), "rest tick {k}");
+    }
+    // The next motion (a lowering from rest) forgets it on its first tick.
+    let lower = DetectorInputs {
+        direction: -1,
+        ..drive(NewtonMetres::from_f64(-5.0), "-0.05")
+    };
+    d.step(&lower, &l);
+    assert_eq!(d.fast_period_q8(), None);
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 200, max_global_rejects: 100_000, ..ProptestConfig::default() })]
 

@@ -534,6 +534,7 @@ fn count_instructions() {
     count_rest_work(overhead);
     count_rest_ticks(overhead);
     count_stuck_reading(overhead);
+    count_held_status(overhead);
 }
 
 /// A held lowering's stuck reading (`ident::stick::StuckLowering::friction`, the mean T_r over
@@ -696,6 +697,65 @@ fn count_creep_ticks(overhead: u32, s_curve: bool) -> u32 {
         c.status().load.load.to_f64()
     );
     press.max().max(creep.max())
+}
+
+/// The whole status (`Controller::status`, which the firmware builds inside the control task's
+/// lock on a tick that logs) of a dry lowering its creep weighed and now holds: its T_r and
+/// T_r range are the stuck thread's readings (`ident::stick::StuckLowering::friction`, up to
+/// three), the costliest status there is. [`count_creep_ticks`]' lowering (its current's
+/// sawtooth weighs 2 200 kg), with the overload margin at its 2.0 maximum so that the car is
+/// not refused, the encoder following the reference; 16 statuses, one every 16 ticks of the
+/// cruise after the creep.
+fn count_held_status(overhead: u32) {
+    let mut cfg = ControlConfig::DEFAULT;
+    cfg.estimator.law = liftfw::model::friction::FrictionLaw::DRY;
+    cfg.protection.overload_margin = Ratio::lit("2.0");
+    let start = motion(0).1.position_counts + 4096;
+    let Ok(mut c) = Controller::new(&cfg, start) else {
+        return;
+    };
+    // Counts per tick per rad/s at the screw (0.3 rad/s: 0.1375 counts a tick).
+    let per = 0.1375 / 0.3;
+    let mut pos = f64::from(start);
+    let mut inputs = |k: u32, buttons: u8, r: f64| {
+        pos += r * per;
+        let amps_milli = -3000 - 100 * (k % 50) as i32;
+        Inputs {
+            encoder_count: (pos as i32) as u16,
+            encoder_edge_age: 0,
+            current_raw: (2048 + amps_milli * 1000 / 32_227) as u16,
+            supply_raw: 2820,
+            switches: Switches(buttons),
+        }
+    };
+    for k in 0..700u32 {
+        let inp = inputs(0, 0, 0.0);
+        tick(&mut c, Instant(k * 1000), &inp);
+    }
+    let mut st = Stats::new("Controller::status of a held dry lowering (its stuck readings)");
+    for k in 0..1200u32 {
+        let r = c.reference().to_f64();
+        let inp = inputs(k, Switches::BUTTON_DOWN, r);
+        tick(&mut c, Instant(700_000 + 1000 * k), &inp);
+        // After the creep (≈ 100 ticks) and the ramp to the cruise.
+        if k >= 400 && k % 16 == 15 && c.state() == State::Lowering {
+            st.push(ticks((), |_| c.status()), overhead);
+        }
+    }
+    let s = c.status();
+    println!(
+        "ICOUNT-CHECK the held lowering: state {:?}, load {} kg, T_r {} in {}…{} N·m",
+        c.state(),
+        s.load.load.to_f64(),
+        s.friction_torque.to_f64(),
+        s.friction_torque_range.0.to_f64(),
+        s.friction_torque_range.1.to_f64()
+    );
+    st.report();
+    println!(
+        "ICOUNT-NOTE Controller::status of a held lowering max {} (at the status, inside the control task's lock; not in the tick's budget)",
+        st.max()
+    );
 }
 
 /// Control ticks that enter a pose segment (one exact pose node in the estimator, docs/model.md

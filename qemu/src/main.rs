@@ -541,7 +541,7 @@ fn count_instructions() {
 /// the sticks' wind-up; docs/model.md): the status builds up to three (the reading and its
 /// range's ends), inside the control task's lock on a tick that logs. The dry law's μ(0)
 /// (0.238) over the stroke (`point`'s poses), 100…1300 kg, mean torques from the breakaway's
-/// to none (the trough then far up the lifting branch: both branches swept).
+/// to an eighth of it (the trough then far up the lifting branch: both branches swept).
 fn count_stuck_reading(overhead: u32) {
     use liftfw::ident::stick::StuckLowering;
     let Ok(c) = Controller::new(&ControlConfig::DEFAULT, 20_000) else {
@@ -637,12 +637,11 @@ fn count_creep_ticks(overhead: u32, s_curve: bool) -> u32 {
         return 0;
     };
     let inputs = |k: usize, buttons: u8| {
-        // 0.3 rad/s at the screw: 0.1375 counts per tick down; −3 → −8 A over each 50 ticks.
-        let amps_milli = -3000 - 100 * (k % 50) as i32;
+        // 0.3 rad/s at the screw: 0.1375 counts per tick down.
         Inputs {
             encoder_count: (start - (k as i32 * 1375 / 10_000)) as u16,
             encoder_edge_age: 0,
-            current_raw: (2048 + amps_milli * 1000 / 32_227) as u16,
+            current_raw: creep_current(k as u32),
             supply_raw: 2820,
             switches: Switches(buttons),
         }
@@ -699,6 +698,13 @@ fn count_creep_ticks(overhead: u32, s_curve: bool) -> u32 {
     press.max().max(creep.max())
 }
 
+/// The current-sense code of a stick-slipping dry lowering's tick `k`: −3 → −8 A over each
+/// 50 ticks (a stick's wind-up, then its slip), at 32.227 mA per code.
+fn creep_current(k: u32) -> u16 {
+    let amps_milli = -3000 - 100 * (k % 50) as i32;
+    (2048 + amps_milli * 1000 / 32_227) as u16
+}
+
 /// The whole status (`Controller::status`, which the firmware builds inside the control task's
 /// lock on a tick that logs) of a dry lowering its creep weighed and now holds: its T_r and
 /// T_r range are the stuck thread's readings (`ident::stick::StuckLowering::friction`, up to
@@ -719,11 +725,10 @@ fn count_held_status(overhead: u32) {
     let mut pos = f64::from(start);
     let mut inputs = |k: u32, buttons: u8, r: f64| {
         pos += r * per;
-        let amps_milli = -3000 - 100 * (k % 50) as i32;
         Inputs {
             encoder_count: (pos as i32) as u16,
             encoder_edge_age: 0,
-            current_raw: (2048 + amps_milli * 1000 / 32_227) as u16,
+            current_raw: creep_current(k),
             supply_raw: 2820,
             switches: Switches(buttons),
         }

@@ -481,9 +481,9 @@ impl Controller {
     /// A held lowering (one that stick-slips: `ident::LoadIdent::hold_start`, or weighed by its
     /// creep): its load, and its mean T_r as the stuck thread's over the sticks' wind-up, from
     /// the breakaway to the trough the mean measured thread torque of its samples implies
-    /// (`ident::stick::StuckLowering::friction`; the sliding model's
-    /// T_r at that load is 17…27 % off the plant's mean over stick and slip). `None`
-    /// otherwise, or before its first sample. At the status, not in the tick.
+    /// (`ident::stick::StuckLowering::friction`; the sliding model's T_r at that load is
+    /// 17…27 % off the plant's mean over stick and slip). `None` otherwise, or before its
+    /// first sample. At the status, not in the tick.
     fn stick_slip_lower(&self) -> Option<(Kilograms, NewtonMetres)> {
         if !self.loadid.ident.held() {
             return None;
@@ -494,8 +494,8 @@ impl Controller {
     /// A lowering's load and mean T_r read as a stuck thread's (`stick_slip_lower`), for the
     /// load `load` at the scale in force, on a thread `f` times as dry: the stuck thread's
     /// breakaway of that load, P = M·|τ(1)|, read at μ(0)·f for the load there, and that
-    /// load's mean T_r over the wind-up at the same mean torque. `None` while not lowering, or before its first
-    /// sample.
+    /// load's mean T_r over the wind-up at the same mean torque. `None` while not lowering, or
+    /// before its first sample.
     #[inline(never)]
     fn stuck_lowering(&self, f: Ratio, load: Kilograms) -> Option<(Kilograms, NewtonMetres)> {
         let id = &self.loadid;

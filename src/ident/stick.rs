@@ -245,17 +245,15 @@ impl StuckLowering {
     #[inline(never)]
     fn torque(&self, screw: &ScrewModel, rho: i64, d: i64) -> Option<i64> {
         let r = super::pair::rho_q32(screw, self.mu_at(rho), d as i8)?;
-        let w = self.g_r + d * ((self.g_f * rho) >> 16);
         // Q32·Q23 = Q55 → Q40.
-        Some(r.checked_mul(w)? >> 15)
+        Some(r.checked_mul(self.w_at(rho, d))? >> 15)
     }
 
     /// [`Self::torque`] and the friction torque there, d·r_m·ρμ₀·w/(1 − d·ρμ₀·tan λ) (the
     /// plant's μ_s·|N|·r_m·cos λ, signed as the friction resists), per kilogram, Q40 N·m.
     #[inline(never)]
     fn node(&self, screw: &ScrewModel, rho: i64, d: i64) -> Option<(i64, i64)> {
-        let w = self.g_r + d * ((self.g_f * rho) >> 16);
-        let tr = stuck_friction(screw, self.mu_at(rho), w, d)?;
+        let tr = stuck_friction(screw, self.mu_at(rho), self.w_at(rho, d), d)?;
         Some((self.torque(screw, rho, d)?, d * tr))
     }
 
@@ -298,6 +296,12 @@ impl StuckLowering {
         } else {
             (area, span)
         })
+    }
+
+    /// The axial force per kilogram at mobilisation ρ (Q16) resisting `d`, G_R + d·ρ·G_F
+    /// (Q23 N/kg): the pins take ρ of their capacity against the motion.
+    fn w_at(&self, rho: i64, d: i64) -> i64 {
+        self.g_r + d * ((self.g_f * rho) >> 16)
     }
 
     /// ρ·μ(0) (ρ Q16).

@@ -58,6 +58,12 @@ pub struct Mcu {
     /// The CPU executes nothing before this time (a hung CPU, for the watchdog test); the
     /// peripherals run.
     pub stall_until: u64,
+    /// The longest an interrupt waited, pending but masked (PRIMASK, BASEPRI, or a handler of
+    /// its priority or higher running), before its handler was entered: instructions (HCLK
+    /// cycles), resolved to the ≤ 200-instruction slices the run takes while one is pending.
+    pub irq_latency_max: u64,
+    /// Since when (instruction count) the highest pending interrupt has waited.
+    pending_since: Option<u64>,
 }
 
 const R: [RegisterARM; 8] = [
@@ -278,6 +284,8 @@ impl Mcu {
             uc,
             sleeping: None,
             stall_until: 0,
+            irq_latency_max: 0,
+            pending_since: None,
         };
         // Vector table at 0 = the flash's start (BOOT0 low).
         let sp = mcu.read_word(FLASH_BASE)?;
@@ -492,12 +500,19 @@ impl Mcu {
                 .scs
                 .execution_priority(primask, basepri, faultmask);
             let pending = self.bus_ref().scs.highest_pending();
+            let insns = self.bus_ref().insns;
             if let Some((e, p)) = pending {
                 if p < exec {
+                    if let Some(since) = self.pending_since.take() {
+                        self.irq_latency_max = self.irq_latency_max.max(insns - since);
+                    }
                     let pc = self.pc();
                     self.enter(e, pc).map_err(Stop::Error)?;
                     continue;
                 }
+                self.pending_since.get_or_insert(insns);
+            } else {
+                self.pending_since = None;
             }
             if let Some(wfi) = self.sleeping {
                 // WFI wakes on an interrupt that would preempt were PRIMASK clear.

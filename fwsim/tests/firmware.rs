@@ -210,6 +210,40 @@ fn homing_then_a_lift_halts_where_the_core_in_the_loop_does() {
     );
 }
 
+/// No interrupt waits long, even while the console reads the status of a held lowering (dry,
+/// 1000 kg from 200 mm: the creep weighs the car, the status sweeps three stuck readings,
+/// ≈ 52 000 instructions). The controller's lock once took a critical section: interrupts
+/// (the time driver's alarm, the console's receive) stayed off through every status.
+#[test]
+#[ignore = "needs FWSIM_ELF"]
+fn interrupts_wait_briefly_while_the_console_reads_a_held_lowering() {
+    let mut r = rig(parked_store(counts_at(200.0).unwrap()).unwrap(), 200.0);
+    boot(&mut r);
+    let reply = r.command("goto 195mm", 1.0).unwrap();
+    assert!(reply.starts_with("ok"), "{reply}");
+    let mut statuses = 0;
+    let mut held = false;
+    while r.t < 8.0 {
+        let line = r.command("status", 0.2).unwrap();
+        statuses += 1;
+        held |= line.contains("state=lowering") && line.contains("stick_slip=yes");
+        if line.contains("state=holding") || line.contains("state=idle") {
+            break;
+        }
+        r.run_for(0.02).unwrap();
+    }
+    let worst = r.machine.mcu.irq_latency_max;
+    println!(
+        "{statuses} statuses, held lowering seen: {held}, longest interrupt wait {worst} instructions ({:.1} us at 170 MHz)",
+        worst as f64 / 170.0
+    );
+    assert!(
+        held && statuses > 10,
+        "{statuses} statuses, held lowering seen: {held}"
+    );
+    assert!(worst < 8_000, "an interrupt waited {worst} instructions");
+}
+
 #[test]
 #[ignore = "needs FWSIM_ELF"]
 fn config_save_then_power_cycle_keeps_the_stops() {

@@ -257,6 +257,28 @@ const BOOT_REST_MS: u64 = 600;
 
 /// Run one case.
 pub fn run_case(c: &Case) -> Result<Outcome, String> {
+    run_case_observed(c, None)
+}
+
+/// The plant at one integration step of a case's move, for [`run_case_observed`]'s observer.
+#[derive(Clone, Copy, Debug)]
+pub struct Step<'a> {
+    /// The move's index (0: the first; the drier set's lift, lower, lift).
+    pub index: usize,
+    /// Seconds since the move was commanded.
+    pub t: f64,
+    /// The core was at its cruise on the tick before this one.
+    pub cruise: bool,
+    /// The plant's state.
+    pub record: &'a crate::trace::Record,
+}
+
+/// [`run_case`], calling `observe` with the plant at every integration step of the moves (the
+/// plant's own detail under the core's 1 kHz: what the sensors average over).
+pub fn run_case_observed(
+    c: &Case,
+    mut observe: Option<&mut dyn FnMut(Step<'_>)>,
+) -> Result<Outcome, String> {
     let g = Geometry::paper();
     let s = (c.start_mm * 1e-3 - g.h0) / g.length;
     let start_deg = s.asin().to_degrees();
@@ -309,7 +331,7 @@ pub fn run_case(c: &Case) -> Result<Outcome, String> {
     // measures the current sense's zero (`control::sense`, a batch of ZERO_SAMPLES codes once
     // the rest has settled).
     let mut t = sim.step_n(per_tick * BOOT_REST_MS);
-    for &up in &dirs {
+    for (index, &up) in dirs.iter().enumerate() {
         // Command the move from where the core believes the screw is.
         {
             let mut g = lock(&shared);
@@ -322,7 +344,25 @@ pub fn run_case(c: &Case) -> Result<Outcome, String> {
         let t_start = t;
         loop {
             // The plant's T_r: the mean over the tick's integration steps.
-            let (now, tr_tick) = sim.step_n_mean_friction(per_tick);
+            let (now, tr_tick) = match observe.as_deref_mut() {
+                None => sim.step_n_mean_friction(per_tick),
+                Some(f) => {
+                    let cruise = ticks.last().is_some_and(|k| k.cruise);
+                    let (mut now, mut sum) = (t, 0.0);
+                    for _ in 0..per_tick {
+                        now = sim.step_n(1);
+                        let record = sim.record(now);
+                        sum += record.friction_torque;
+                        f(Step {
+                            index,
+                            t: now - t_start,
+                            cruise,
+                            record: &record,
+                        });
+                    }
+                    (now, sum / per_tick as f64)
+                }
+            };
             t = now;
             let r = sim.record(t);
             let g = lock(&shared);
@@ -714,6 +754,38 @@ fn plot(path: &Path, results: &[(Case, Result<Outcome, String>)]) -> Result<(), 
         Ok(())
     };
     draw().map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The amplitude of the sinusoid of frequency `f` (Hz) in `x`, sampled every `dt` s: one bin
+/// of the discrete Fourier transform (Goertzel's recurrence), the mean removed first.
+pub fn tone(x: &[f64], dt: f64, f: f64) -> f64 {
+    if x.is_empty() {
+        return 0.0;
+    }
+    let mean = x.iter().sum::<f64>() / x.len() as f64;
+    let w = 2.0 * std::f64::consts::PI * f * dt;
+    let c = 2.0 * w.cos();
+    let (mut s1, mut s2) = (0.0f64, 0.0f64);
+    for &v in x {
+        let s0 = (v - mean) + c * s1 - s2;
+        s2 = s1;
+        s1 = s0;
+    }
+    // |X(f)|² = s1² + s2² − c·s1·s2; the amplitude is 2|X|/N.
+    let power = (s1 * s1 + s2 * s2 - c * s1 * s2).max(0.0);
+    2.0 * power.sqrt() / x.len() as f64
+}
+
+/// The strongest frequency of `x` (sampled every `dt` s) in `lo..=hi` Hz, on a grid of `step`
+/// Hz, and its amplitude ([`tone`]).
+pub fn dominant(x: &[f64], dt: f64, lo: f64, hi: f64, step: f64) -> (f64, f64) {
+    let n = ((hi - lo) / step).floor().max(0.0) as usize;
+    (0..=n)
+        .map(|k| {
+            let f = lo + k as f64 * step;
+            (f, tone(x, dt, f))
+        })
+        .fold((lo, 0.0), |best, x| if x.1 > best.1 { x } else { best })
 }
 
 #[cfg(test)]

@@ -539,7 +539,7 @@ fn count_instructions() {
 
 /// A held lowering's stuck reading (`ident::stick::StuckLowering::friction`, the mean T_r over
 /// the sticks' wind-up; docs/model.md): the status builds up to three (the reading and its
-/// range's ends), inside the control task's lock on a tick that logs. The dry law's μ(0)
+/// range's ends), on a tick that logs and for the console's `status`. The dry law's μ(0)
 /// (0.238) over the stroke (`point`'s poses), 100…1300 kg, mean torques from the breakaway's
 /// to an eighth of it (the trough then far up the lifting branch: both branches swept).
 fn count_stuck_reading(overhead: u32) {
@@ -758,7 +758,7 @@ fn count_held_status(overhead: u32) {
     );
     st.report();
     println!(
-        "ICOUNT-NOTE Controller::status of a held lowering max {} (at the status, inside the control task's lock; not in the tick's budget)",
+        "ICOUNT-NOTE Controller::status of a held lowering max {} (at the status; not in the tick's budget)",
         st.max()
     );
 }

@@ -45,6 +45,15 @@ fn boot(r: &mut Rig) -> String {
     seen + &r.machine.take_console()
 }
 
+/// A board parked at 200 mm, booted, that accepted the motion command `goto`.
+fn parked_at_200_mm_then(goto: &str) -> Rig {
+    let mut r = rig(parked_store(counts_at(200.0).unwrap()).unwrap(), 200.0);
+    boot(&mut r);
+    let reply = r.command(goto, 1.0).unwrap();
+    assert!(reply.starts_with("ok"), "{goto}: {reply}");
+    r
+}
+
 /// The core in the loop: the same plant, the core's `Controller` at 1 kHz, the buttons pressed
 /// by `script(t, controller) -> buttons` (which may also send commands).
 fn core_in_the_loop(
@@ -211,16 +220,13 @@ fn homing_then_a_lift_halts_where_the_core_in_the_loop_does() {
 }
 
 /// No interrupt waits long, even while the console reads the status of a held lowering (dry,
-/// 1000 kg from 200 mm: the creep weighs the car, the status sweeps three stuck readings,
-/// ≈ 52 000 instructions). The controller's lock once took a critical section: interrupts
-/// (the time driver's alarm, the console's receive) stayed off through every status.
+/// 1000 kg from 200 mm: the creep weighs the car, each status sweeps three stuck readings).
+/// The controller's lock once took a critical section: interrupts (the time driver's alarm,
+/// the console's receive) stayed off through every status, 31 165 instructions at worst here.
 #[test]
 #[ignore = "needs FWSIM_ELF"]
 fn interrupts_wait_briefly_while_the_console_reads_a_held_lowering() {
-    let mut r = rig(parked_store(counts_at(200.0).unwrap()).unwrap(), 200.0);
-    boot(&mut r);
-    let reply = r.command("goto 195mm", 1.0).unwrap();
-    assert!(reply.starts_with("ok"), "{reply}");
+    let mut r = parked_at_200_mm_then("goto 195mm");
     let mut statuses = 0;
     let mut held = false;
     while r.t < 8.0 {
@@ -387,10 +393,7 @@ fn a_power_cut_during_a_save_boots_with_the_old_or_the_new_stops_never_a_mix() {
 #[test]
 #[ignore = "needs FWSIM_ELF"]
 fn an_over_current_on_the_adc_trips_within_a_millisecond() {
-    let mut r = rig(parked_store(counts_at(200.0).unwrap()).unwrap(), 200.0);
-    boot(&mut r);
-    let reply = r.command("goto 300mm", 1.0).unwrap();
-    assert!(reply.starts_with("ok"), "{reply}");
+    let mut r = parked_at_200_mm_then("goto 300mm");
     r.run_for(0.5).unwrap();
     assert!(matches!(
         fwsim::plant::bridge_of(&r.machine.board_out()),

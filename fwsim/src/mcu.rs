@@ -62,8 +62,12 @@ pub struct Mcu {
     /// its priority or higher running), before its handler was entered: instructions (HCLK
     /// cycles), resolved to the ≤ 200-instruction slices the run takes while one is pending.
     pub irq_latency_max: u64,
-    /// Since when (instruction count) the highest pending interrupt has waited.
-    pending_since: Option<u64>,
+    /// Where the CPU was when the longest wait began (the code that masked it).
+    pub irq_latency_pc: u32,
+    /// … and when it ended (within a 200-instruction slice of the code that unmasked it).
+    pub irq_latency_end_pc: u32,
+    /// Since when (instruction count) the highest pending interrupt has waited, and the PC then.
+    pending_since: Option<(u64, u32)>,
 }
 
 const R: [RegisterARM; 8] = [
@@ -285,6 +289,8 @@ impl Mcu {
             sleeping: None,
             stall_until: 0,
             irq_latency_max: 0,
+            irq_latency_pc: 0,
+            irq_latency_end_pc: 0,
             pending_since: None,
         };
         // Vector table at 0 = the flash's start (BOOT0 low).
@@ -503,14 +509,20 @@ impl Mcu {
             let insns = self.bus_ref().insns;
             if let Some((e, p)) = pending {
                 if p < exec {
-                    if let Some(since) = self.pending_since.take() {
-                        self.irq_latency_max = self.irq_latency_max.max(insns - since);
+                    if let Some((since, pc)) = self.pending_since.take() {
+                        if insns - since > self.irq_latency_max {
+                            self.irq_latency_max = insns - since;
+                            self.irq_latency_pc = pc;
+                            self.irq_latency_end_pc = self.pc();
+                        }
                     }
                     let pc = self.pc();
                     self.enter(e, pc).map_err(Stop::Error)?;
                     continue;
                 }
-                self.pending_since.get_or_insert(insns);
+                if self.pending_since.is_none() {
+                    self.pending_since = Some((insns, self.pc()));
+                }
             } else {
                 self.pending_since = None;
             }

@@ -240,8 +240,10 @@ fn interrupts_wait_briefly_while_the_console_reads_a_held_lowering() {
     }
     let worst = r.machine.mcu.irq_latency_max;
     println!(
-        "{statuses} statuses, held lowering seen: {held}, longest interrupt wait {worst} instructions ({:.1} us at 170 MHz)",
-        worst as f64 / 170.0
+        "{statuses} statuses, held lowering seen: {held}, longest interrupt wait {worst} instructions ({:.1} us at 170 MHz), from pc {:#010x} to {:#010x}",
+        worst as f64 / 170.0,
+        r.machine.mcu.irq_latency_pc,
+        r.machine.mcu.irq_latency_end_pc
     );
     assert!(
         held && statuses > 10,

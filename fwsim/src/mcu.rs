@@ -62,7 +62,8 @@ pub struct Mcu {
     /// its priority or higher running), before its handler was entered: instructions (HCLK
     /// cycles), resolved to the ≤ 200-instruction slices the run takes while one is pending.
     pub irq_latency_max: u64,
-    /// Where the CPU was when the longest wait began (the code that masked it).
+    /// Where the CPU was when the longest wait was first seen (inside the code that kept the
+    /// interrupt masked).
     pub irq_latency_pc: u32,
     /// … and when it ended (within a 200-instruction slice of the code that unmasked it).
     pub irq_latency_end_pc: u32,
@@ -509,14 +510,14 @@ impl Mcu {
             let insns = self.bus_ref().insns;
             if let Some((e, p)) = pending {
                 if p < exec {
-                    if let Some((since, pc)) = self.pending_since.take() {
+                    let pc = self.pc();
+                    if let Some((since, from)) = self.pending_since.take() {
                         if insns - since > self.irq_latency_max {
                             self.irq_latency_max = insns - since;
-                            self.irq_latency_pc = pc;
-                            self.irq_latency_end_pc = self.pc();
+                            self.irq_latency_pc = from;
+                            self.irq_latency_end_pc = pc;
                         }
                     }
-                    let pc = self.pc();
                     self.enter(e, pc).map_err(Stop::Error)?;
                     continue;
                 }

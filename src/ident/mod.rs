@@ -1323,6 +1323,38 @@ mod tests {
         assert!(floor > lo + 100.0, "floor {floor}, interval from {lo}");
     }
 
+    /// A stored scale anywhere in `Ratio`'s range, the post-pair band reaching past what the
+    /// law can take: the interval and the trip's floor stay ordered (lower end ≤ floor ≤ load
+    /// ≤ upper end), without a panic (overflow checks on in tests).
+    #[test]
+    fn any_stored_scale_gives_an_ordered_interval_and_floor() {
+        let sc = screw();
+        for s in [
+            0.001, 0.1, 0.5, 1.0, 2.0, 5.0, 20.0, 100.0, 1000.0, 32_767.0,
+        ] {
+            let mut id = LoadIdent::new(
+                Kilograms::lit("1000"),
+                NewtonMetres::from_f64(0.5),
+                Some(Ratio::from_f64(s)),
+                1000,
+            );
+            id.set_interval(&sc, Ratio::from_f64(0.21));
+            motion(&mut id, &sc, 1, 1000.0, s.min(4.0), 400);
+            let (lo, hi) = id.interval();
+            let load = id.load();
+            if let Some(floor) = id.load_floor() {
+                assert!(
+                    lo <= floor && floor <= load,
+                    "scale {s}: {lo:?} {floor:?} {load:?}"
+                );
+            }
+            assert!(
+                lo <= load && load <= hi,
+                "scale {s}: {lo:?} {load:?} {hi:?}"
+            );
+        }
+    }
+
     /// A steady motion of a head of `m` kg at the rated model load (as the controller's
     /// samples), the thread nominal, whose load gain at tick k is `g_at(k)` = (the pose's g,
     /// the g the gain evaluation sees); `each` after every sample.
